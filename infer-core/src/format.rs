@@ -1,0 +1,217 @@
+//! Blob format v1: the one definition of the bytes a trained policy travels in.
+//!
+//! ```text
+//! offset  size  field
+//! 0       4     magic  b"SMLB"
+//! 4       2     format version, u16 little-endian (= 1)
+//! 6       4     payload length in bytes, u32 little-endian
+//! 10      4     CRC-32 (IEEE) of the payload, u32 little-endian
+//! 14      n     payload: postcard encoding of `Payload`
+//! ```
+//!
+//! Every tensor in the payload is a postcard byte string (varint length + raw bytes), so a
+//! loaded [`Model`](crate::Model) borrows its weights from the blob in place: `f32` values are
+//! little-endian and read with `f32::from_le_bytes` (no alignment needed), `i8` weights are
+//! the bytes themselves. Weight matrices are row-major `[out][in]`.
+
+use serde::{Deserialize, Serialize};
+
+/// The four bytes every blob starts with.
+pub const MAGIC: [u8; 4] = *b"SMLB";
+/// The blob format version this crate reads and writes.
+pub const FORMAT_VERSION: u16 = 1;
+/// Bytes before the payload: magic, version, length, checksum.
+pub const ENVELOPE_LEN: usize = 14;
+/// Most layers one MLP of a blob may have.
+pub const MAX_LAYERS: usize = 4;
+
+/// What the context encoder reads per transition.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ModelKind {
+    /// Transitions are `(s, a, s')`: the encoder input is `[norm(s), a, norm(s')]`.
+    StateAction,
+    /// Transitions are `(s, s')`: the encoder input is `[norm(s), norm(s')]`.
+    StateOnly,
+}
+
+/// How weights and activations are stored and computed.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Quant {
+    /// `f32` weights and activations: the reference.
+    F32,
+    /// `i8` weights, symmetric per output channel with an `f32` scale; `f32` activations.
+    W8A32,
+    /// `i8` weights and activations, `i32` accumulation; one calibrated `f32` scale per layer
+    /// input.
+    W8A8,
+}
+
+impl Quant {
+    /// Bytes per stored weight.
+    pub const fn weight_bytes(self) -> usize {
+        match self {
+            Quant::F32 => 4,
+            Quant::W8A32 | Quant::W8A8 => 1,
+        }
+    }
+}
+
+/// The non-linearity after a layer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Activation {
+    /// No non-linearity.
+    Identity,
+    /// `max(x, 0)`.
+    Relu,
+    /// `tanh(x)`.
+    Tanh,
+}
+
+impl Activation {
+    #[inline]
+    pub(crate) fn apply(self, x: f32) -> f32 {
+        match self {
+            Activation::Identity => x,
+            Activation::Relu => x.max(0.0),
+            Activation::Tanh => libm::tanhf(x),
+        }
+    }
+}
+
+/// The fixed-size facts about a model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Header {
+    /// What the encoder reads per transition.
+    pub kind: ModelKind,
+    /// Weight and activation storage.
+    pub quant: Quant,
+    /// Observation dimension.
+    pub obs_dim: u16,
+    /// Action dimension.
+    pub act_dim: u16,
+    /// Per-transition representation dimension (encoder output).
+    pub r_dim: u16,
+    /// Latent task variable dimension.
+    pub z_dim: u16,
+}
+
+impl Header {
+    /// Width of one encoder input row: `2 obs + act` (state-action) or `2 obs` (state-only).
+    pub const fn transition_dim(&self) -> usize {
+        let base = 2 * self.obs_dim as usize;
+        match self.kind {
+            ModelKind::StateAction => base + self.act_dim as usize,
+            ModelKind::StateOnly => base,
+        }
+    }
+}
+
+/// A byte string serialised as postcard bytes and borrowed back in place.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub(crate) struct Bytes<'a>(pub &'a [u8]);
+
+impl Serialize for Bytes<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_bytes(self.0)
+    }
+}
+
+impl<'de: 'a, 'a> Deserialize<'de> for Bytes<'a> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Bytes<'de>;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str("borrowed bytes")
+            }
+            fn visit_borrowed_bytes<E: serde::de::Error>(
+                self,
+                v: &'de [u8],
+            ) -> Result<Self::Value, E> {
+                Ok(Bytes(v))
+            }
+        }
+        d.deserialize_bytes(Visitor)
+    }
+}
+
+/// One dense layer as stored: `y = act(W x + b)`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub(crate) struct LayerRecord<'a> {
+    pub in_dim: u16,
+    pub out_dim: u16,
+    pub activation: Activation,
+    /// `[out][in]` weights: `f32` LE (F32) or `i8` (W8A32, W8A8).
+    #[serde(borrow)]
+    pub weights: Bytes<'a>,
+    /// `[out]` biases, `f32` LE.
+    #[serde(borrow)]
+    pub bias: Bytes<'a>,
+    /// `[out]` per-channel weight scales, `f32` LE; empty for F32.
+    #[serde(borrow)]
+    pub weight_scale: Bytes<'a>,
+    /// Input activation scale (W8A8 only; 0 otherwise).
+    pub input_scale: f32,
+}
+
+/// The layers of one MLP.
+pub(crate) type Layers<'a> = heapless::Vec<LayerRecord<'a>, MAX_LAYERS>;
+
+/// Everything after the envelope.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub(crate) struct Payload<'a> {
+    pub header: Header,
+    #[serde(borrow)]
+    pub obs_mean: Bytes<'a>,
+    #[serde(borrow)]
+    pub obs_std: Bytes<'a>,
+    #[serde(borrow)]
+    pub act_scale: Bytes<'a>,
+    #[serde(borrow)]
+    pub act_offset: Bytes<'a>,
+    /// Per-transition MLP: transition -> r.
+    #[serde(borrow)]
+    pub encoder: Layers<'a>,
+    /// Head: sum over trajectories of the per-trajectory mean r -> posterior mean of z.
+    #[serde(borrow)]
+    pub z_head: Layers<'a>,
+    /// Policy: `[norm(obs), z]` -> pre-tanh action mean.
+    #[serde(borrow)]
+    pub policy: Layers<'a>,
+}
+
+/// CRC-32 (IEEE 802.3, reflected, as zlib's `crc32`), table built at compile time.
+pub fn crc32(bytes: &[u8]) -> u32 {
+    const TABLE: [u32; 256] = {
+        let mut table = [0u32; 256];
+        let mut i = 0;
+        while i < 256 {
+            let mut c = i as u32;
+            let mut k = 0;
+            while k < 8 {
+                c = if c & 1 != 0 {
+                    0xEDB8_8320 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+                k += 1;
+            }
+            table[i] = c;
+            i += 1;
+        }
+        table
+    };
+    let mut crc = !0u32;
+    for &b in bytes {
+        crc = TABLE[((crc ^ b as u32) & 0xFF) as usize] ^ (crc >> 8);
+    }
+    !crc
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn crc32_matches_the_standard_check_value() {
+        assert_eq!(super::crc32(b"123456789"), 0xCBF4_3926);
+    }
+}

@@ -1,0 +1,139 @@
+//! Dense-layer kernels for the three quantization schemes.
+//!
+//! Bit-exactness by construction: every floating-point sum has a fixed association order
+//! (eight interleaved partial sums combined pairwise), Rust never contracts `a * b + c` into
+//! an FMA on its own, and the transcendental functions come from `libm`, so the same blob and
+//! inputs give the same bits on every build for a given target.
+
+use crate::format::{LayerRecord, Quant};
+use crate::model::F32s;
+
+/// Lanes of the fixed-order float reduction; 8 lets the compiler keep one AVX register.
+const LANES: usize = 8;
+
+#[inline]
+fn reduce(acc: [f32; LANES]) -> f32 {
+    ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))
+}
+
+/// `sum_i w[i] * x[i]` with `f32` weights stored little-endian.
+#[inline]
+fn dot_f32(w: &[u8], x: &[f32]) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let mut w_chunks = w.chunks_exact(4 * LANES);
+    let mut x_chunks = x.chunks_exact(LANES);
+    for (wc, xc) in (&mut w_chunks).zip(&mut x_chunks) {
+        for k in 0..LANES {
+            let b = &wc[4 * k..4 * k + 4];
+            acc[k] += f32::from_le_bytes([b[0], b[1], b[2], b[3]]) * xc[k];
+        }
+    }
+    for (k, (b, xv)) in w_chunks
+        .remainder()
+        .chunks_exact(4)
+        .zip(x_chunks.remainder())
+        .enumerate()
+    {
+        acc[k] += f32::from_le_bytes([b[0], b[1], b[2], b[3]]) * xv;
+    }
+    reduce(acc)
+}
+
+/// `sum_i w[i] * x[i]` with `i8` weights and `f32` inputs.
+#[inline]
+fn dot_i8_f32(w: &[u8], x: &[f32]) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let mut w_chunks = w.chunks_exact(LANES);
+    let mut x_chunks = x.chunks_exact(LANES);
+    for (wc, xc) in (&mut w_chunks).zip(&mut x_chunks) {
+        for k in 0..LANES {
+            acc[k] += (wc[k] as i8) as f32 * xc[k];
+        }
+    }
+    for (k, (&wv, xv)) in w_chunks
+        .remainder()
+        .iter()
+        .zip(x_chunks.remainder())
+        .enumerate()
+    {
+        acc[k] += (wv as i8) as f32 * xv;
+    }
+    reduce(acc)
+}
+
+/// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely).
+#[inline]
+fn dot_i8_i8(w: &[u8], x: &[i8]) -> i32 {
+    w.iter()
+        .zip(x)
+        .map(|(&wv, &xv)| (wv as i8) as i32 * xv as i32)
+        .sum()
+}
+
+/// Symmetric int8 quantization of one activation: `clamp(round(x / scale), -127, 127)`.
+#[inline]
+pub(crate) fn quantize(x: f32, scale: f32) -> i8 {
+    libm::roundf(x / scale).clamp(-127.0, 127.0) as i8
+}
+
+/// One dense layer: `y = act(W x + b)`. `x` has `in_dim` values, `y` gets `out_dim`;
+/// `q` is scratch for the quantized input (W8A8 only). Shapes were validated at load time.
+pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f32], q: &mut [i8]) {
+    let (n_in, n_out) = (layer.in_dim as usize, layer.out_dim as usize);
+    let x = &x[..n_in];
+    let bias = F32s(layer.bias.0);
+    let w = layer.weights.0;
+    match quant {
+        Quant::F32 => {
+            for (o, y_o) in y[..n_out].iter_mut().enumerate() {
+                let row = &w[4 * o * n_in..4 * (o + 1) * n_in];
+                *y_o = layer.activation.apply(dot_f32(row, x) + bias.get(o));
+            }
+        }
+        Quant::W8A32 => {
+            let scale = F32s(layer.weight_scale.0);
+            for (o, y_o) in y[..n_out].iter_mut().enumerate() {
+                let row = &w[o * n_in..(o + 1) * n_in];
+                *y_o = layer
+                    .activation
+                    .apply(dot_i8_f32(row, x) * scale.get(o) + bias.get(o));
+            }
+        }
+        Quant::W8A8 => {
+            let s_in = layer.input_scale;
+            let q = &mut q[..n_in];
+            for (qv, &xv) in q.iter_mut().zip(x) {
+                *qv = quantize(xv, s_in);
+            }
+            let scale = F32s(layer.weight_scale.0);
+            for (o, y_o) in y[..n_out].iter_mut().enumerate() {
+                let row = &w[o * n_in..(o + 1) * n_in];
+                let acc = dot_i8_i8(row, q);
+                *y_o = layer
+                    .activation
+                    .apply(acc as f32 * (scale.get(o) * s_in) + bias.get(o));
+            }
+        }
+    }
+}
+
+/// Runs a whole MLP. The input is in `a[..in_dim]`; returns which buffer holds the output
+/// (`false`: `a`, `true`: `b`) so callers avoid a copy.
+pub(crate) fn mlp(
+    layers: &[LayerRecord<'_>],
+    quant: Quant,
+    a: &mut [f32],
+    b: &mut [f32],
+    q: &mut [i8],
+) -> bool {
+    let mut in_b = false;
+    for layer in layers {
+        if in_b {
+            dense(layer, quant, b, a, q);
+        } else {
+            dense(layer, quant, a, b, q);
+        }
+        in_b = !in_b;
+    }
+    in_b
+}

@@ -1,0 +1,469 @@
+//! The blob writer (feature `alloc`): float layers + normalisation + calibration data in,
+//! quantized blob bytes out. The trainer's exporter calls this; nothing else writes blobs.
+
+extern crate alloc;
+
+use alloc::vec::Vec;
+use core::fmt;
+
+use crate::format::{
+    self, Activation, Bytes, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC,
+    MAX_LAYERS, ModelKind, Payload, Quant,
+};
+
+/// One float dense layer, `y = act(W x + b)`, weights row-major `[out][in]`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloatLayer {
+    /// Input width.
+    pub in_dim: usize,
+    /// Output width.
+    pub out_dim: usize,
+    /// `out_dim * in_dim` weights, row `o` holds the weights of output `o`.
+    pub weights: Vec<f32>,
+    /// `out_dim` biases.
+    pub bias: Vec<f32>,
+    /// Non-linearity after the layer.
+    pub activation: Activation,
+}
+
+impl FloatLayer {
+    fn forward(&self, x: &[f32]) -> Vec<f32> {
+        (0..self.out_dim)
+            .map(|o| {
+                let row = &self.weights[o * self.in_dim..(o + 1) * self.in_dim];
+                let s: f32 = row.iter().zip(x).map(|(w, v)| w * v).sum();
+                self.activation.apply(s + self.bias[o])
+            })
+            .collect()
+    }
+}
+
+/// A float model in the exact structure of a blob; also the `f32` reference implementation
+/// the quantized blobs are measured against.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FloatModel {
+    /// What the encoder reads per transition.
+    pub kind: ModelKind,
+    /// Observation dimension.
+    pub obs_dim: usize,
+    /// Action dimension.
+    pub act_dim: usize,
+    /// Per-transition representation dimension.
+    pub r_dim: usize,
+    /// Latent dimension.
+    pub z_dim: usize,
+    /// Observation normalisation mean (`obs_dim`).
+    pub obs_mean: Vec<f32>,
+    /// Observation normalisation std (`obs_dim`, > 0).
+    pub obs_std: Vec<f32>,
+    /// Action scale: `action = tanh(mean) * scale + offset`.
+    pub act_scale: Vec<f32>,
+    /// Action offset.
+    pub act_offset: Vec<f32>,
+    /// Per-transition encoder MLP: transition -> r.
+    pub encoder: Vec<FloatLayer>,
+    /// Head: summed per-trajectory mean r -> posterior mean of z.
+    pub z_head: Vec<FloatLayer>,
+    /// Policy MLP: `[norm(obs), z]` -> pre-tanh action mean (last activation identity).
+    pub policy: Vec<FloatLayer>,
+}
+
+/// Sample inputs from which the `w8a8` activation scales are calibrated.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Calibration {
+    /// Contexts: each is a list of trajectories, each a list of raw transitions
+    /// `[s, a, s']` (state-action) or `[s, s']` (state-only), unnormalised.
+    pub contexts: Vec<Vec<Vec<Vec<f32>>>>,
+    /// Raw observations; observation `i` is paired with the latent of context `i % n`.
+    pub observations: Vec<Vec<f32>>,
+}
+
+/// Why a float model could not be written as a blob.
+#[derive(Debug, Clone, PartialEq)]
+#[non_exhaustive]
+pub enum WriteError {
+    /// A dimension or tensor length is inconsistent.
+    Shape(&'static str),
+    /// More layers in one MLP than the format allows.
+    TooManyLayers {
+        /// Which MLP.
+        part: &'static str,
+    },
+    /// A weight or statistic is NaN or infinite.
+    NonFinite(&'static str),
+    /// `w8a8` needs calibration contexts and observations.
+    MissingCalibration,
+    /// A dimension does not fit the format's `u16`.
+    TooLarge,
+    /// The finished blob did not load back (a bug in the writer; please report).
+    SelfCheck(crate::BlobError),
+}
+
+impl fmt::Display for WriteError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::Shape(what) => write!(f, "inconsistent shape: {what}"),
+            Self::TooManyLayers { part } => write!(f, "{part}: more than {MAX_LAYERS} layers"),
+            Self::NonFinite(what) => write!(f, "{what}: NaN or infinite value"),
+            Self::MissingCalibration => {
+                f.write_str("w8a8 needs calibration contexts and observations")
+            }
+            Self::TooLarge => f.write_str("a dimension exceeds 65535"),
+            Self::SelfCheck(e) => write!(f, "written blob failed to load back: {e}"),
+        }
+    }
+}
+
+impl core::error::Error for WriteError {}
+
+fn run(layers: &[FloatLayer], x: &[f32], mut tap: impl FnMut(usize, &[f32])) -> Vec<f32> {
+    let mut v = x.to_vec();
+    for (i, l) in layers.iter().enumerate() {
+        tap(i, &v);
+        v = l.forward(&v);
+    }
+    v
+}
+
+impl FloatModel {
+    fn normalise(&self, x: &[f32]) -> Vec<f32> {
+        x.iter()
+            .zip(&self.obs_mean)
+            .zip(&self.obs_std)
+            .map(|((v, m), s)| (v - m) / s)
+            .collect()
+    }
+
+    /// The encoder input row for one raw transition.
+    fn encoder_input(&self, t: &[f32]) -> Vec<f32> {
+        let o = self.obs_dim;
+        let mut row = self.normalise(&t[..o]);
+        let next_at = match self.kind {
+            ModelKind::StateAction => {
+                row.extend_from_slice(&t[o..o + self.act_dim]);
+                o + self.act_dim
+            }
+            ModelKind::StateOnly => o,
+        };
+        row.extend(self.normalise(&t[next_at..next_at + o]));
+        row
+    }
+
+    fn context_sum(
+        &self,
+        context: &[Vec<Vec<f32>>],
+        mut tap: impl FnMut(usize, &[f32]),
+    ) -> Vec<f32> {
+        let mut sum = alloc::vec![0.0f32; self.r_dim];
+        for trajectory in context.iter().filter(|t| !t.is_empty()) {
+            let mut traj = alloc::vec![0.0f32; self.r_dim];
+            for t in trajectory {
+                let r = run(&self.encoder, &self.encoder_input(t), &mut tap);
+                traj.iter_mut().zip(&r).for_each(|(a, b)| *a += b);
+            }
+            let n = trajectory.len() as f32;
+            sum.iter_mut().zip(&traj).for_each(|(s, t)| *s += t / n);
+        }
+        sum
+    }
+
+    /// Float reference of [`ContextEncoder`](crate::ContextEncoder): posterior mean of z.
+    pub fn latent(&self, context: &[Vec<Vec<f32>>]) -> Vec<f32> {
+        run(
+            &self.z_head,
+            &self.context_sum(context, |_, _| {}),
+            |_, _| {},
+        )
+    }
+
+    /// Float reference of [`Policy::act`](crate::Policy::act).
+    pub fn act(&self, obs: &[f32], z: &[f32]) -> Vec<f32> {
+        let mut x = self.normalise(obs);
+        x.extend_from_slice(z);
+        let mean = run(&self.policy, &x, |_, _| {});
+        mean.iter()
+            .enumerate()
+            .map(|(i, m)| libm::tanhf(*m) * self.act_scale[i] + self.act_offset[i])
+            .collect()
+    }
+
+    /// Largest absolute input seen by each layer of (encoder, z_head, policy) on `calib`.
+    fn input_ranges(&self, calib: &Calibration) -> [Vec<f32>; 3] {
+        let mut ranges = [
+            alloc::vec![0.0f32; self.encoder.len()],
+            alloc::vec![0.0f32; self.z_head.len()],
+            alloc::vec![0.0f32; self.policy.len()],
+        ];
+        let track = |r: &mut Vec<f32>, i: usize, x: &[f32]| {
+            let m = x.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+            r[i] = r[i].max(m);
+        };
+        let mut latents = Vec::new();
+        for context in &calib.contexts {
+            let sum = self.context_sum(context, |i, x| track(&mut ranges[0], i, x));
+            latents.push(run(&self.z_head, &sum, |i, x| track(&mut ranges[1], i, x)));
+        }
+        for (i, obs) in calib.observations.iter().enumerate() {
+            let mut x = self.normalise(obs);
+            x.extend_from_slice(&latents[i % latents.len()]);
+            run(&self.policy, &x, |l, v| track(&mut ranges[2], l, v));
+        }
+        ranges
+    }
+
+    fn check(&self) -> Result<(), WriteError> {
+        let vectors = [
+            ("obs_mean", &self.obs_mean, self.obs_dim),
+            ("obs_std", &self.obs_std, self.obs_dim),
+            ("act_scale", &self.act_scale, self.act_dim),
+            ("act_offset", &self.act_offset, self.act_dim),
+        ];
+        for (name, v, n) in vectors {
+            if v.len() != n {
+                return Err(WriteError::Shape(name));
+            }
+            if v.iter().any(|x| !x.is_finite()) {
+                return Err(WriteError::NonFinite(name));
+            }
+        }
+        if self.obs_std.iter().any(|s| *s <= 0.0) {
+            return Err(WriteError::Shape("obs_std must be > 0"));
+        }
+        for (name, layers) in [
+            ("encoder", &self.encoder),
+            ("z_head", &self.z_head),
+            ("policy", &self.policy),
+        ] {
+            if layers.len() > MAX_LAYERS {
+                return Err(WriteError::TooManyLayers { part: name });
+            }
+            for l in layers {
+                if l.weights.len() != l.in_dim * l.out_dim || l.bias.len() != l.out_dim {
+                    return Err(WriteError::Shape(name));
+                }
+                if l.weights.iter().chain(&l.bias).any(|x| !x.is_finite()) {
+                    return Err(WriteError::NonFinite(name));
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+fn f32_bytes(v: &[f32]) -> Vec<u8> {
+    v.iter().flat_map(|x| x.to_le_bytes()).collect()
+}
+
+/// Owned bytes of one quantized layer, before they are borrowed into a [`LayerRecord`].
+struct EncodedLayer {
+    layer: (u16, u16, Activation),
+    weights: Vec<u8>,
+    bias: Vec<u8>,
+    weight_scale: Vec<u8>,
+    input_scale: f32,
+}
+
+fn encode_layer(
+    l: &FloatLayer,
+    quant: Quant,
+    input_range: f32,
+) -> Result<EncodedLayer, WriteError> {
+    let dims = (
+        u16::try_from(l.in_dim).map_err(|_| WriteError::TooLarge)?,
+        u16::try_from(l.out_dim).map_err(|_| WriteError::TooLarge)?,
+        l.activation,
+    );
+    let (weights, weight_scale) = match quant {
+        Quant::F32 => (f32_bytes(&l.weights), Vec::new()),
+        Quant::W8A32 | Quant::W8A8 => {
+            let mut q = Vec::with_capacity(l.weights.len());
+            let mut scales = Vec::with_capacity(l.out_dim);
+            for row in l.weights.chunks_exact(l.in_dim.max(1)) {
+                let max = row.iter().fold(0.0f32, |m, w| m.max(w.abs()));
+                // An all-zero row quantizes to zeros under any scale; 1 keeps scales > 0.
+                let scale = if max > 0.0 { max / 127.0 } else { 1.0 };
+                q.extend(
+                    row.iter()
+                        .map(|w| crate::kernels::quantize(*w, scale) as u8),
+                );
+                scales.push(scale);
+            }
+            (q, f32_bytes(&scales))
+        }
+    };
+    let input_scale = match quant {
+        Quant::W8A8 if input_range > 0.0 => input_range / 127.0,
+        Quant::W8A8 => 1.0,
+        _ => 0.0,
+    };
+    Ok(EncodedLayer {
+        layer: dims,
+        weights,
+        bias: f32_bytes(&l.bias),
+        weight_scale,
+        input_scale,
+    })
+}
+
+fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
+    let mut layers = Layers::new();
+    for e in encoded {
+        // Length was checked against MAX_LAYERS in `FloatModel::check`.
+        let _ = layers.push(LayerRecord {
+            in_dim: e.layer.0,
+            out_dim: e.layer.1,
+            activation: e.layer.2,
+            weights: Bytes(&e.weights),
+            bias: Bytes(&e.bias),
+            weight_scale: Bytes(&e.weight_scale),
+            input_scale: e.input_scale,
+        });
+    }
+    layers
+}
+
+/// Quantizes `model` with `quant` and returns the blob bytes. `calibration` is required for
+/// [`Quant::W8A8`] and ignored otherwise. The blob is loaded back before it is returned.
+pub fn write_blob(
+    model: &FloatModel,
+    quant: Quant,
+    calibration: &Calibration,
+) -> Result<Vec<u8>, WriteError> {
+    model.check()?;
+    let ranges = if quant == Quant::W8A8 {
+        if calibration.contexts.is_empty() || calibration.observations.is_empty() {
+            return Err(WriteError::MissingCalibration);
+        }
+        model.input_ranges(calibration)
+    } else {
+        [
+            alloc::vec![0.0; model.encoder.len()],
+            alloc::vec![0.0; model.z_head.len()],
+            alloc::vec![0.0; model.policy.len()],
+        ]
+    };
+    let encode = |layers: &[FloatLayer], ranges: &[f32]| -> Result<Vec<EncodedLayer>, WriteError> {
+        layers
+            .iter()
+            .zip(ranges)
+            .map(|(l, r)| encode_layer(l, quant, *r))
+            .collect()
+    };
+    let encoder = encode(&model.encoder, &ranges[0])?;
+    let z_head = encode(&model.z_head, &ranges[1])?;
+    let policy = encode(&model.policy, &ranges[2])?;
+    let dim = |d: usize| u16::try_from(d).map_err(|_| WriteError::TooLarge);
+    let (mean, std) = (f32_bytes(&model.obs_mean), f32_bytes(&model.obs_std));
+    let (scale, offset) = (f32_bytes(&model.act_scale), f32_bytes(&model.act_offset));
+    let payload = Payload {
+        header: Header {
+            kind: model.kind,
+            quant,
+            obs_dim: dim(model.obs_dim)?,
+            act_dim: dim(model.act_dim)?,
+            r_dim: dim(model.r_dim)?,
+            z_dim: dim(model.z_dim)?,
+        },
+        obs_mean: Bytes(&mean),
+        obs_std: Bytes(&std),
+        act_scale: Bytes(&scale),
+        act_offset: Bytes(&offset),
+        encoder: records(&encoder),
+        z_head: records(&z_head),
+        policy: records(&policy),
+    };
+    let body = postcard::to_allocvec(&payload).map_err(|_| WriteError::Shape("postcard"))?;
+    let len = u32::try_from(body.len()).map_err(|_| WriteError::TooLarge)?;
+    let mut blob = Vec::with_capacity(ENVELOPE_LEN + body.len());
+    blob.extend_from_slice(&MAGIC);
+    blob.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+    blob.extend_from_slice(&len.to_le_bytes());
+    blob.extend_from_slice(&format::crc32(&body).to_le_bytes());
+    blob.extend_from_slice(&body);
+    crate::Model::from_bytes(&blob).map_err(WriteError::SelfCheck)?;
+    Ok(blob)
+}
+
+/// Sizes of a model built by [`FloatModel::random`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Dims {
+    /// Observation dimension.
+    pub obs: usize,
+    /// Action dimension.
+    pub act: usize,
+    /// Per-transition representation dimension.
+    pub r: usize,
+    /// Latent dimension.
+    pub z: usize,
+    /// Width of the two hidden layers of each MLP.
+    pub hidden: usize,
+}
+
+impl Dims {
+    /// The project's default sizes (obs 20, act 6, r 32, z 16) at the given hidden width.
+    pub const fn default_with_hidden(hidden: usize) -> Self {
+        Self {
+            obs: 20,
+            act: 6,
+            r: 32,
+            z: 16,
+            hidden,
+        }
+    }
+}
+
+impl FloatModel {
+    /// A randomly initialised model (uniform fan-in init, seeded, deterministic) with two
+    /// hidden ReLU layers per MLP, identity normalisation and unit action scale. For tests,
+    /// benchmarks and footprint measurements; trained models come from the trainer's export.
+    pub fn random(kind: ModelKind, dims: Dims, seed: u64) -> Self {
+        let mut state = seed;
+        let mut next = move || {
+            // SplitMix64: tiny, seedable, and the same on every platform.
+            state = state.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            ((z ^ (z >> 31)) >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        let mut mlp = |sizes: &[usize], last: Activation| -> Vec<FloatLayer> {
+            sizes
+                .windows(2)
+                .enumerate()
+                .map(|(i, w)| {
+                    let bound = 1.0 / libm::sqrtf(w[0] as f32);
+                    FloatLayer {
+                        in_dim: w[0],
+                        out_dim: w[1],
+                        weights: (0..w[0] * w[1]).map(|_| next() * bound).collect(),
+                        bias: (0..w[1]).map(|_| next() * bound).collect(),
+                        activation: if i + 2 == sizes.len() {
+                            last
+                        } else {
+                            Activation::Relu
+                        },
+                    }
+                })
+                .collect()
+        };
+        let transition = match kind {
+            ModelKind::StateAction => 2 * dims.obs + dims.act,
+            ModelKind::StateOnly => 2 * dims.obs,
+        };
+        let h = dims.hidden;
+        FloatModel {
+            kind,
+            obs_dim: dims.obs,
+            act_dim: dims.act,
+            r_dim: dims.r,
+            z_dim: dims.z,
+            obs_mean: alloc::vec![0.0; dims.obs],
+            obs_std: alloc::vec![1.0; dims.obs],
+            act_scale: alloc::vec![1.0; dims.act],
+            act_offset: alloc::vec![0.0; dims.act],
+            encoder: mlp(&[transition, h, h, dims.r], Activation::Identity),
+            z_head: mlp(&[dims.r, h, dims.z], Activation::Identity),
+            policy: mlp(&[dims.obs + dims.z, h, h, dims.act], Activation::Identity),
+        }
+    }
+}

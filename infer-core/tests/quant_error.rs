@@ -1,0 +1,96 @@
+//! Quantization error of w8a32 and w8a8 against the f32 blob on random networks, reported
+//! (run with `--nocapture` to see the table) and bounded.
+
+mod common;
+
+use common::{Rng, blob_act, blob_latent, calibration, context, model};
+use infer_core::{Calibration, Model, ModelKind, Quant, write_blob};
+
+struct Stats {
+    max: f32,
+    sum: f64,
+    n: usize,
+}
+
+fn errors(kind: ModelKind, hidden: usize, quant: Quant) -> (Stats, Stats) {
+    let float = model(kind, hidden, 21);
+    let mut rng = Rng(99);
+    let calib = calibration(&mut rng, &float);
+    let reference = write_blob(&float, Quant::F32, &Calibration::default()).unwrap();
+    let quantized = write_blob(&float, quant, &calib).unwrap();
+    let (r, q) = (
+        Model::from_bytes(&reference).unwrap(),
+        Model::from_bytes(&quantized).unwrap(),
+    );
+    let (mut z_err, mut a_err) = (
+        Stats {
+            max: 0.0,
+            sum: 0.0,
+            n: 0,
+        },
+        Stats {
+            max: 0.0,
+            sum: 0.0,
+            n: 0,
+        },
+    );
+    // Held-out inputs: a different seed from the calibration data.
+    let mut rng = Rng(1234);
+    for i in 0..40 {
+        let ctx = context(&mut rng, &float, 1 + i % 4);
+        let (zr, zq) = (blob_latent(&r, &ctx), blob_latent(&q, &ctx));
+        for (a, b) in zr.iter().zip(&zq) {
+            let e = (a - b).abs();
+            z_err.max = z_err.max.max(e);
+            z_err.sum += e as f64;
+            z_err.n += 1;
+        }
+        for _ in 0..8 {
+            let obs = rng.vec(20, 1.5);
+            // The quantized policy runs on its own z: the error is the whole pipeline's.
+            for (a, b) in blob_act(&r, &obs, &zr).iter().zip(&blob_act(&q, &obs, &zq)) {
+                let e = (a - b).abs();
+                a_err.max = a_err.max.max(e);
+                a_err.sum += e as f64;
+                a_err.n += 1;
+            }
+        }
+    }
+    (z_err, a_err)
+}
+
+#[test]
+fn quantization_error_is_reported_and_bounded() {
+    println!("| kind | hidden | quant | z max | z mean | action max | action mean |");
+    println!("|---|---|---|---|---|---|---|");
+    for kind in [ModelKind::StateAction, ModelKind::StateOnly] {
+        for hidden in [64, 128] {
+            for (quant, max_bound, mean_bound) in
+                [(Quant::W8A32, 0.01, 0.002), (Quant::W8A8, 0.05, 0.005)]
+            {
+                let (z, a) = errors(kind, hidden, quant);
+                let mean = (a.sum / a.n as f64) as f32;
+                println!(
+                    "| {kind:?} | {hidden} | {quant:?} | {:.4} | {:.5} | {:.4} | {:.5} |",
+                    z.max,
+                    z.sum / z.n as f64,
+                    a.max,
+                    mean
+                );
+                assert!(
+                    a.max < max_bound,
+                    "{kind:?} {hidden} {quant:?}: max action error {}",
+                    a.max
+                );
+                assert!(
+                    mean < mean_bound,
+                    "{kind:?} {hidden} {quant:?}: mean action error {mean}"
+                );
+                assert!(
+                    a.max > 0.0,
+                    "quantization that changes nothing is suspicious"
+                );
+            }
+        }
+    }
+}
