@@ -1,0 +1,70 @@
+//! Typed errors of the environments.
+
+use crate::Family;
+
+/// Everything that can go wrong while building, resetting or stepping an environment.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// The action slice does not have the environment's action dimension.
+    #[error("action has {got} components, the {family} environment expects {expected}")]
+    ActionLength {
+        /// Family of the environment that rejected the action.
+        family: Family,
+        /// The environment's action dimension.
+        expected: usize,
+        /// Length of the action that was passed.
+        got: usize,
+    },
+    /// An action component is NaN or infinite; it never reaches the physics.
+    #[error("action component {index} is not finite ({value})")]
+    NonFiniteAction {
+        /// Index of the offending component.
+        index: usize,
+        /// Its value.
+        value: f32,
+    },
+    /// A task of one family was given to an environment of another family.
+    #[error("a {task_family} task was given to a {env_family} environment")]
+    TaskFamilyMismatch {
+        /// Family of the environment.
+        env_family: Family,
+        /// Family of the task.
+        task_family: Family,
+    },
+    /// `step` was called after the episode ended (terminated or reached its horizon).
+    #[error("the episode ended at step {step}; call reset before stepping again")]
+    EpisodeOver {
+        /// Number of steps the episode lasted.
+        step: usize,
+    },
+    /// A caller-provided output buffer has the wrong length.
+    #[error("output buffer has length {got}, expected {expected}")]
+    BufferLength {
+        /// Required length.
+        expected: usize,
+        /// Provided length.
+        got: usize,
+    },
+    /// A task family name that is not one of the known CLI names.
+    #[error("unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn")]
+    UnknownFamily(String),
+    /// A task parameter that is out of range or not finite.
+    #[error("invalid task parameter for {family}: {reason}")]
+    InvalidTask {
+        /// Family the parameter was meant for.
+        family: Family,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// The family is declared but its robot is not built by this version of the crate.
+    #[error("the {0} environment is not available in this build")]
+    FamilyUnavailable(Family),
+    /// The simulated state became non-finite (the physics diverged).
+    #[error("the {family} physics diverged at step {step} (non-finite state)")]
+    PhysicsDiverged {
+        /// Family of the environment.
+        family: Family,
+        /// Step at which the state became non-finite.
+        step: usize,
+    },
+}

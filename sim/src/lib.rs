@@ -1,0 +1,41 @@
+//! Planar (and later 3-D) Rapier task families for meta-imitation learning, their paper splits,
+//! scripted experts where honest, and the demo dataset format.
+//!
+//! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`) and gives its
+//!   meta-train / meta-test [`Task`] lists exactly as in the SMILe reference.
+//! - [`make_env`] builds a `Box<dyn` [`Environment`]`>`; `reset(task, seed)` then `step(action)`
+//!   returning a [`Transition`]. Environments are `Send`, deterministic, and never let a
+//!   non-finite action reach the physics ([`SimError`]).
+//! - [`EpisodeMetric`] turns the per-step [`StepInfo`] into the paper's per-episode metric.
+//! - [`render`] draws [`Frame`]s as SVG.
+#![warn(missing_docs)]
+
+mod dynamics;
+mod env;
+mod error;
+pub mod planar;
+pub mod point_goal;
+pub mod render;
+mod task;
+
+pub use dynamics::WalkerDynamics;
+pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
+pub use error::SimError;
+pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
+pub use render::Frame;
+pub use task::{
+    Family, GOAL_RADIUS, MetricKind, Split, Task, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,
+};
+
+#[cfg(test)]
+mod api_tests {
+    use super::*;
+
+    fn assert_send<T: Send>() {}
+
+    #[test]
+    fn boxed_environments_are_send() {
+        assert_send::<Box<dyn Environment>>();
+        assert_send::<PointGoalEnv>();
+    }
+}

@@ -1,0 +1,368 @@
+//! Task families, their tasks and the paper's meta-train / meta-test splits.
+
+use std::f32::consts::PI;
+use std::fmt;
+use std::str::FromStr;
+
+use crate::SimError;
+use crate::dynamics::WalkerDynamics;
+
+/// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`, `walker-dyn`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[non_exhaustive]
+pub enum Family {
+    /// Planar point robot reaching a goal on the circle of radius 2 (top view).
+    PointGoal,
+    /// Planar HalfCheetah analogue running at a target forward velocity.
+    CheetahVel,
+    /// Planar Walker2d analogue under randomised body dynamics.
+    WalkerDyn,
+}
+
+/// Meta-train or meta-test half of a family's task list.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Split {
+    /// Tasks the meta-learner trains on.
+    Train,
+    /// Held-out tasks used for evaluation.
+    Test,
+}
+
+/// How a family's per-episode metric aggregates the per-step samples in [`crate::StepInfo`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MetricKind {
+    /// Minimum distance to the goal over the episode (lower is better).
+    MinGoalDistance,
+    /// Mean over the episode of |v - v*| (lower is better).
+    MeanVelocityError,
+    /// Sum of rewards (higher is better).
+    Return,
+}
+
+/// Walker dynamics seeds of the meta-train split are `WALKER_TRAIN_SEED_BASE + i`, i in 0..50.
+pub const WALKER_TRAIN_SEED_BASE: u64 = 0;
+/// Walker dynamics seeds of the meta-test split are `WALKER_TEST_SEED_BASE + i`, i in 0..25.
+pub const WALKER_TEST_SEED_BASE: u64 = 10_000;
+
+impl Family {
+    /// Every family, in CLI order.
+    pub const ALL: [Family; 3] = [Family::PointGoal, Family::CheetahVel, Family::WalkerDyn];
+
+    /// The CLI name of the family.
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::PointGoal => "point-goal",
+            Family::CheetahVel => "cheetah-vel",
+            Family::WalkerDyn => "walker-dyn",
+        }
+    }
+
+    /// The family's tasks of one split, exactly as in the reference.
+    pub fn tasks(self, split: Split) -> Vec<Task> {
+        match split {
+            Split::Train => self.train_tasks(),
+            Split::Test => self.test_tasks(),
+        }
+    }
+
+    /// Meta-train tasks: 32 goals at k*pi/16; 31 velocities 0.0..=3.0 step 0.1; 50 dynamics seeds.
+    pub fn train_tasks(self) -> Vec<Task> {
+        match self {
+            Family::PointGoal => (0..32)
+                .map(|k| Task::point_goal(k as f32 * PI / 16.0))
+                .collect(),
+            Family::CheetahVel => (0..=30)
+                .map(|k| Task::cheetah_vel(k as f32 * 0.1))
+                .collect(),
+            Family::WalkerDyn => (0..50)
+                .map(|i| Task::walker_dyn(WALKER_TRAIN_SEED_BASE + i))
+                .collect(),
+        }
+    }
+
+    /// Meta-test tasks: 16 goals at 2n*pi/16 + pi/32; 30 velocities 0.05..=2.95 step 0.1; 25 seeds.
+    pub fn test_tasks(self) -> Vec<Task> {
+        match self {
+            Family::PointGoal => (0..16)
+                .map(|n| Task::point_goal(2.0 * n as f32 * PI / 16.0 + PI / 32.0))
+                .collect(),
+            Family::CheetahVel => (0..30)
+                .map(|k| Task::cheetah_vel(0.05 + k as f32 * 0.1))
+                .collect(),
+            Family::WalkerDyn => (0..25)
+                .map(|i| Task::walker_dyn(WALKER_TEST_SEED_BASE + i))
+                .collect(),
+        }
+    }
+
+    /// A task of this family from one explicit number: goal angle (radians), target velocity
+    /// (m/s) or dynamics seed (a non-negative integer).
+    pub fn task_from_value(self, value: f64) -> Result<Task, SimError> {
+        let invalid = |reason: &str| SimError::InvalidTask {
+            family: self,
+            reason: reason.to_string(),
+        };
+        if !value.is_finite() {
+            return Err(invalid("not finite"));
+        }
+        match self {
+            Family::PointGoal => Ok(Task::point_goal(value as f32)),
+            Family::CheetahVel => Ok(Task::cheetah_vel(value as f32)),
+            Family::WalkerDyn => {
+                if value < 0.0 || value.fract() != 0.0 || value > u32::MAX as f64 {
+                    return Err(invalid("a dynamics seed must be a non-negative integer"));
+                }
+                Ok(Task::walker_dyn(value as u64))
+            }
+        }
+    }
+
+    /// Dimension of the learner-facing observation.
+    pub fn obs_dim(self) -> usize {
+        match self {
+            Family::PointGoal => crate::point_goal::OBS_DIM,
+            Family::CheetahVel | Family::WalkerDyn => crate::planar::OBS_DIM,
+        }
+    }
+
+    /// Dimension of the action.
+    pub fn act_dim(self) -> usize {
+        match self {
+            Family::PointGoal => crate::point_goal::ACT_DIM,
+            Family::CheetahVel | Family::WalkerDyn => crate::planar::ACT_DIM,
+        }
+    }
+
+    /// Dimension of the task parameter vector appended in the oracle observation.
+    pub fn task_dim(self) -> usize {
+        match self {
+            Family::PointGoal => 2,
+            Family::CheetahVel => 1,
+            Family::WalkerDyn => WalkerDynamics::VECTOR_DIM,
+        }
+    }
+
+    /// Dimension of the oracle observation (observation followed by the task parameter).
+    pub fn oracle_obs_dim(self) -> usize {
+        self.obs_dim() + self.task_dim()
+    }
+
+    /// The paper's evaluation metric of this family.
+    pub fn metric_kind(self) -> MetricKind {
+        match self {
+            Family::PointGoal => MetricKind::MinGoalDistance,
+            Family::CheetahVel => MetricKind::MeanVelocityError,
+            Family::WalkerDyn => MetricKind::Return,
+        }
+    }
+}
+
+impl fmt::Display for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Family {
+    type Err = SimError;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        Family::ALL
+            .into_iter()
+            .find(|family| family.name() == s)
+            .ok_or_else(|| SimError::UnknownFamily(s.to_string()))
+    }
+}
+
+impl fmt::Display for Split {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Split::Train => "train",
+            Split::Test => "test",
+        })
+    }
+}
+
+impl FromStr for Split {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "train" => Ok(Split::Train),
+            "test" => Ok(Split::Test),
+            other => Err(format!("unknown split {other:?}; expected train or test")),
+        }
+    }
+}
+
+/// One task: the hidden parameter the learner must infer from demonstrations.
+#[derive(Debug, Clone, Copy, PartialEq)]
+#[non_exhaustive]
+pub enum Task {
+    /// point-goal: reach the goal at this angle (radians) on the circle of radius 2.
+    PointGoal {
+        /// Angle of the goal on the circle, radians.
+        goal_angle: f32,
+    },
+    /// cheetah-vel: run forward at this speed (m/s).
+    CheetahVel {
+        /// Target forward velocity v*, m/s.
+        target_velocity: f32,
+    },
+    /// walker-dyn: walk under the dynamics drawn from this seed.
+    WalkerDyn {
+        /// Seed of the dynamics randomisation (see [`WalkerDynamics::from_seed`]).
+        dynamics_seed: u64,
+    },
+}
+
+/// Radius of the circle the point-goal goals lie on.
+pub const GOAL_RADIUS: f32 = 2.0;
+
+impl Task {
+    /// A point-goal task with its goal at `goal_angle` radians on the radius-2 circle.
+    pub fn point_goal(goal_angle: f32) -> Task {
+        Task::PointGoal { goal_angle }
+    }
+
+    /// A cheetah-vel task with target velocity `target_velocity` m/s.
+    pub fn cheetah_vel(target_velocity: f32) -> Task {
+        Task::CheetahVel { target_velocity }
+    }
+
+    /// A walker-dyn task whose dynamics are drawn from `dynamics_seed`.
+    pub fn walker_dyn(dynamics_seed: u64) -> Task {
+        Task::WalkerDyn { dynamics_seed }
+    }
+
+    /// The family this task belongs to.
+    pub fn family(&self) -> Family {
+        match self {
+            Task::PointGoal { .. } => Family::PointGoal,
+            Task::CheetahVel { .. } => Family::CheetahVel,
+            Task::WalkerDyn { .. } => Family::WalkerDyn,
+        }
+    }
+
+    /// The goal position of a point-goal task.
+    pub fn goal(&self) -> Option<[f32; 2]> {
+        match *self {
+            Task::PointGoal { goal_angle } => Some([
+                GOAL_RADIUS * goal_angle.cos(),
+                GOAL_RADIUS * goal_angle.sin(),
+            ]),
+            _ => None,
+        }
+    }
+
+    /// The single number naming this task: goal angle, target velocity or dynamics seed.
+    /// `family.task_from_value(task.value())` gives the task back.
+    pub fn value(&self) -> f64 {
+        match *self {
+            Task::PointGoal { goal_angle } => goal_angle as f64,
+            Task::CheetahVel { target_velocity } => target_velocity as f64,
+            Task::WalkerDyn { dynamics_seed } => dynamics_seed as f64,
+        }
+    }
+
+    /// Writes the task parameter vector (length `family().task_dim()`) that the oracle
+    /// observation appends: goal (x, y); v*; or the walker's log-scale dynamics factors.
+    pub fn write_parameter(&self, out: &mut [f32]) -> Result<(), SimError> {
+        let expected = self.family().task_dim();
+        if out.len() != expected {
+            return Err(SimError::BufferLength {
+                expected,
+                got: out.len(),
+            });
+        }
+        match *self {
+            Task::PointGoal { .. } => {
+                out.copy_from_slice(&self.goal().unwrap_or_default());
+            }
+            Task::CheetahVel { target_velocity } => out[0] = target_velocity,
+            Task::WalkerDyn { dynamics_seed } => {
+                WalkerDynamics::from_seed(dynamics_seed).write_log_factors(out)
+            }
+        }
+        Ok(())
+    }
+
+    /// The task parameter vector as a fresh `Vec` (see [`Task::write_parameter`]).
+    pub fn parameter(&self) -> Vec<f32> {
+        let mut out = vec![0.0; self.family().task_dim()];
+        // The buffer has the right length by construction.
+        let _ = self.write_parameter(&mut out);
+        out
+    }
+
+    /// A short human-readable label, e.g. `goal_angle=0.1963`.
+    pub fn label(&self) -> String {
+        match *self {
+            Task::PointGoal { goal_angle } => format!("goal_angle={goal_angle:.4}"),
+            Task::CheetahVel { target_velocity } => format!("target_velocity={target_velocity:.2}"),
+            Task::WalkerDyn { dynamics_seed } => format!("dynamics_seed={dynamics_seed}"),
+        }
+    }
+}
+
+impl fmt::Display for Task {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{} {}", self.family(), self.label())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn splits_match_the_reference() {
+        let train = Family::PointGoal.train_tasks();
+        assert_eq!(train.len(), 32);
+        assert!((train[3].value() - 3.0 * std::f64::consts::PI / 16.0).abs() < 1e-6);
+        let test = Family::PointGoal.test_tasks();
+        assert_eq!(test.len(), 16);
+        assert!((test[1].value() - (2.0 * PI / 16.0 + PI / 32.0) as f64).abs() < 1e-6);
+        let train = Family::CheetahVel.train_tasks();
+        assert_eq!(train.len(), 31);
+        assert!((train[30].value() - 3.0).abs() < 1e-5);
+        let test = Family::CheetahVel.test_tasks();
+        assert_eq!(test.len(), 30);
+        assert!((test[0].value() - 0.05).abs() < 1e-6);
+        assert!((test[29].value() - 2.95).abs() < 1e-5);
+        assert_eq!(Family::WalkerDyn.train_tasks().len(), 50);
+        assert_eq!(Family::WalkerDyn.test_tasks().len(), 25);
+    }
+
+    #[test]
+    fn train_and_test_tasks_are_disjoint() {
+        for family in Family::ALL {
+            let train = family.train_tasks();
+            for task in family.test_tasks() {
+                assert!(!train.contains(&task), "{task} is in both splits");
+            }
+        }
+    }
+
+    #[test]
+    fn family_names_round_trip_and_unknown_names_fail() {
+        for family in Family::ALL {
+            assert_eq!(family.to_string().parse::<Family>(), Ok(family));
+        }
+        assert_eq!(
+            "ant".parse::<Family>(),
+            Err(SimError::UnknownFamily("ant".into()))
+        );
+    }
+
+    #[test]
+    fn task_from_value_round_trips() {
+        for family in Family::ALL {
+            for task in family.test_tasks() {
+                assert_eq!(family.task_from_value(task.value()), Ok(task));
+            }
+        }
+        assert!(Family::WalkerDyn.task_from_value(1.5).is_err());
+        assert!(Family::CheetahVel.task_from_value(f64::NAN).is_err());
+    }
+}
