@@ -1,0 +1,46 @@
+//! Learning side of SMILe: SAC, SMILe, Meta-BC, Meta-DAgger, evaluation and blob export.
+//!
+//! Module map (one algorithm per file, losses next to their equations):
+//! * [`nn`]: MLPs on candle-core, target networks in their own storage, fused in-place Adam.
+//! * [`policy`]: the tanh-squashed Gaussian policy with reparameterisation.
+//! * [`replay`]: flat preallocated ring replay buffers (one per task for meta-learning).
+//! * [`sac`]: soft actor-critic (SAC v2: twin Q, Polyak targets, learned temperature) and its
+//!   hyper-parameters.
+//! * [`threads`]: the compute thread layout (candle's matmul thread count).
+#![warn(missing_docs)]
+
+pub mod nn;
+pub mod policy;
+pub mod replay;
+pub mod sac;
+pub mod threads;
+
+/// Errors of the trainer library.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A tensor operation failed inside candle.
+    #[error("tensor op: {0}")]
+    Candle(#[from] candle_core::Error),
+    /// A configuration value is invalid.
+    #[error("invalid config: {0}")]
+    Config(String),
+    /// Tensor shapes or dimensions disagree (e.g. a checkpoint for another network size).
+    #[error("shape mismatch: {0}")]
+    Shape(String),
+    /// A loss or statistic became NaN or infinite.
+    #[error("non-finite {what} ({value}) at update {update}")]
+    NonFinite {
+        /// Which quantity diverged, e.g. `losses/qf`.
+        what: &'static str,
+        /// Its value.
+        value: f32,
+        /// The update counter at which it happened (1-based).
+        update: u64,
+    },
+    /// A replay buffer cannot serve the request (e.g. sampling from an empty buffer).
+    #[error("replay buffer: {0}")]
+    Replay(String),
+}
+
+/// Result alias of the trainer library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;

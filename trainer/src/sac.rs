@@ -1,0 +1,381 @@
+//! Soft actor-critic, SAC v2 (Haarnoja et al. 2018, "Soft Actor-Critic Algorithms and
+//! Applications"): twin Q critics with Polyak-averaged targets, a tanh-Gaussian actor and a
+//! learned temperature. The paper's original SMILe code used SAC v1 with a fixed temperature
+//! and a reward scale; that is available as `learn_alpha = false` + `reward_scale`.
+//!
+//! One update on a batch `(s, a, r, s', d)`:
+//!
+//! 1. critic:      `y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))`,
+//!    `a' ~ pi(.|s')`; `L_Q = sum_j mean (Q_j(s, a) - y)^2`
+//! 2. actor:       `L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~))`, `a~ = tanh(mu + sigma eps)`;
+//!    the critic weights are constants here, so no critic gradient is computed.
+//! 3. temperature: `L_alpha = mean -log(alpha) (log pi(a~|s) + H_target)`
+//! 4. targets:     `theta'_j <- (1 - tau) theta'_j + tau theta_j`
+
+use candle_core::{Device, Tensor, Var};
+use rand::Rng;
+use serde::{Deserialize, Serialize};
+
+use crate::nn::{Adam, AdamConfig, FrozenMlp, Mlp};
+use crate::policy::TanhGaussianPolicy;
+use crate::replay::Batch;
+use crate::{Error, Result};
+
+/// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
+/// "SAC-v2"), the SMILe reference implementation (`../shared/reference/smile-reference.md` §2,
+/// "ref"), and this project's PyTorch prototypes (reference §7, "proto").
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SacConfig {
+    /// Hidden widths of the actor and of each critic. Default `[256, 256]` (SAC-v2; proto's
+    /// HalfCheetah expert; ref used 3 x 256).
+    pub hidden: Vec<usize>,
+    /// Discount factor. Default 0.99 (SAC-v2, ref).
+    pub gamma: f32,
+    /// Polyak rate of the target critics. Default 0.005 (SAC-v2, ref).
+    pub tau: f32,
+    /// Actor learning rate. Default 3e-4 (SAC-v2, ref).
+    pub actor_lr: f32,
+    /// Critic learning rate. Default 3e-4 (SAC-v2, ref).
+    pub critic_lr: f32,
+    /// Temperature learning rate. Default 3e-4 (SAC-v2).
+    pub alpha_lr: f32,
+    /// Minibatch size. Default 256 (SAC-v2; proto expert used 128).
+    pub batch_size: usize,
+    /// Learn the temperature (SAC v2). Default true; false = fixed `init_alpha` (ref, SAC v1
+    /// style, with `reward_scale` acting as inverse temperature).
+    pub learn_alpha: bool,
+    /// Initial (or fixed) temperature alpha. Default 1.0 (SAC-v2 implementations; ref fixed 1).
+    pub init_alpha: f32,
+    /// Entropy target; `None` means `-act_dim`. Default None (SAC-v2).
+    pub target_entropy: Option<f32>,
+    /// Multiplier c on rewards in the critic target. Default 1.0 (ref grid {4..24} for SMILe
+    /// with fixed alpha).
+    pub reward_scale: f32,
+    /// Lower clamp of the policy's log-sigma. Default -20 (ref).
+    pub log_std_min: f32,
+    /// Upper clamp of the policy's log-sigma. Default 2 (ref).
+    pub log_std_max: f32,
+    /// Weight of `mean(mu^2) + mean(log_sigma^2)` added to the actor loss. Default 0 (SAC-v2;
+    /// ref's SAC v1 used 1e-3).
+    pub policy_reg: f32,
+}
+
+impl Default for SacConfig {
+    fn default() -> Self {
+        Self {
+            hidden: vec![256, 256],
+            gamma: 0.99,
+            tau: 0.005,
+            actor_lr: 3e-4,
+            critic_lr: 3e-4,
+            alpha_lr: 3e-4,
+            batch_size: 256,
+            learn_alpha: true,
+            init_alpha: 1.0,
+            target_entropy: None,
+            reward_scale: 1.0,
+            log_std_min: -20.0,
+            log_std_max: 2.0,
+            policy_reg: 0.0,
+        }
+    }
+}
+
+impl SacConfig {
+    /// Reject values that cannot train.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |m: &str| Err(Error::Config(m.to_string()));
+        if self.hidden.is_empty() || self.hidden.contains(&0) {
+            return bad("sac.hidden needs at least one positive width");
+        }
+        if !(0.0..=1.0).contains(&self.gamma) || !(0.0..=1.0).contains(&self.tau) {
+            return bad("sac.gamma and sac.tau must lie in [0, 1]");
+        }
+        if self.batch_size == 0 || self.init_alpha <= 0.0 {
+            return bad("sac.batch_size and sac.init_alpha must be positive");
+        }
+        if self.log_std_min >= self.log_std_max {
+            return bad("sac.log_std_min must be below sac.log_std_max");
+        }
+        Ok(())
+    }
+}
+
+/// Scalars reported by one update (names as in the metrics log).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SacStats {
+    /// `losses/qf`: summed critic MSE.
+    pub qf_loss: f32,
+    /// `losses/qf1_value`: mean Q1(s, a) on the batch.
+    pub qf1_mean: f32,
+    /// `losses/actor`.
+    pub actor_loss: f32,
+    /// `losses/alpha`.
+    pub alpha_loss: f32,
+    /// `charts/alpha`: temperature used in this update.
+    pub alpha: f32,
+    /// `charts/entropy`: `-mean log pi(a~|s)`.
+    pub entropy: f32,
+}
+
+/// A SAC agent: actor, twin critics, their targets, optimisers and temperature.
+#[derive(Debug, Clone)]
+pub struct Sac {
+    cfg: SacConfig,
+    /// The policy.
+    pub actor: TanhGaussianPolicy,
+    /// First critic `Q1(s, a)` on `[s, a]`.
+    pub q1: Mlp,
+    /// Second critic.
+    pub q2: Mlp,
+    q1_targ: FrozenMlp,
+    q2_targ: FrozenMlp,
+    log_alpha: Var,
+    actor_opt: Adam,
+    critic_opt: Adam,
+    alpha_opt: Adam,
+    target_entropy: f32,
+    updates: u64,
+}
+
+fn scalar(t: &Tensor) -> Result<f32> {
+    Ok(t.to_dtype(candle_core::DType::F32)?
+        .flatten_all()?
+        .to_vec1::<f32>()?[0])
+}
+
+impl Sac {
+    /// A fresh agent for `obs_dim`-dimensional observations and `act_dim` actions in `(-1, 1)`.
+    /// All initial weights are drawn from `rng`.
+    pub fn new(obs_dim: usize, act_dim: usize, cfg: SacConfig, rng: &mut impl Rng) -> Result<Self> {
+        cfg.validate()?;
+        let bounds = (cfg.log_std_min, cfg.log_std_max);
+        let actor = TanhGaussianPolicy::new(obs_dim, act_dim, &cfg.hidden, bounds, rng)?;
+        let mut qw = vec![obs_dim + act_dim];
+        qw.extend_from_slice(&cfg.hidden);
+        qw.push(1);
+        let (q1, q2) = (Mlp::new(&qw, rng)?, Mlp::new(&qw, rng)?);
+        let (q1_targ, q2_targ) = (q1.frozen_copy()?, q2.frozen_copy()?);
+        let log_alpha = Var::from_tensor(&Tensor::new(&[cfg.init_alpha.ln()], &Device::Cpu)?)?;
+        let actor_opt = Adam::new(
+            actor.net().vars().to_vec(),
+            AdamConfig::with_lr(cfg.actor_lr),
+        );
+        let critic_vars = [q1.vars(), q2.vars()].concat();
+        let critic_opt = Adam::new(critic_vars, AdamConfig::with_lr(cfg.critic_lr));
+        let alpha_opt = Adam::new(vec![log_alpha.clone()], AdamConfig::with_lr(cfg.alpha_lr));
+        let target_entropy = cfg.target_entropy.unwrap_or(-(act_dim as f32));
+        Ok(Self {
+            cfg,
+            actor,
+            q1,
+            q2,
+            q1_targ,
+            q2_targ,
+            log_alpha,
+            actor_opt,
+            critic_opt,
+            alpha_opt,
+            target_entropy,
+            updates: 0,
+        })
+    }
+
+    /// The hyper-parameters.
+    pub fn config(&self) -> &SacConfig {
+        &self.cfg
+    }
+
+    /// Number of updates performed.
+    pub fn updates(&self) -> u64 {
+        self.updates
+    }
+
+    /// Current temperature alpha.
+    pub fn alpha(&self) -> Result<f32> {
+        Ok(scalar(self.log_alpha.as_tensor())?.exp())
+    }
+
+    /// `min(Q1, Q2)` on `[s, a]` (with gradients into the critics' weights if `const_weights` is
+    /// false).
+    fn q_min(&self, s: &Tensor, a: &Tensor, const_weights: bool) -> Result<Tensor> {
+        let sa = Tensor::cat(&[s, a], 1)?;
+        let (q1, q2) = if const_weights {
+            (
+                self.q1.forward_const_weights(&sa)?,
+                self.q2.forward_const_weights(&sa)?,
+            )
+        } else {
+            (self.q1.forward(&sa)?, self.q2.forward(&sa)?)
+        };
+        Ok(q1.minimum(&q2)?)
+    }
+
+    fn finite(&self, what: &'static str, value: f32) -> Result<f32> {
+        if value.is_finite() {
+            Ok(value)
+        } else {
+            Err(Error::NonFinite {
+                what,
+                value,
+                update: self.updates,
+            })
+        }
+    }
+
+    /// One SAC update (critic, actor, temperature, targets) on `b`. Noise comes from `rng`.
+    ///
+    /// A non-finite loss aborts before the corresponding optimiser step with
+    /// [`Error::NonFinite`].
+    pub fn update(&mut self, b: &Batch, rng: &mut impl Rng) -> Result<SacStats> {
+        self.updates += 1;
+        let alpha = self.alpha()?;
+        let (gamma, c) = (self.cfg.gamma as f64, self.cfg.reward_scale as f64);
+
+        // 1. critic. y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))
+        let next = self.actor.sample_const(&b.next_obs, rng)?;
+        let next_sa = Tensor::cat(&[&b.next_obs, &next.action], 1)?;
+        let q_targ = self
+            .q1_targ
+            .forward(&next_sa)?
+            .minimum(&self.q2_targ.forward(&next_sa)?)?;
+        let soft_v = (q_targ - (next.log_prob * alpha as f64)?)?;
+        let not_done = b.done.affine(-gamma, gamma)?; // gamma (1 - d)
+        let y = ((&b.rew * c)? + (not_done * soft_v)?)?.detach();
+        //    L_Q = mean (Q1(s,a) - y)^2 + mean (Q2(s,a) - y)^2
+        let sa = Tensor::cat(&[&b.obs, &b.act], 1)?;
+        let q1 = self.q1.forward(&sa)?;
+        let q2 = self.q2.forward(&sa)?;
+        let qf_loss = ((&q1 - &y)?.sqr()?.mean_all()? + (&q2 - &y)?.sqr()?.mean_all()?)?;
+        let qf_loss_v = self.finite("losses/qf", scalar(&qf_loss)?)?;
+        self.critic_opt.backward_step(&qf_loss)?;
+
+        // 2. actor. L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
+        let cur = self.actor.sample(&b.obs, rng)?;
+        let q_pi = self.q_min(&b.obs, &cur.action, true)?;
+        let mut actor_loss = ((&cur.log_prob * alpha as f64)? - q_pi)?.mean_all()?;
+        if self.cfg.policy_reg > 0.0 {
+            let reg = (cur.mean.sqr()?.mean_all()? + cur.log_std.sqr()?.mean_all()?)?;
+            actor_loss = (actor_loss + (reg * self.cfg.policy_reg as f64)?)?;
+        }
+        let actor_loss_v = self.finite("losses/actor", scalar(&actor_loss)?)?;
+        self.actor_opt.backward_step(&actor_loss)?;
+
+        // 3. temperature. L_alpha = -log(alpha) * mean(log pi(a~|s) + H_target)
+        let mean_logp = scalar(&cur.log_prob.mean_all()?)?;
+        let mut alpha_loss_v = 0.0;
+        if self.cfg.learn_alpha {
+            let alpha_loss = (self.log_alpha.as_tensor()
+                * -(mean_logp + self.target_entropy) as f64)?
+                .sum_all()?;
+            alpha_loss_v = self.finite("losses/alpha", scalar(&alpha_loss)?)?;
+            self.alpha_opt.backward_step(&alpha_loss)?;
+        }
+
+        // 4. targets. theta' <- (1 - tau) theta' + tau theta
+        self.q1_targ.polyak_update(&self.q1, self.cfg.tau)?;
+        self.q2_targ.polyak_update(&self.q2, self.cfg.tau)?;
+
+        Ok(SacStats {
+            qf_loss: qf_loss_v,
+            qf1_mean: scalar(&q1.mean_all()?)?,
+            actor_loss: actor_loss_v,
+            alpha_loss: alpha_loss_v,
+            alpha,
+            entropy: -mean_logp,
+        })
+    }
+
+    /// Every tensor of the agent's state by a stable name: networks, targets, Adam moments and
+    /// the temperature. Counters (Adam steps, updates) are returned separately.
+    pub fn state_tensors(&self) -> Result<(Vec<(String, Tensor)>, SacCounters)> {
+        let mut out = Vec::new();
+        let mut put = |prefix: &str, ts: Vec<Tensor>| {
+            for (i, t) in ts.into_iter().enumerate() {
+                out.push((format!("{prefix}.{i}"), t));
+            }
+        };
+        let vars = |m: &Mlp| {
+            m.vars()
+                .iter()
+                .map(|v| v.as_tensor().detach())
+                .collect::<Vec<_>>()
+        };
+        put("actor", vars(self.actor.net()));
+        put("q1", vars(&self.q1));
+        put("q2", vars(&self.q2));
+        put("q1_targ", self.q1_targ.params().to_vec());
+        put("q2_targ", self.q2_targ.params().to_vec());
+        put("log_alpha", vec![self.log_alpha.as_tensor().detach()]);
+        let mut steps = [0u64; 3];
+        for (k, (name, opt)) in [
+            ("actor_opt", &self.actor_opt),
+            ("critic_opt", &self.critic_opt),
+            ("alpha_opt", &self.alpha_opt),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let (m, v, t) = opt.state()?;
+            put(&format!("{name}.m"), m);
+            put(&format!("{name}.v"), v);
+            steps[k] = t;
+        }
+        Ok((
+            out,
+            SacCounters {
+                updates: self.updates,
+                adam_steps: steps,
+            },
+        ))
+    }
+
+    /// Restore the state written by [`Sac::state_tensors`]; `get` looks a tensor up by name.
+    /// Shapes must match this agent's configuration.
+    pub fn load_state(
+        &mut self,
+        get: &dyn Fn(&str) -> Result<Tensor>,
+        counters: SacCounters,
+    ) -> Result<()> {
+        let many = |prefix: &str, n: usize| -> Result<Vec<Tensor>> {
+            (0..n).map(|i| get(&format!("{prefix}.{i}"))).collect()
+        };
+        let n_net = self.q1.vars().len();
+        let n_act = self.actor.net().vars().len();
+        self.actor.net().load_from(&many("actor", n_act)?)?;
+        self.q1.load_from(&many("q1", n_net)?)?;
+        self.q2.load_from(&many("q2", n_net)?)?;
+        self.q1_targ.load_from(&many("q1_targ", n_net)?)?;
+        self.q2_targ.load_from(&many("q2_targ", n_net)?)?;
+        let la = get("log_alpha.0")?;
+        if la.dims() != self.log_alpha.dims() {
+            return Err(Error::Shape("log_alpha".into()));
+        }
+        self.log_alpha.set(&la)?;
+        let sizes = [n_act, 2 * n_net, 1];
+        for (k, (name, opt)) in [
+            ("actor_opt", &mut self.actor_opt),
+            ("critic_opt", &mut self.critic_opt),
+            ("alpha_opt", &mut self.alpha_opt),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let m = many(&format!("{name}.m"), sizes[k])?;
+            let v = many(&format!("{name}.v"), sizes[k])?;
+            opt.set_state(&m, &v, counters.adam_steps[k])?;
+        }
+        self.updates = counters.updates;
+        Ok(())
+    }
+}
+
+/// Step counters of a [`Sac`] agent, saved beside its tensors.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub struct SacCounters {
+    /// Updates performed.
+    pub updates: u64,
+    /// Adam step counts of the actor, critic and temperature optimisers.
+    pub adam_steps: [u64; 3],
+}

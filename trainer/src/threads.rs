@@ -1,0 +1,31 @@
+//! Compute thread layout.
+//!
+//! Measured on the project's 2-vCPU machines (DESIGN.md): candle's matmul with its default
+//! thread count (one per core) made a 256-wide MLP train step about 8x *slower* than with one
+//! thread, because the learner, the rollout thread and the gemm workers oversubscribe two cores.
+//! The layout used here: the learner runs candle single-threaded on the main thread and
+//! environment rollouts run on their own thread, so each uses one core.
+//!
+//! candle-core 0.11 reads the matmul thread count from `RAYON_NUM_THREADS` on every matmul
+//! (`candle_core::utils::get_num_threads`), and `CANDLE_NUM_THREADS` once for its barrier pool.
+
+/// Sets candle's compute thread count by setting `RAYON_NUM_THREADS` and `CANDLE_NUM_THREADS`.
+///
+/// Call it first thing in `main` (or a test), before any other thread is spawned: it mutates
+/// the process environment. Returns the value previously set, if any.
+pub fn set_compute_threads(n: usize) -> Option<String> {
+    let n = n.max(1).to_string();
+    let prev = std::env::var("RAYON_NUM_THREADS").ok();
+    // SAFETY: documented precondition: called before other threads exist (or, in tests, with
+    // the same value by every caller), so no thread reads the environment concurrently.
+    unsafe {
+        std::env::set_var("RAYON_NUM_THREADS", &n);
+        std::env::set_var("CANDLE_NUM_THREADS", &n);
+    }
+    prev
+}
+
+/// The thread count candle's matmul currently uses.
+pub fn compute_threads() -> usize {
+    candle_core::utils::get_num_threads()
+}
