@@ -10,6 +10,7 @@
 //! - [`render`] draws [`Frame`]s as SVG.
 #![warn(missing_docs)]
 
+mod dataset;
 mod dynamics;
 mod env;
 mod error;
@@ -18,6 +19,10 @@ pub mod point_goal;
 pub mod render;
 mod task;
 
+pub use dataset::{
+    DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, TransitionRef,
+    record_trajectory,
+};
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::SimError;

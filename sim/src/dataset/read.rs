@@ -1,0 +1,280 @@
+//! Parsing and validating a demo file; every failure is a [`DatasetError`], never a panic.
+
+use std::collections::HashMap;
+
+use safetensors::tensor::{Dtype, SafeTensors};
+
+use super::{DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, names};
+use crate::{Family, Split};
+
+/// Size of the little-endian header-length prefix of a safetensors file.
+const PREFIX: usize = 8;
+
+/// Checks the announced sizes against the buffer so that a short file is reported as truncated.
+fn check_length(bytes: &[u8]) -> Result<(), DatasetError> {
+    let Some(prefix) = bytes.get(..PREFIX) else {
+        return Err(DatasetError::Truncated {
+            expected: PREFIX,
+            got: bytes.len(),
+        });
+    };
+    let mut raw = [0u8; PREFIX];
+    raw.copy_from_slice(prefix);
+    let header_len = usize::try_from(u64::from_le_bytes(raw))
+        .map_err(|_| DatasetError::Corrupt("header length does not fit in memory".into()))?;
+    if header_len > 100_000_000 {
+        return Err(DatasetError::Corrupt(format!(
+            "header length {header_len} is implausible"
+        )));
+    }
+    let header_end = PREFIX + header_len;
+    let Some(header) = bytes.get(PREFIX..header_end) else {
+        return Err(DatasetError::Truncated {
+            expected: header_end,
+            got: bytes.len(),
+        });
+    };
+    let header: serde_json::Value = std::str::from_utf8(header)
+        .ok()
+        .and_then(|text| serde_json::from_str(text).ok())
+        .ok_or_else(|| DatasetError::Corrupt("header is not valid UTF-8 JSON".into()))?;
+    let data_len = header
+        .as_object()
+        .into_iter()
+        .flatten()
+        .filter_map(|(_, info)| info.get("data_offsets")?.get(1)?.as_u64())
+        .max()
+        .unwrap_or(0) as usize;
+    let expected = header_end.saturating_add(data_len);
+    if bytes.len() < expected {
+        return Err(DatasetError::Truncated {
+            expected,
+            got: bytes.len(),
+        });
+    }
+    Ok(())
+}
+
+fn meta<'a>(map: &'a HashMap<String, String>, key: &'static str) -> Result<&'a str, DatasetError> {
+    map.get(key)
+        .map(String::as_str)
+        .ok_or(DatasetError::BadMetadata {
+            key,
+            reason: "missing".into(),
+        })
+}
+
+fn meta_parse<T: std::str::FromStr>(
+    map: &HashMap<String, String>,
+    key: &'static str,
+) -> Result<T, DatasetError>
+where
+    T::Err: std::fmt::Display,
+{
+    meta(map, key)?
+        .parse()
+        .map_err(|e: T::Err| DatasetError::BadMetadata {
+            key,
+            reason: e.to_string(),
+        })
+}
+
+/// Reads a tensor of `dtype` and `shape` (None = any length on that axis) as raw bytes.
+fn tensor<'a>(
+    file: &SafeTensors<'a>,
+    name: &'static str,
+    dtype: Dtype,
+    shape: &[Option<usize>],
+) -> Result<(&'a [u8], Vec<usize>), DatasetError> {
+    let view = file.tensor(name).map_err(|_| DatasetError::BadTensor {
+        name,
+        reason: "missing".into(),
+    })?;
+    if view.dtype() != dtype {
+        return Err(DatasetError::BadTensor {
+            name,
+            reason: format!("dtype {:?}, expected {dtype:?}", view.dtype()),
+        });
+    }
+    let found = view.shape();
+    let matches = found.len() == shape.len()
+        && found
+            .iter()
+            .zip(shape)
+            .all(|(f, s)| s.is_none_or(|s| s == *f));
+    if !matches {
+        return Err(DatasetError::BadTensor {
+            name,
+            reason: format!("shape {found:?}, expected {shape:?}"),
+        });
+    }
+    Ok((view.data(), found.to_vec()))
+}
+
+fn f32s(bytes: &[u8]) -> Vec<f32> {
+    bytes
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+fn words(bytes: &[u8]) -> impl Iterator<Item = [u8; 8]> + '_ {
+    bytes.chunks_exact(8).map(|c| {
+        let mut word = [0u8; 8];
+        word.copy_from_slice(c);
+        word
+    })
+}
+
+/// Reads an i64 offset/index tensor as non-negative usizes.
+fn indices(bytes: &[u8], name: &'static str) -> Result<Vec<usize>, DatasetError> {
+    words(bytes)
+        .map(|w| {
+            usize::try_from(i64::from_le_bytes(w)).map_err(|_| DatasetError::BadTensor {
+                name,
+                reason: "negative index".into(),
+            })
+        })
+        .collect()
+}
+
+/// Checks that `offsets` starts at 0, never decreases and ends at `total`.
+fn check_offsets(offsets: &[usize], total: usize, name: &str) -> Result<(), DatasetError> {
+    let monotone = offsets.windows(2).all(|w| w[0] <= w[1]);
+    if offsets.first() != Some(&0) || offsets.last() != Some(&total) || !monotone {
+        return Err(DatasetError::Inconsistent(format!(
+            "{name} must rise from 0 to {total}"
+        )));
+    }
+    Ok(())
+}
+
+impl DemoDataset {
+    /// Parses and validates safetensors bytes written by [`DemoDataset::to_bytes`].
+    pub fn from_bytes(bytes: &[u8]) -> Result<DemoDataset, DatasetError> {
+        check_length(bytes)?;
+        let file =
+            SafeTensors::deserialize(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
+        let (_, header) =
+            SafeTensors::read_metadata(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
+        let empty = HashMap::new();
+        let map = header.metadata().as_ref().unwrap_or(&empty);
+        let format = map.get("format").map(String::as_str);
+        if format != Some(FORMAT_NAME) {
+            return Err(DatasetError::NotADemoFile(format!("format is {format:?}")));
+        }
+        let version: u32 = meta_parse(map, "format_version")?;
+        if version != FORMAT_VERSION {
+            return Err(DatasetError::NotADemoFile(format!("version {version}")));
+        }
+        let family: Family = meta_parse(map, "family")?;
+        let split: Split = meta_parse(map, "split")?;
+        let obs_dim: usize = meta_parse(map, "obs_dim")?;
+        let act_dim: usize = meta_parse(map, "act_dim")?;
+        let task_dim: usize = meta_parse(map, "task_dim")?;
+        let subsample_factor: usize = meta_parse(map, "subsample_factor")?;
+        let dims = [
+            ("obs_dim", family.obs_dim(), obs_dim),
+            ("act_dim", family.act_dim(), act_dim),
+            ("task_dim", family.task_dim(), task_dim),
+        ];
+        for (what, expected, got) in dims {
+            if expected != got {
+                return Err(DatasetError::DimensionMismatch {
+                    what,
+                    expected,
+                    got,
+                });
+            }
+        }
+
+        let (rewards, shape) = tensor(&file, names::REWARDS, Dtype::F32, &[None])?;
+        let n = shape[0];
+        let obs = f32s(tensor(&file, names::OBS, Dtype::F32, &[Some(n), Some(obs_dim)])?.0);
+        let next_obs = f32s(
+            tensor(
+                &file,
+                names::NEXT_OBS,
+                Dtype::F32,
+                &[Some(n), Some(obs_dim)],
+            )?
+            .0,
+        );
+        let actions = f32s(tensor(&file, names::ACTIONS, Dtype::F32, &[Some(n), Some(act_dim)])?.0);
+        let rewards = f32s(rewards);
+        let dones = tensor(&file, names::DONES, Dtype::U8, &[Some(n)])?.0;
+        let time_steps = indices(
+            tensor(&file, names::TIME_STEPS, Dtype::I64, &[Some(n)])?.0,
+            names::TIME_STEPS,
+        )?;
+        let (values, shape) = tensor(&file, names::TASK_VALUES, Dtype::F64, &[None])?;
+        let k = shape[0];
+        tensor(
+            &file,
+            names::TASK_PARAMETERS,
+            Dtype::F32,
+            &[Some(k), Some(task_dim)],
+        )?;
+        let task_offsets = indices(
+            tensor(&file, names::TASK_TRAJ_OFFSETS, Dtype::I64, &[Some(k + 1)])?.0,
+            names::TASK_TRAJ_OFFSETS,
+        )?;
+        let (row_offsets, shape) = tensor(&file, names::TRAJ_OFFSETS, Dtype::I64, &[None])?;
+        let t_count = shape[0].checked_sub(1).ok_or(DatasetError::BadTensor {
+            name: names::TRAJ_OFFSETS,
+            reason: "empty (needs trajectories + 1 entries)".into(),
+        })?;
+        let row_offsets = indices(row_offsets, names::TRAJ_OFFSETS)?;
+        let seeds: Vec<u64> =
+            words(tensor(&file, names::TRAJ_SEEDS, Dtype::U64, &[Some(t_count)])?.0)
+                .map(u64::from_le_bytes)
+                .collect();
+        let sub_offsets = indices(
+            tensor(
+                &file,
+                names::TRAJ_SUBSAMPLE_OFFSETS,
+                Dtype::I64,
+                &[Some(t_count)],
+            )?
+            .0,
+            names::TRAJ_SUBSAMPLE_OFFSETS,
+        )?;
+        check_offsets(&row_offsets, n, names::TRAJ_OFFSETS)?;
+        check_offsets(&task_offsets, t_count, names::TASK_TRAJ_OFFSETS)?;
+
+        let mut tasks = Vec::with_capacity(k);
+        for (task_index, value) in words(values).map(f64::from_le_bytes).enumerate() {
+            let task = family
+                .task_from_value(value)
+                .map_err(|e| DatasetError::Inconsistent(format!("task {task_index}: {e}")))?;
+            let trajectories = (task_offsets[task_index]..task_offsets[task_index + 1])
+                .map(|j| {
+                    let rows = row_offsets[j]..row_offsets[j + 1];
+                    let (o0, o1) = (rows.start * obs_dim, rows.end * obs_dim);
+                    Trajectory {
+                        seed: seeds[j],
+                        subsample_offset: sub_offsets[j],
+                        time_steps: time_steps[rows.clone()].iter().map(|&t| t as u32).collect(),
+                        obs: obs[o0..o1].to_vec(),
+                        actions: actions[rows.start * act_dim..rows.end * act_dim].to_vec(),
+                        rewards: rewards[rows.clone()].to_vec(),
+                        next_obs: next_obs[o0..o1].to_vec(),
+                        dones: dones[rows].iter().map(|&d| d != 0).collect(),
+                    }
+                })
+                .collect();
+            tasks.push(TaskDemos { task, trajectories });
+        }
+        let dataset = DemoDataset {
+            family,
+            split,
+            expert: meta(map, "expert")?.to_string(),
+            obs_dim,
+            act_dim,
+            subsample_factor,
+            tasks,
+        };
+        dataset.check()?;
+        Ok(dataset)
+    }
+}
