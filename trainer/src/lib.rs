@@ -1,6 +1,7 @@
 //! Learning side of SMILe: SAC, SMILe, Meta-BC, Meta-DAgger, evaluation and blob export.
 //!
 //! Module map (one algorithm per file, losses next to their equations):
+//! * [`fused`]: the fused dense layer (`CustomOp3`) the MLPs are built from.
 //! * [`nn`]: MLPs on candle-core, target networks in their own storage, fused in-place Adam.
 //! * [`policy`]: the tanh-squashed Gaussian policy with reparameterisation.
 //! * [`replay`]: flat preallocated ring replay buffers (one per task for meta-learning).
@@ -9,6 +10,8 @@
 //! * [`threads`]: the compute thread layout (candle's matmul thread count).
 #![warn(missing_docs)]
 
+pub mod bench;
+pub mod fused;
 pub mod nn;
 pub mod policy;
 pub mod replay;

@@ -25,10 +25,7 @@ fn forward_params(params: &[Tensor], x: &Tensor) -> Result<Tensor> {
     let n_layers = params.len() / 2;
     let mut h = x.clone();
     for (i, wb) in params.chunks_exact(2).enumerate() {
-        h = h.matmul(&wb[0])?.broadcast_add(&wb[1])?;
-        if i + 1 < n_layers {
-            h = h.relu()?;
-        }
+        h = crate::fused::linear(&h, &wb[0], &wb[1], i + 1 < n_layers)?;
     }
     Ok(h)
 }

@@ -1,0 +1,254 @@
+//! Fused dense layer as a candle `CustomOp3`: `y = act(x W + b)` in one op, forward and backward.
+//!
+//! Why (profiled, see docs/BENCHMARKS.md): with plain candle ops a layer is three graph nodes
+//! (matmul, broadcast-add, relu), and candle's matmul backward always computes *both* operand
+//! gradients, even for a detached operand; the SAC actor loss therefore paid for critic weight
+//! gradients it then threw away, and every data-fed first layer for an input gradient. This op
+//! makes one node per layer and computes only the gradients autograd needs:
+//!
+//! * `g  = dL/dy * 1[y > 0]` (ReLU mask from the saved output)
+//! * `dx = g W^T`            only if `x` is tracked
+//! * `dW = x^T g`, `db = 1^T g` only if `W` is tracked (a `Var`, not detached)
+//!
+//! The matrix products call the same `gemm` crate candle uses, single-threaded unless candle's
+//! thread count says otherwise.
+
+use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
+
+fn msg(m: &str) -> candle_core::Error {
+    candle_core::Error::Msg(format!("fused linear: {m}"))
+}
+
+fn slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Result<&'a [f32]> {
+    let (a, b) = l
+        .contiguous_offsets()
+        .ok_or_else(|| msg("non-contiguous input"))?;
+    match s {
+        CpuStorage::F32(v) => Ok(&v[a..b]),
+        _ => Err(msg("f32 only")),
+    }
+}
+
+/// Row-major `C (m x n) [+]= A (m x k) B (k x n)` where A and B are given by strides
+/// (row stride, column stride), so transposes are free.
+#[allow(clippy::too_many_arguments)]
+fn gemm_into(
+    m: usize,
+    n: usize,
+    k: usize,
+    c: &mut [f32],
+    accumulate: bool,
+    a: &[f32],
+    a_rs: usize,
+    a_cs: usize,
+    b: &[f32],
+    b_rs: usize,
+    b_cs: usize,
+) {
+    debug_assert!(c.len() >= m * n);
+    debug_assert!(m == 0 || k == 0 || a.len() > (m - 1) * a_rs + (k - 1) * a_cs);
+    debug_assert!(k == 0 || n == 0 || b.len() > (k - 1) * b_rs + (n - 1) * b_cs);
+    let threads = candle_core::utils::get_num_threads();
+    let par = if threads > 1 {
+        gemm::Parallelism::Rayon(threads)
+    } else {
+        gemm::Parallelism::None
+    };
+    // SAFETY: the slices cover every element addressed by (m, n, k) and the strides (checked
+    // above in debug builds, and by construction from the tensors' shapes at every call site);
+    // `c` does not alias `a` or `b` (distinct allocations).
+    unsafe {
+        gemm::gemm(
+            m,
+            n,
+            k,
+            c.as_mut_ptr(),
+            1,
+            n as isize,
+            accumulate,
+            a.as_ptr(),
+            a_cs as isize,
+            a_rs as isize,
+            b.as_ptr(),
+            b_cs as isize,
+            b_rs as isize,
+            if accumulate { 1.0 } else { 0.0 },
+            1.0,
+            false,
+            false,
+            false,
+            par,
+        )
+    }
+}
+
+/// The op: `x (B, in)`, `w (in, out)`, `b (1, out)` -> `y (B, out)`.
+#[derive(Debug, Clone, Copy)]
+pub struct Linear {
+    /// Apply ReLU to the output.
+    pub relu: bool,
+}
+
+impl CustomOp3 for Linear {
+    fn name(&self) -> &'static str {
+        if self.relu { "linear-relu" } else { "linear" }
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (rows, d_in) = l1.shape().dims2()?;
+        let (w_in, d_out) = l2.shape().dims2()?;
+        if w_in != d_in || l3.shape().elem_count() != d_out {
+            return Err(msg("shape mismatch"));
+        }
+        let (x, w, b) = (slice(s1, l1)?, slice(s2, l2)?, slice(s3, l3)?);
+        let mut y = Vec::with_capacity(rows * d_out);
+        for _ in 0..rows {
+            y.extend_from_slice(b);
+        }
+        gemm_into(rows, d_out, d_in, &mut y, true, x, d_in, 1, w, d_out, 1);
+        if self.relu {
+            y.iter_mut().for_each(|v| *v = v.max(0.0));
+        }
+        Ok((CpuStorage::F32(y), Shape::from((rows, d_out))))
+    }
+
+    fn bwd(
+        &self,
+        x: &Tensor,
+        w: &Tensor,
+        _b: &Tensor,
+        res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let (rows, d_in) = x.dims2()?;
+        let d_out = w.dim(1)?;
+        let (want_dx, want_dw) = (x.track_op(), w.track_op());
+        if !want_dx && !want_dw {
+            return Ok((None, None, None));
+        }
+        let grad_res = grad_res.contiguous()?;
+        let (gs, gl) = grad_res.storage_and_layout();
+        let gs = match &*gs {
+            candle_core::Storage::Cpu(s) => slice(s, gl)?,
+            _ => return Err(msg("cpu only")),
+        };
+        // g = dL/dy * 1[y > 0]
+        let g: Vec<f32> = if self.relu {
+            let (rs, rl) = res.storage_and_layout();
+            let ys = match &*rs {
+                candle_core::Storage::Cpu(s) => slice(s, rl)?,
+                _ => return Err(msg("cpu only")),
+            };
+            gs.iter()
+                .zip(ys)
+                .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
+                .collect()
+        } else {
+            gs.to_vec()
+        };
+        let dev = x.device();
+        let dx = if want_dx {
+            let w = w.contiguous()?;
+            let (ws, wl) = w.storage_and_layout();
+            let ws = match &*ws {
+                candle_core::Storage::Cpu(s) => slice(s, wl)?,
+                _ => return Err(msg("cpu only")),
+            };
+            // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
+            let mut dx = vec![0.0f32; rows * d_in];
+            gemm_into(
+                rows, d_in, d_out, &mut dx, false, &g, d_out, 1, ws, 1, d_out,
+            );
+            Some(Tensor::from_vec(dx, (rows, d_in), dev)?)
+        } else {
+            None
+        };
+        let (dw, db) = if want_dw {
+            let x = x.contiguous()?;
+            let (xs, xl) = x.storage_and_layout();
+            let xs = match &*xs {
+                candle_core::Storage::Cpu(s) => slice(s, xl)?,
+                _ => return Err(msg("cpu only")),
+            };
+            // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
+            let mut dw = vec![0.0f32; d_in * d_out];
+            gemm_into(d_in, d_out, rows, &mut dw, false, xs, 1, d_in, &g, d_out, 1);
+            let mut db = vec![0.0f32; d_out];
+            for row in g.chunks_exact(d_out) {
+                db.iter_mut().zip(row).for_each(|(d, g)| *d += g);
+            }
+            (
+                Some(Tensor::from_vec(dw, (d_in, d_out), dev)?),
+                Some(Tensor::from_vec(db, (1, d_out), dev)?),
+            )
+        } else {
+            (None, None)
+        };
+        Ok((dx, dw, db))
+    }
+}
+
+/// `act(x W + b)` as one autograd node.
+pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> candle_core::Result<Tensor> {
+    x.contiguous()?.apply_op3(w, b, Linear { relu })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use candle_core::{Device, Var};
+
+    /// The fused op's values and gradients equal plain candle's.
+    #[test]
+    fn matches_plain_candle() {
+        let dev = &Device::Cpu;
+        let mk = |n: usize, s: f32| -> Vec<f32> {
+            (0..n).map(|i| (i as f32 * 0.37 + s).sin()).collect()
+        };
+        let x = Var::from_vec(mk(5 * 3, 0.1), (5, 3), dev).unwrap();
+        let w = Var::from_vec(mk(3 * 4, 0.7), (3, 4), dev).unwrap();
+        let b = Var::from_vec(mk(4, 1.3), (1, 4), dev).unwrap();
+        for relu in [false, true] {
+            let fused = linear(&x, &w, &b, relu).unwrap();
+            let mut plain = x.matmul(&w).unwrap().broadcast_add(&b).unwrap();
+            if relu {
+                plain = plain.relu().unwrap();
+            }
+            let close = |a: &Tensor, b: &Tensor| {
+                let d = (a - b).unwrap().abs().unwrap().max_all().unwrap();
+                d.to_vec0::<f32>().unwrap() < 1e-5
+            };
+            assert!(close(&fused, &plain));
+            let weights = Tensor::new(&[1.0f32, -2.0, 0.5, 3.0], dev).unwrap();
+            let gf = fused
+                .broadcast_mul(&weights)
+                .unwrap()
+                .sum_all()
+                .unwrap()
+                .backward()
+                .unwrap();
+            let gp = plain
+                .broadcast_mul(&weights)
+                .unwrap()
+                .sum_all()
+                .unwrap()
+                .backward()
+                .unwrap();
+            for v in [&x, &w, &b] {
+                assert!(close(gf.get(v).unwrap(), gp.get(v).unwrap()), "relu {relu}");
+            }
+        }
+        // Detached weights: no weight gradients are produced.
+        let y = linear(&x, &w.as_tensor().detach(), &b.as_tensor().detach(), true).unwrap();
+        let g = y.sum_all().unwrap().backward().unwrap();
+        assert!(g.get(&x).is_some() && g.get(&w).is_none() && g.get(&b).is_none());
+    }
+}
