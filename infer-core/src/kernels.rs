@@ -20,21 +20,20 @@ fn reduce(acc: [f32; LANES]) -> f32 {
 #[inline]
 fn dot_f32(w: &[u8], x: &[f32]) -> f32 {
     let mut acc = [0.0f32; LANES];
-    let mut w_chunks = w.chunks_exact(4 * LANES);
-    let mut x_chunks = x.chunks_exact(LANES);
-    for (wc, xc) in (&mut w_chunks).zip(&mut x_chunks) {
+    let (w4, _) = w.as_chunks::<4>();
+    let (w_chunks, w_rest) = w4.as_chunks::<LANES>();
+    let (x_chunks, x_rest) = x.as_chunks::<LANES>();
+    for (wc, xc) in w_chunks.iter().zip(x_chunks) {
+        let mut wf = [0.0f32; LANES];
         for k in 0..LANES {
-            let b = &wc[4 * k..4 * k + 4];
-            acc[k] += f32::from_le_bytes([b[0], b[1], b[2], b[3]]) * xc[k];
+            wf[k] = f32::from_le_bytes(wc[k]);
+        }
+        for k in 0..LANES {
+            acc[k] += wf[k] * xc[k];
         }
     }
-    for (k, (b, xv)) in w_chunks
-        .remainder()
-        .chunks_exact(4)
-        .zip(x_chunks.remainder())
-        .enumerate()
-    {
-        acc[k] += f32::from_le_bytes([b[0], b[1], b[2], b[3]]) * xv;
+    for (k, (b, xv)) in w_rest.iter().zip(x_rest).enumerate() {
+        acc[k] += f32::from_le_bytes(*b) * xv;
     }
     reduce(acc)
 }
@@ -43,37 +42,51 @@ fn dot_f32(w: &[u8], x: &[f32]) -> f32 {
 #[inline]
 fn dot_i8_f32(w: &[u8], x: &[f32]) -> f32 {
     let mut acc = [0.0f32; LANES];
-    let mut w_chunks = w.chunks_exact(LANES);
-    let mut x_chunks = x.chunks_exact(LANES);
-    for (wc, xc) in (&mut w_chunks).zip(&mut x_chunks) {
+    let (w_chunks, w_rest) = w.as_chunks::<LANES>();
+    let (x_chunks, x_rest) = x.as_chunks::<LANES>();
+    for (wc, xc) in w_chunks.iter().zip(x_chunks) {
+        let mut wf = [0.0f32; LANES];
         for k in 0..LANES {
-            acc[k] += (wc[k] as i8) as f32 * xc[k];
+            wf[k] = (wc[k] as i8) as f32;
+        }
+        for k in 0..LANES {
+            acc[k] += wf[k] * xc[k];
         }
     }
-    for (k, (&wv, xv)) in w_chunks
-        .remainder()
-        .iter()
-        .zip(x_chunks.remainder())
-        .enumerate()
-    {
+    for (k, (&wv, xv)) in w_rest.iter().zip(x_rest).enumerate() {
         acc[k] += (wv as i8) as f32 * xv;
     }
     reduce(acc)
 }
 
+/// Integer lanes: 16 int8 products per step map onto one `pmaddwd`-style instruction pair.
+const INT_LANES: usize = 16;
+
 /// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely).
 #[inline]
 fn dot_i8_i8(w: &[u8], x: &[i8]) -> i32 {
-    w.iter()
-        .zip(x)
+    let mut acc = [0i32; INT_LANES];
+    let (w_chunks, w_rest) = w.as_chunks::<INT_LANES>();
+    let (x_chunks, x_rest) = x.as_chunks::<INT_LANES>();
+    for (wc, xc) in w_chunks.iter().zip(x_chunks) {
+        for k in 0..INT_LANES {
+            acc[k] += (wc[k] as i8 as i16 * xc[k] as i16) as i32;
+        }
+    }
+    let tail: i32 = w_rest
+        .iter()
+        .zip(x_rest)
         .map(|(&wv, &xv)| (wv as i8) as i32 * xv as i32)
-        .sum()
+        .sum();
+    acc.iter().sum::<i32>() + tail
 }
 
-/// Symmetric int8 quantization of one activation: `clamp(round(x / scale), -127, 127)`.
+/// Symmetric int8 quantization of one activation: `x / scale` clamped to +-127 and rounded
+/// half away from zero (the cast truncates toward zero; clamping first keeps it in range).
 #[inline]
 pub(crate) fn quantize(x: f32, scale: f32) -> i8 {
-    libm::roundf(x / scale).clamp(-127.0, 127.0) as i8
+    let v = (x / scale).clamp(-127.0, 127.0);
+    (v + 0.5f32.copysign(v)) as i8
 }
 
 /// One dense layer: `y = act(W x + b)`. `x` has `in_dim` values, `y` gets `out_dim`;

@@ -413,8 +413,9 @@ impl Dims {
 }
 
 impl FloatModel {
-    /// A randomly initialised model (uniform fan-in init, seeded, deterministic) with two
-    /// hidden ReLU layers per MLP, identity normalisation and unit action scale. For tests,
+    /// A randomly initialised model (uniform fan-in init, seeded, deterministic): encoder and
+    /// policy with two hidden ReLU layers, a linear r -> z head (the project's default
+    /// architecture), identity normalisation and unit action scale. For tests,
     /// benchmarks and footprint measurements; trained models come from the trainer's export.
     pub fn random(kind: ModelKind, dims: Dims, seed: u64) -> Self {
         let mut state = seed;
@@ -462,7 +463,7 @@ impl FloatModel {
             act_scale: alloc::vec![1.0; dims.act],
             act_offset: alloc::vec![0.0; dims.act],
             encoder: mlp(&[transition, h, h, dims.r], Activation::Identity),
-            z_head: mlp(&[dims.r, h, dims.z], Activation::Identity),
+            z_head: mlp(&[dims.r, dims.z], Activation::Identity),
             policy: mlp(&[dims.obs + dims.z, h, h, dims.act], Activation::Identity),
         }
     }
