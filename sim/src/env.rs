@@ -104,7 +104,8 @@ pub trait Environment: Send {
 pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment>, SimError> {
     match family {
         Family::PointGoal => Ok(Box::new(crate::PointGoalEnv::new(config))),
-        Family::CheetahVel | Family::WalkerDyn => Err(SimError::FamilyUnavailable(family)),
+        Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config))),
+        Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config))),
     }
 }
 

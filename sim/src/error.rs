@@ -56,9 +56,6 @@ pub enum SimError {
         /// What is wrong with it.
         reason: String,
     },
-    /// The family is declared but its robot is not built by this version of the crate.
-    #[error("the {0} environment is not available in this build")]
-    FamilyUnavailable(Family),
     /// The simulated state became non-finite (the physics diverged).
     #[error("the {family} physics diverged at step {step} (non-finite state)")]
     PhysicsDiverged {

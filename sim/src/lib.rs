@@ -14,9 +14,11 @@ mod dataset;
 mod dynamics;
 mod env;
 mod error;
+pub mod legged;
 pub mod planar;
 pub mod point_goal;
 pub mod render;
+mod robots;
 mod task;
 
 pub use dataset::{
@@ -26,6 +28,7 @@ pub use dataset::{
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::SimError;
+pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use task::{
@@ -42,5 +45,6 @@ mod api_tests {
     fn boxed_environments_are_send() {
         assert_send::<Box<dyn Environment>>();
         assert_send::<PointGoalEnv>();
+        assert_send::<PlanarLeggedEnv>();
     }
 }

@@ -1,7 +1,352 @@
-//! Shared pieces of the planar articulated robots (cheetah, walker).
+//! Shared machinery of the planar legged robots (cheetah, walker): a declarative robot
+//! description, its Rapier multibody (reduced coordinates: no joint drift), torque motors,
+//! and the 17-D observation.
+//!
+//! Torques are applied the way Rapier's MJCF loader does it: a force-based velocity motor
+//! aimed at +-1e9 with gain 0 and `max_force = |torque|`, so the motor always saturates at
+//! exactly the commanded torque. Joint damping, armature and springs use the multibody's
+//! implicit per-dof terms.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+use rapier2d::prelude::*;
+
+use crate::render::{Role, Shape};
 
 /// Both planar legged robots have six torque-controlled joints.
 pub const ACT_DIM: usize = 6;
 /// Observation of both planar legged robots: torso height and angle, six joint angles, torso
 /// (vx, vz, angular velocity), six joint velocities. The torso x is never observed.
 pub const OBS_DIM: usize = 17;
+/// Number of limbs (each hangs from one actuated joint).
+pub(crate) const LIMBS: usize = 6;
+/// Generalised dofs of the floating torso (x, z, angle).
+const ROOT_DOFS: usize = 3;
+/// Index of the angular axis in a 2-D joint's spatial layout.
+const ANGULAR_AXIS: usize = 2;
+
+/// A capsule from `a` to `b` (rest pose, robot frame, metres).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Capsule {
+    pub a: [f32; 2],
+    pub b: [f32; 2],
+    pub radius: f32,
+}
+
+/// One limb: a capsule hanging from a revolute joint on its parent.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct LimbSpec {
+    /// Index of the parent limb, or `None` for the torso.
+    pub parent: Option<usize>,
+    /// Joint position at rest (robot frame).
+    pub joint: [f32; 2],
+    /// The limb's capsule at rest (robot frame).
+    pub capsule: Capsule,
+    pub mass: f32,
+    /// Joint range (radians, counter-clockwise positive).
+    pub range: [f32; 2],
+    /// Torque (N m) of an action of 1.
+    pub gear: f32,
+    pub damping: f32,
+    pub stiffness: f32,
+    pub armature: f32,
+    pub friction: f32,
+}
+
+/// A planar legged robot: torso capsules, six limbs, and the physics settings.
+#[derive(Debug, Clone)]
+pub(crate) struct RobotSpec {
+    pub torso: Vec<Capsule>,
+    pub torso_mass: f32,
+    pub torso_friction: f32,
+    /// Rest position of the torso origin above the ground.
+    pub origin: [f32; 2],
+    pub limbs: [LimbSpec; LIMBS],
+    pub physics_dt: f32,
+    pub substeps: usize,
+    pub solver_iterations: usize,
+    /// Initial generalised positions get U(-x, x) noise.
+    pub position_noise: f32,
+    /// Initial generalised velocities get this times N(0, 1) (`uniform_velocity_noise` false)
+    /// or U(-x, x) noise.
+    pub velocity_noise: f32,
+    pub uniform_velocity_noise: bool,
+}
+
+/// Per-body multipliers (torso first, then limbs) applied when building: mass, inertia,
+/// friction; and per-joint damping multipliers.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Scaling {
+    pub mass: [f32; LIMBS + 1],
+    pub inertia: [f32; LIMBS + 1],
+    pub friction: [f32; LIMBS + 1],
+    pub damping: [f32; LIMBS],
+}
+
+impl Scaling {
+    pub const NOMINAL: Scaling = Scaling {
+        mass: [1.0; LIMBS + 1],
+        inertia: [1.0; LIMBS + 1],
+        friction: [1.0; LIMBS + 1],
+        damping: [1.0; LIMBS],
+    };
+}
+
+fn v(p: [f32; 2]) -> Vector {
+    Vector::new(p[0], p[1])
+}
+
+/// Mass properties of `capsules` (body frame) scaled to `mass` and then inertia x `inertia`.
+fn scaled_mass(capsules: &[Capsule], offset: Vector, mass: f32, inertia: f32) -> MassProperties {
+    let unit: MassProperties = capsules
+        .iter()
+        .map(|c| MassProperties::from_capsule(1.0, v(c.a) - offset, v(c.b) - offset, c.radius))
+        .sum();
+    let ratio = mass / unit.mass();
+    MassProperties::new(
+        unit.local_com,
+        mass,
+        unit.principal_inertia() * ratio * inertia,
+    )
+}
+
+/// A built robot in its own physics world.
+pub(crate) struct PlanarRobot {
+    pub world: PhysicsWorld,
+    torso: RigidBodyHandle,
+    limbs: [RigidBodyHandle; LIMBS],
+    gears: [f32; LIMBS],
+    substeps: usize,
+}
+
+impl PlanarRobot {
+    /// Builds the robot at rest, then adds the seeded initial-state noise.
+    pub fn build(spec: &RobotSpec, scaling: &Scaling, seed: u64) -> Self {
+        let mut world = PhysicsWorld::new();
+        world.integration_parameters.dt = spec.physics_dt;
+        world.integration_parameters.num_solver_iterations = spec.solver_iterations;
+        world.insert(
+            RigidBodyBuilder::fixed().translation(Vector::new(0.0, -0.5)),
+            ColliderBuilder::cuboid(1.0e4, 0.5).friction(1.0),
+        );
+        let origin = v(spec.origin);
+        let torso = world.insert_body(
+            RigidBodyBuilder::dynamic()
+                .translation(origin)
+                .additional_mass_properties(scaled_mass(
+                    &spec.torso,
+                    Vector::ZERO,
+                    spec.torso_mass * scaling.mass[0],
+                    scaling.inertia[0],
+                ))
+                .can_sleep(false),
+        );
+        for capsule in &spec.torso {
+            world.insert_collider(
+                ColliderBuilder::capsule_from_endpoints(v(capsule.a), v(capsule.b), capsule.radius)
+                    .density(0.0)
+                    .friction(spec.torso_friction * scaling.friction[0]),
+                Some(torso),
+            );
+        }
+        let mut limbs = [torso; LIMBS];
+        let mut gears = [0.0; LIMBS];
+        for (i, limb) in spec.limbs.iter().enumerate() {
+            let joint = v(limb.joint);
+            let body = world.insert_body(
+                RigidBodyBuilder::dynamic()
+                    .translation(origin + joint)
+                    .additional_mass_properties(scaled_mass(
+                        &[limb.capsule],
+                        joint,
+                        limb.mass * scaling.mass[i + 1],
+                        scaling.inertia[i + 1],
+                    ))
+                    .can_sleep(false),
+            );
+            world.insert_collider(
+                ColliderBuilder::capsule_from_endpoints(
+                    v(limb.capsule.a) - joint,
+                    v(limb.capsule.b) - joint,
+                    limb.capsule.radius,
+                )
+                .density(0.0)
+                .friction(limb.friction * scaling.friction[i + 1]),
+                Some(body),
+            );
+            let (parent, parent_origin) = match limb.parent {
+                Some(p) => (limbs[p], v(spec.limbs[p].joint)),
+                None => (torso, Vector::ZERO),
+            };
+            let hinge = RevoluteJointBuilder::new()
+                .local_anchor1(joint - parent_origin)
+                .local_anchor2(Vector::ZERO)
+                .limits(limb.range)
+                .motor_model(MotorModel::ForceBased)
+                .motor_velocity(0.0, 0.0)
+                .motor_max_force(0.0);
+            world.insert_multibody_joint(parent, body, hinge);
+            limbs[i] = body;
+            gears[i] = limb.gear;
+        }
+        let mut robot = Self {
+            world,
+            torso,
+            limbs,
+            gears,
+            substeps: spec.substeps,
+        };
+        robot.configure_joints(spec, scaling);
+        robot.add_initial_noise(spec, seed);
+        robot
+    }
+
+    fn multibody_mut(&mut self) -> Option<&mut Multibody> {
+        let handle = MultibodyJointHandle(self.limbs[0].0);
+        self.world
+            .multibody_joints
+            .get_mut(handle)
+            .map(|(mb, _)| mb)
+    }
+
+    fn configure_joints(&mut self, spec: &RobotSpec, scaling: &Scaling) {
+        let limbs = self.limbs;
+        let Some(multibody) = self.multibody_mut() else {
+            return;
+        };
+        multibody.set_self_contacts_enabled(false);
+        for (i, limb) in spec.limbs.iter().enumerate() {
+            let dof = ROOT_DOFS + i;
+            multibody.damping_mut()[dof] = limb.damping * scaling.damping[i];
+            multibody.armature_mut()[dof] = limb.armature;
+            if let Some(link) = multibody.link_mut(i + 1) {
+                debug_assert_eq!(link.rigid_body_handle(), limbs[i]);
+                link.joint.set_spring(ANGULAR_AXIS, limb.stiffness, 0.0);
+            }
+        }
+    }
+
+    fn add_initial_noise(&mut self, spec: &RobotSpec, seed: u64) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let ndofs = ROOT_DOFS + LIMBS;
+        let q = spec.position_noise;
+        let displacement: Vec<f32> = (0..ndofs).map(|_| rng.random_range(-q..=q)).collect();
+        let velocity: Vec<f32> = (0..ndofs)
+            .map(|_| {
+                let qd = spec.velocity_noise;
+                if spec.uniform_velocity_noise {
+                    rng.random_range(-qd..=qd)
+                } else {
+                    let n: f32 = StandardNormal.sample(&mut rng);
+                    qd * n
+                }
+            })
+            .collect();
+        let handle = MultibodyJointHandle(self.limbs[0].0);
+        let world = &mut self.world;
+        if let Some((multibody, _)) = world.multibody_joints.get_mut(handle) {
+            multibody.forward_kinematics(&world.bodies, true);
+            multibody.apply_displacements(&displacement);
+            multibody
+                .generalized_velocity_mut()
+                .copy_from_slice(&velocity);
+            multibody.forward_kinematics(&world.bodies, false);
+            multibody.update_rigid_bodies(&mut world.bodies, true);
+        }
+    }
+
+    /// Sets the joint torques `action[i] * gear[i]` (action already clipped).
+    pub fn set_torques(&mut self, action: &[f32]) {
+        let gears = self.gears;
+        let Some(multibody) = self.multibody_mut() else {
+            return;
+        };
+        for (i, (&a, gear)) in action.iter().zip(gears).enumerate() {
+            let torque = a * gear;
+            if let Some(link) = multibody.link_mut(i + 1) {
+                let target = if torque >= 0.0 { 1.0e9 } else { -1.0e9 };
+                link.joint
+                    .data
+                    .set_motor_velocity(JointAxis::AngX, target, 0.0)
+                    .set_motor_max_force(JointAxis::AngX, torque.abs());
+            }
+        }
+    }
+
+    /// Advances one control step (several physics steps).
+    pub fn advance(&mut self) {
+        for _ in 0..self.substeps {
+            self.world.step();
+        }
+    }
+
+    /// Torso origin (x, z) and angle.
+    pub fn torso_pose(&self) -> (f32, f32, f32) {
+        let body = &self.world.bodies[self.torso];
+        let p = body.translation();
+        (p.x, p.y, body.rotation().angle())
+    }
+
+    /// Writes the 17-D observation; velocities are clipped to +-`velocity_clip`.
+    pub fn observe(&self, obs: &mut [f32; OBS_DIM], velocity_clip: f32) {
+        let (_, z, angle) = self.torso_pose();
+        obs[0] = z;
+        obs[1] = angle;
+        let angle_of = |h: RigidBodyHandle| self.world.bodies[h].rotation().angle();
+        let parent_of = |i: usize| match i {
+            0 | 3 => self.torso,
+            i => self.limbs[i - 1],
+        };
+        for i in 0..LIMBS {
+            let relative = angle_of(self.limbs[i]) - angle_of(parent_of(i));
+            obs[2 + i] = wrap_angle(relative);
+        }
+        let handle = MultibodyJointHandle(self.limbs[0].0);
+        if let Some((multibody, _)) = self.world.multibody_joints.get(handle) {
+            let velocity = multibody.generalized_velocity();
+            for (slot, &value) in obs[8..].iter_mut().zip(velocity.iter()) {
+                *slot = value.clamp(-velocity_clip, velocity_clip);
+            }
+        }
+    }
+
+    /// True if any body's position or velocity is non-finite.
+    pub fn diverged(&self) -> bool {
+        self.world.bodies.iter().any(|(_, body)| {
+            !(body.translation().is_finite()
+                && body.linvel().is_finite()
+                && body.angvel().is_finite())
+        })
+    }
+
+    /// The robot's capsules in world coordinates, for rendering.
+    pub fn shapes(&self) -> Vec<Shape> {
+        let mut shapes = Vec::new();
+        for (_, collider) in self.world.colliders.iter() {
+            if let Some(capsule) = collider.shape().as_capsule() {
+                let pose = collider.position();
+                let a = *pose * capsule.segment.a;
+                let b = *pose * capsule.segment.b;
+                shapes.push(Shape::Capsule {
+                    a: [a.x, a.y],
+                    b: [b.x, b.y],
+                    radius: capsule.radius,
+                    role: Role::Robot,
+                });
+            }
+        }
+        shapes
+    }
+}
+
+/// Wraps an angle to (-pi, pi].
+fn wrap_angle(angle: f32) -> f32 {
+    use std::f32::consts::{PI, TAU};
+    let wrapped = (angle + PI).rem_euclid(TAU) - PI;
+    if wrapped <= -PI {
+        wrapped + TAU
+    } else {
+        wrapped
+    }
+}

@@ -1,0 +1,353 @@
+//! cheetah-vel and walker-dyn: the planar legged robots as [`Environment`]s.
+
+use crate::env::{EpisodeClock, check_family, clip_action};
+use crate::planar::{ACT_DIM, LIMBS, OBS_DIM, PlanarRobot, RobotSpec, Scaling};
+use crate::render::{Frame, Role, Shape, View};
+use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, WalkerDynamics, robots};
+
+/// Default cheetah-vel episode length (control steps of 0.05 s).
+pub const CHEETAH_HORIZON: usize = 1000;
+/// cheetah-vel reward weight of ||a||^2.
+pub const CHEETAH_ACTION_COST: f32 = 0.05;
+/// Default walker-dyn episode length (control steps of 0.008 s).
+pub const WALKER_HORIZON: usize = 1000;
+/// walker-dyn reward weight of ||a||^2.
+pub const WALKER_ACTION_COST: f32 = 1e-3;
+/// walker-dyn reward per step alive.
+pub const WALKER_ALIVE_BONUS: f32 = 1.0;
+/// walker-dyn is healthy while the torso height is inside this range (m) ...
+pub const WALKER_HEALTHY_HEIGHT: [f32; 2] = [0.8, 2.0];
+/// ... and the torso tilt is below this (rad).
+pub const WALKER_HEALTHY_ANGLE: f32 = 1.0;
+/// walker-dyn observed velocities are clipped to +-this (as in Gymnasium).
+pub const WALKER_VELOCITY_CLIP: f32 = 10.0;
+
+/// A planar legged robot with its task: the cheetah-vel or the walker-dyn environment.
+pub struct PlanarLeggedEnv {
+    family: Family,
+    spec: RobotSpec,
+    robot: PlanarRobot,
+    task: Task,
+    config: EnvConfig,
+    clock: EpisodeClock,
+    obs: [f32; OBS_DIM],
+    action: [f32; ACT_DIM],
+}
+
+/// The cheetah-vel environment.
+pub type CheetahVelEnv = PlanarLeggedEnv;
+/// The walker-dyn environment.
+pub type WalkerDynEnv = PlanarLeggedEnv;
+
+fn scaling_of(task: &Task) -> Scaling {
+    match *task {
+        Task::WalkerDyn { dynamics_seed } => {
+            let d = WalkerDynamics::from_seed(dynamics_seed);
+            Scaling {
+                mass: d.mass,
+                inertia: d.inertia,
+                friction: d.friction,
+                damping: d.damping,
+            }
+        }
+        _ => Scaling::NOMINAL,
+    }
+}
+
+impl PlanarLeggedEnv {
+    /// A cheetah-vel environment, reset to the first train velocity with seed 0.
+    pub fn cheetah(config: EnvConfig) -> Self {
+        Self::build(
+            Family::CheetahVel,
+            robots::half_cheetah(),
+            CHEETAH_HORIZON,
+            config,
+        )
+    }
+
+    /// A walker-dyn environment, reset to the first train dynamics with seed 0.
+    pub fn walker(config: EnvConfig) -> Self {
+        Self::build(Family::WalkerDyn, robots::walker(), WALKER_HORIZON, config)
+    }
+
+    fn build(family: Family, spec: RobotSpec, horizon: usize, config: EnvConfig) -> Self {
+        let task = family.train_tasks()[0];
+        let robot = PlanarRobot::build(&spec, &scaling_of(&task), 0);
+        let mut env = Self {
+            family,
+            spec,
+            robot,
+            task,
+            config,
+            clock: EpisodeClock::new(config.horizon.unwrap_or(horizon)),
+            obs: [0.0; OBS_DIM],
+            action: [0.0; ACT_DIM],
+        };
+        env.observe();
+        env
+    }
+
+    fn velocity_clip(&self) -> f32 {
+        match self.family {
+            Family::WalkerDyn => WALKER_VELOCITY_CLIP,
+            _ => f32::INFINITY,
+        }
+    }
+
+    fn observe(&mut self) {
+        let clip = self.velocity_clip();
+        self.robot.observe(&mut self.obs, clip);
+    }
+
+    /// Torso x position (m); not part of the observation.
+    pub fn torso_x(&self) -> f32 {
+        self.robot.torso_pose().0
+    }
+
+    fn walker_healthy(&self) -> bool {
+        let (_, z, angle) = self.robot.torso_pose();
+        z > WALKER_HEALTHY_HEIGHT[0]
+            && z < WALKER_HEALTHY_HEIGHT[1]
+            && angle.abs() < WALKER_HEALTHY_ANGLE
+    }
+}
+
+impl Environment for PlanarLeggedEnv {
+    fn family(&self) -> Family {
+        self.family
+    }
+
+    fn control_dt(&self) -> f32 {
+        self.spec.physics_dt * self.spec.substeps as f32
+    }
+
+    fn horizon(&self) -> usize {
+        self.clock.horizon
+    }
+
+    fn task(&self) -> &Task {
+        &self.task
+    }
+
+    fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
+        check_family(self.family, task)?;
+        if let Task::CheetahVel { target_velocity } = *task
+            && !target_velocity.is_finite()
+        {
+            return Err(SimError::InvalidTask {
+                family: self.family,
+                reason: "target velocity is not finite".into(),
+            });
+        }
+        self.robot = PlanarRobot::build(&self.spec, &scaling_of(task), seed);
+        self.task = *task;
+        self.clock.restart();
+        self.observe();
+        Ok(&self.obs)
+    }
+
+    fn step(&mut self, action: &[f32]) -> Result<crate::Transition<'_>, SimError> {
+        self.clock.ensure_running()?;
+        clip_action(self.family, action, &mut self.action)?;
+        let x_before = self.torso_x();
+        self.robot.set_torques(&self.action);
+        self.robot.advance();
+        if self.robot.diverged() {
+            self.clock.over = true;
+            return Err(SimError::PhysicsDiverged {
+                family: self.family,
+                step: self.clock.step,
+            });
+        }
+        self.observe();
+        let forward_velocity = (self.torso_x() - x_before) / self.control_dt();
+        let effort: f32 = self.action.iter().map(|a| a * a).sum();
+        let (reward, metric_sample, terminated) = match self.task {
+            Task::CheetahVel { target_velocity } => {
+                let error = (forward_velocity - target_velocity).abs();
+                (-error - CHEETAH_ACTION_COST * effort, error, false)
+            }
+            _ => {
+                let reward = forward_velocity + WALKER_ALIVE_BONUS - WALKER_ACTION_COST * effort;
+                let fell = self.config.healthy_termination && !self.walker_healthy();
+                (reward, reward, fell)
+            }
+        };
+        let (terminated, truncated) = self.clock.advance(terminated);
+        Ok(crate::Transition {
+            obs: &self.obs,
+            reward,
+            done: terminated || truncated,
+            info: StepInfo {
+                step: self.clock.step,
+                terminated,
+                truncated,
+                metric_sample,
+                forward_velocity,
+            },
+        })
+    }
+
+    fn observation(&self) -> &[f32] {
+        &self.obs
+    }
+
+    fn frame(&self) -> Frame {
+        let x = self.torso_x();
+        let mut shapes = vec![Shape::Capsule {
+            a: [x - 3.0, 0.0],
+            b: [x + 3.0, 0.0],
+            radius: 0.01,
+            role: Role::Ground,
+        }];
+        shapes.extend(self.robot.shapes());
+        Frame {
+            view: View::Side,
+            time: self.clock.step as f32 * self.control_dt(),
+            shapes,
+        }
+    }
+}
+
+const _: () = assert!(LIMBS == ACT_DIM);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::EpisodeMetric;
+
+    fn config(horizon: usize) -> EnvConfig {
+        EnvConfig {
+            horizon: Some(horizon),
+            healthy_termination: true,
+        }
+    }
+
+    /// Open-loop trot: back leg joints lead the front leg by half a period.
+    fn trot(step: usize, dt: f32) -> [f32; 6] {
+        let phase = 2.0 * std::f32::consts::PI * step as f32 * dt;
+        let pi = std::f32::consts::PI;
+        [0.0, -0.5, -1.0, pi, pi - 0.5, pi - 1.0].map(|offset| 0.6 * (phase + offset).sin())
+    }
+
+    #[test]
+    fn open_loop_gait_moves_the_cheetah_forward_upright() {
+        let mut env = PlanarLeggedEnv::cheetah(config(200));
+        let task = Task::cheetah_vel(1.0);
+        env.reset(&task, 1).unwrap();
+        let mut metric = EpisodeMetric::new(Family::CheetahVel);
+        for step in 0.. {
+            let transition = env.step(&trot(step, env.control_dt())).unwrap();
+            metric.record(&transition.info);
+            assert!(transition.obs[1].abs() < 1.0, "tilted at step {step}");
+            if transition.done {
+                break;
+            }
+        }
+        assert!(
+            env.torso_x() > 3.0,
+            "moved only {} m in 10 s",
+            env.torso_x()
+        );
+        assert!(metric.value() < 1.0, "mean |v - 1| = {}", metric.value());
+        env.reset(&task, 1).unwrap();
+        for _ in 0..200 {
+            env.step(&[0.0; 6]).unwrap();
+        }
+        assert!(env.torso_x().abs() < 0.3, "drifted without actions");
+    }
+
+    fn walker_steps_upright(env: &mut PlanarLeggedEnv, task: &Task, gains: (f32, f32)) -> usize {
+        let mut obs = env.reset(task, 1).unwrap().to_vec();
+        for step in 1.. {
+            let mut action = [0.0; 6];
+            for (j, a) in action.iter_mut().enumerate() {
+                *a = -gains.0 * obs[2 + j] - gains.1 * obs[11 + j];
+            }
+            let transition = env.step(&action).unwrap();
+            obs.copy_from_slice(transition.obs);
+            if transition.done {
+                return step;
+            }
+        }
+        unreachable!()
+    }
+
+    #[test]
+    fn joint_pd_keeps_the_walker_up_and_without_it_it_falls() {
+        let mut env = PlanarLeggedEnv::walker(config(1000));
+        for task in Family::WalkerDyn.train_tasks().iter().take(6) {
+            let passive = walker_steps_upright(&mut env, task, (0.0, 0.0));
+            let held = walker_steps_upright(&mut env, task, (1.0, 0.1));
+            assert!(
+                passive < 100,
+                "{task}: passive walker stood {passive} steps"
+            );
+            assert!(held >= 200, "{task}: PD walker fell after {held} steps");
+        }
+    }
+
+    #[test]
+    fn termination_can_be_switched_off() {
+        let mut env = PlanarLeggedEnv::walker(EnvConfig {
+            horizon: Some(150),
+            healthy_termination: false,
+        });
+        let task = Family::WalkerDyn.test_tasks()[0];
+        assert_eq!(walker_steps_upright(&mut env, &task, (0.0, 0.0)), 150);
+    }
+
+    #[test]
+    fn legged_trajectories_are_bit_identical_per_seed_and_dynamics_differ_per_task() {
+        let run = |family: Family, task: Task, seed: u64| {
+            let mut env = crate::make_env(family, config(60)).unwrap();
+            let mut trace = env.reset(&task, seed).unwrap().to_vec();
+            for step in 0..60 {
+                let t = env.step(&trot(step, 0.05)).unwrap();
+                trace.extend_from_slice(t.obs);
+                trace.push(t.reward);
+                if t.done {
+                    break;
+                }
+            }
+            trace.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        };
+        let cheetah = Task::cheetah_vel(2.0);
+        assert_eq!(
+            run(Family::CheetahVel, cheetah, 4),
+            run(Family::CheetahVel, cheetah, 4)
+        );
+        assert_ne!(
+            run(Family::CheetahVel, cheetah, 4),
+            run(Family::CheetahVel, cheetah, 5)
+        );
+        let walker = Task::walker_dyn(3);
+        assert_eq!(
+            run(Family::WalkerDyn, walker, 4),
+            run(Family::WalkerDyn, walker, 4)
+        );
+        assert_ne!(
+            run(Family::WalkerDyn, walker, 4),
+            run(Family::WalkerDyn, Task::walker_dyn(4), 4)
+        );
+    }
+
+    #[test]
+    fn observations_have_the_declared_shape_and_hide_the_torso_x() {
+        let mut env = PlanarLeggedEnv::cheetah(config(50));
+        let obs = env.reset(&Task::cheetah_vel(0.5), 0).unwrap();
+        assert_eq!(obs.len(), OBS_DIM);
+        assert!((obs[0] - 0.7).abs() < 0.15, "torso height {}", obs[0]);
+        let mut oracle = vec![0.0; env.oracle_obs_dim()];
+        env.oracle_observation(&mut oracle).unwrap();
+        assert_eq!(oracle[OBS_DIM], 0.5);
+        assert!(matches!(
+            env.reset(&Task::walker_dyn(0), 0),
+            Err(SimError::TaskFamilyMismatch { .. })
+        ));
+        assert!(matches!(
+            env.step(&[0.0, 0.0, 0.0, f32::INFINITY, 0.0, 0.0]),
+            Err(SimError::NonFiniteAction { index: 3, .. })
+        ));
+    }
+}
