@@ -7,11 +7,19 @@
 //! * [`replay`]: flat preallocated ring replay buffers (one per task for meta-learning).
 //! * [`sac`]: soft actor-critic (SAC v2: twin Q, Polyak targets, learned temperature) and its
 //!   hyper-parameters.
+//! * [`checkpoint`]: atomic safetensors checkpoints with JSON metadata.
+//! * [`demos`]: deterministic expert demonstrations in sim's dataset format.
+//! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert.
+//! * [`metrics`]: the JSON-lines metrics log.
 //! * [`threads`]: the compute thread layout (candle's matmul thread count).
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod checkpoint;
+pub mod demos;
+pub mod expert;
 pub mod fused;
+pub mod metrics;
 pub mod nn;
 pub mod policy;
 pub mod replay;
@@ -43,6 +51,25 @@ pub enum Error {
     /// A replay buffer cannot serve the request (e.g. sampling from an empty buffer).
     #[error("replay buffer: {0}")]
     Replay(String),
+    /// A checkpoint could not be written or read (missing, truncated, corrupt, mismatched).
+    #[error("checkpoint {}: {reason}", path.display())]
+    Checkpoint {
+        /// The file or directory concerned.
+        path: std::path::PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// An environment or dataset error from `sim`.
+    #[error("sim: {0}")]
+    Sim(String),
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: std::path::PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
 }
 
 /// Result alias of the trainer library.

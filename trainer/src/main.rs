@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 mod cli_bench;
+mod cli_expert;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -24,6 +25,16 @@ struct Cli {
 
 #[derive(Subcommand, Debug)]
 enum Cmd {
+    /// Train an oracle SAC expert on a family's meta-train tasks (or export the scripted one).
+    #[command(
+        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
+    )]
+    Expert(cli_expert::ExpertArgs),
+    /// Record deterministic expert demonstrations in sim's dataset format.
+    #[command(
+        after_help = "Examples:\n  smile demos --env point-goal --split train --per-task 4 --subsample 20 --expert runs/pg-expert -o demos/pg-train.safetensors\n  smile demos --env point-goal --task-params 0.1,1.7 --per-task 1 --expert runs/pg-pd -o demos/pg-extra.safetensors"
+    )]
+    Demos(cli_expert::DemosArgs),
     /// Time SAC updates (batch 256, obs 20 + z 16, act 6) at several hidden widths.
     #[command(
         after_help = "Examples:\n  smile bench\n  smile bench --hidden 64 256 --iters 500 --json bench.json"
@@ -36,5 +47,7 @@ fn main() -> Result<()> {
     trainer::threads::set_compute_threads(cli.threads);
     match cli.cmd {
         Cmd::Bench(a) => cli_bench::run(a),
+        Cmd::Expert(a) => cli_expert::run_expert(a),
+        Cmd::Demos(a) => cli_expert::run_demos(a),
     }
 }

@@ -1,0 +1,228 @@
+//! Checkpoints: one safetensors file holding every tensor of a run (weights, targets, Adam
+//! moments, replay buffers) with a small JSON document (counters, RNG state, config) in its
+//! `__metadata__` header under the key `smile`.
+//!
+//! A single file written to a temporary name and renamed over the old one is atomic on POSIX
+//! file systems, so a killed run always leaves either the previous or the new checkpoint,
+//! never a mix. A readable copy of the metadata is written beside it (`checkpoint.json`,
+//! informational only).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+use candle_core::{DType, Device, Tensor};
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+
+use crate::{Error, Result};
+
+/// File name of the checkpoint inside a run directory.
+pub const CHECKPOINT_FILE: &str = "checkpoint.safetensors";
+/// Metadata key holding the JSON document.
+const META_KEY: &str = "smile";
+/// Format tag stored in the metadata, checked on load.
+pub const CHECKPOINT_FORMAT: &str = "smile-checkpoint-v1";
+
+fn ckpt_err(path: &Path, reason: impl Into<String>) -> Error {
+    Error::Checkpoint {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+/// Write `tensors` and `meta` to `dir/checkpoint.safetensors` atomically (temp file + rename).
+pub fn save(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).map_err(|e| ckpt_err(dir, e.to_string()))?;
+    let mut bufs: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::with_capacity(tensors.len());
+    for (name, t) in tensors {
+        let t = t.contiguous()?;
+        let (dtype, bytes) = match t.dtype() {
+            DType::F32 => (
+                Dtype::F32,
+                t.flatten_all()?
+                    .to_vec1::<f32>()?
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect(),
+            ),
+            DType::U32 => (
+                Dtype::U32,
+                t.flatten_all()?
+                    .to_vec1::<u32>()?
+                    .iter()
+                    .flat_map(|v| v.to_le_bytes())
+                    .collect(),
+            ),
+            other => {
+                return Err(ckpt_err(
+                    dir,
+                    format!("{name}: unsupported dtype {other:?}"),
+                ));
+            }
+        };
+        bufs.push((name.clone(), dtype, t.dims().to_vec(), bytes));
+    }
+    let views = bufs
+        .iter()
+        .map(|(n, d, s, b)| Ok((n.as_str(), TensorView::new(*d, s.clone(), b)?)))
+        .collect::<std::result::Result<Vec<_>, safetensors::SafeTensorError>>()
+        .map_err(|e| ckpt_err(dir, e.to_string()))?;
+    let mut doc = meta.clone();
+    doc["format"] = serde_json::Value::from(CHECKPOINT_FORMAT);
+    let info = HashMap::from([(META_KEY.to_string(), doc.to_string())]);
+    let bytes =
+        safetensors::serialize(views, Some(info)).map_err(|e| ckpt_err(dir, e.to_string()))?;
+    let path = dir.join(CHECKPOINT_FILE);
+    write_atomic(&path, &bytes)?;
+    let pretty = serde_json::to_string_pretty(&doc).unwrap_or_default();
+    write_atomic(&dir.join("checkpoint.json"), pretty.as_bytes())?;
+    Ok(path)
+}
+
+/// Write `bytes` to `path` via a temporary sibling and a rename.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = path.with_extension("tmp");
+    let io = |e: std::io::Error| ckpt_err(path, e.to_string());
+    {
+        use std::io::Write;
+        let mut f = std::fs::File::create(&tmp).map_err(io)?;
+        f.write_all(bytes).map_err(io)?;
+        f.sync_all().map_err(io)?;
+    }
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// A loaded checkpoint: tensors by name and the metadata document.
+#[derive(Debug)]
+pub struct Loaded {
+    path: PathBuf,
+    tensors: HashMap<String, Tensor>,
+    /// The JSON metadata written by [`save`].
+    pub meta: serde_json::Value,
+}
+
+impl Loaded {
+    /// The tensor called `name`, or a clear error naming the file and the tensor.
+    pub fn get(&self, name: &str) -> Result<Tensor> {
+        self.tensors
+            .get(name)
+            .cloned()
+            .ok_or_else(|| ckpt_err(&self.path, format!("missing tensor `{name}`")))
+    }
+
+    /// Where it was loaded from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// A metadata field deserialised, or an error naming the field.
+    pub fn meta_field<T: serde::de::DeserializeOwned>(&self, key: &str) -> Result<T> {
+        let v = self
+            .meta
+            .get(key)
+            .cloned()
+            .ok_or_else(|| ckpt_err(&self.path, format!("metadata has no field `{key}`")))?;
+        serde_json::from_value(v).map_err(|e| ckpt_err(&self.path, format!("field `{key}`: {e}")))
+    }
+}
+
+/// Load `dir/checkpoint.safetensors` (or `dir` itself if it is a file). Truncated, corrupt or
+/// foreign files give [`Error::Checkpoint`] naming the path and the problem.
+pub fn load(dir: &Path) -> Result<Loaded> {
+    let path = if dir.is_dir() {
+        dir.join(CHECKPOINT_FILE)
+    } else {
+        dir.to_path_buf()
+    };
+    let bytes = std::fs::read(&path).map_err(|e| ckpt_err(&path, e.to_string()))?;
+    let st = SafeTensors::deserialize(&bytes)
+        .map_err(|e| ckpt_err(&path, format!("not a valid safetensors file: {e}")))?;
+    let (_, header) = SafeTensors::read_metadata(&bytes)
+        .map_err(|e| ckpt_err(&path, format!("bad header: {e}")))?;
+    let doc = header
+        .metadata()
+        .as_ref()
+        .and_then(|m| m.get(META_KEY))
+        .ok_or_else(|| ckpt_err(&path, "no smile metadata (not a smile checkpoint)"))?;
+    let meta: serde_json::Value = serde_json::from_str(doc)
+        .map_err(|e| ckpt_err(&path, format!("metadata is not JSON: {e}")))?;
+    if meta.get("format").and_then(|f| f.as_str()) != Some(CHECKPOINT_FORMAT) {
+        return Err(ckpt_err(
+            &path,
+            format!("unknown format (expected {CHECKPOINT_FORMAT})"),
+        ));
+    }
+    let mut tensors = HashMap::new();
+    for name in st.names() {
+        let view = st
+            .tensor(name)
+            .map_err(|e| ckpt_err(&path, e.to_string()))?;
+        let shape = view.shape().to_vec();
+        let data = view.data();
+        let t = match view.dtype() {
+            Dtype::F32 => {
+                let v: Vec<f32> = data
+                    .chunks_exact(4)
+                    .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect();
+                Tensor::from_vec(v, shape, &Device::Cpu)?
+            }
+            Dtype::U32 => {
+                let v: Vec<u32> = data
+                    .chunks_exact(4)
+                    .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+                    .collect();
+                Tensor::from_vec(v, shape, &Device::Cpu)?
+            }
+            other => {
+                return Err(ckpt_err(
+                    &path,
+                    format!("{name}: unsupported dtype {other:?}"),
+                ));
+            }
+        };
+        tensors.insert(name.to_string(), t);
+    }
+    Ok(Loaded {
+        path,
+        tensors,
+        meta,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_corruption() {
+        let dir = std::env::temp_dir().join(format!("smile-ckpt-{}", std::process::id()));
+        let t = Tensor::new(&[[1.0f32, 2.0], [3.0, 4.0]], &Device::Cpu).unwrap();
+        let c = Tensor::new(&[7u32, 8], &Device::Cpu).unwrap();
+        let meta = serde_json::json!({"step": 5});
+        save(&dir, &[("w".into(), t.clone()), ("c".into(), c)], &meta).unwrap();
+        let l = load(&dir).unwrap();
+        assert_eq!(
+            l.get("w").unwrap().to_vec2::<f32>().unwrap(),
+            t.to_vec2::<f32>().unwrap()
+        );
+        assert_eq!(l.meta_field::<u64>("step").unwrap(), 5);
+        assert!(
+            l.get("nope")
+                .unwrap_err()
+                .to_string()
+                .contains("missing tensor `nope`")
+        );
+        // Truncate the file: a clear error, not a panic.
+        let p = dir.join(CHECKPOINT_FILE);
+        let bytes = std::fs::read(&p).unwrap();
+        std::fs::write(&p, &bytes[..bytes.len() - 5]).unwrap();
+        let e = load(&dir).unwrap_err().to_string();
+        assert!(
+            e.contains("checkpoint") && e.contains("not a valid safetensors"),
+            "{e}"
+        );
+        std::fs::write(&p, b"garbage").unwrap();
+        assert!(load(&dir).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

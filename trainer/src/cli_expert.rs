@@ -1,0 +1,285 @@
+//! `smile expert` and `smile demos`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use indicatif::{ProgressBar, ProgressStyle};
+use sim::{EnvConfig, Family, Split};
+use trainer::demos::{DemoSpec, record};
+use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertTrainer};
+
+/// Which expert `smile expert` produces.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ExpertKind {
+    /// SAC trained on the oracle observation (observation + task parameter).
+    Sac,
+    /// sim's scripted point-goal PD controller (point-goal only; nothing is trained).
+    ScriptedPd,
+}
+
+/// Arguments of `smile expert`.
+#[derive(Args, Debug)]
+pub struct ExpertArgs {
+    /// Task family: point-goal, cheetah-vel or walker-dyn.
+    #[arg(long)]
+    env: Option<String>,
+    /// Expert kind.
+    #[arg(long, value_enum, default_value_t = ExpertKind::Sac)]
+    kind: ExpertKind,
+    /// TOML file with an `ExpertConfig` (flags given here override it).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Run directory (checkpoint, metrics.jsonl, config.toml, policy.safetensors, eval.json).
+    #[arg(short, long)]
+    out: Option<PathBuf>,
+    /// Continue the run in this directory from its checkpoint (its saved config is used).
+    #[arg(long, conflicts_with_all = ["config", "env"])]
+    resume: Option<PathBuf>,
+    /// Total environment steps.
+    #[arg(long)]
+    total_steps: Option<u64>,
+    /// Seed.
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Hidden widths of actor and critics, e.g. 256,256.
+    #[arg(long, value_delimiter = ',')]
+    hidden: Option<Vec<usize>>,
+    /// Minibatch size.
+    #[arg(long)]
+    batch_size: Option<usize>,
+    /// Random-action steps before learning.
+    #[arg(long)]
+    learning_starts: Option<u64>,
+    /// Episode length override.
+    #[arg(long)]
+    horizon: Option<usize>,
+    /// Train a per-task expert on this meta-train task index.
+    #[arg(long)]
+    task_index: Option<usize>,
+    /// Checkpoint every N env steps.
+    #[arg(long)]
+    checkpoint_every: Option<u64>,
+    /// Deterministic evaluation episodes per meta-test task at the end.
+    #[arg(long, default_value_t = 2)]
+    eval_episodes: usize,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
+    let mut cfg = match &a.config {
+        Some(p) => toml::from_str(
+            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
+        )
+        .with_context(|| format!("parsing {}", p.display()))?,
+        None => ExpertConfig::default(),
+    };
+    if let Some(v) = &a.env {
+        cfg.env = v.clone();
+    }
+    macro_rules! set {
+        ($($f:ident).+ <- $v:expr) => { if let Some(v) = $v.clone() { cfg.$($f).+ = v; } };
+    }
+    set!(total_steps <- a.total_steps);
+    set!(seed <- a.seed);
+    set!(sac.hidden <- a.hidden);
+    set!(sac.batch_size <- a.batch_size);
+    set!(learning_starts <- a.learning_starts);
+    set!(checkpoint_every <- a.checkpoint_every);
+    if a.horizon.is_some() {
+        cfg.horizon = a.horizon;
+    }
+    if a.task_index.is_some() {
+        cfg.task_index = a.task_index;
+    }
+    cfg.family()?;
+    cfg.sac.validate()?;
+    Ok(cfg)
+}
+
+fn progress(total: u64, quiet: bool) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(total);
+    pb.set_style(
+        ProgressStyle::with_template(
+            "{elapsed_precise} [{bar:30}] {pos}/{len} steps {per_sec} ETA {eta} {msg}",
+        )
+        .expect("static template")
+        .progress_chars("=> "),
+    );
+    pb
+}
+
+/// Run `smile expert`.
+pub fn run_expert(a: ExpertArgs) -> Result<()> {
+    if a.kind == ExpertKind::ScriptedPd {
+        let env = a.env.as_deref().unwrap_or("point-goal");
+        if env != Family::PointGoal.name() {
+            bail!("the scripted PD expert exists only for point-goal, not {env}");
+        }
+        let dir = a
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("runs/expert-point-goal-pd"));
+        std::fs::create_dir_all(&dir)?;
+        expert::export_scripted_pd(&dir)?;
+        return finish(&dir, a.eval_episodes, None);
+    }
+    let (mut run, dir) = match &a.resume {
+        Some(dir) => {
+            let run = ExpertTrainer::resume(dir, a.total_steps)
+                .with_context(|| format!("resuming from {}", dir.display()))?;
+            (run, dir.clone())
+        }
+        None => {
+            let cfg = effective_config(&a)?;
+            let dir = a
+                .out
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(format!("runs/expert-{}-s{}", cfg.env, cfg.seed)));
+            (ExpertTrainer::new(cfg)?, dir)
+        }
+    };
+    std::fs::create_dir_all(&dir)?;
+    std::fs::write(
+        dir.join("config.toml"),
+        toml::to_string_pretty(run.config())?,
+    )?;
+    let pb = progress(run.config().total_steps, a.quiet);
+    pb.set_position(run.env_steps());
+    let result = expert::train(&mut run, &dir, &mut |ev| match ev {
+        Event::Step(s) => pb.set_position(s),
+        Event::Episode(r, sps) => pb.set_message(format!(
+            "sps {sps:.0} return {:.2} metric {:.3}",
+            r.episodic_return, r.metric
+        )),
+        Event::Checkpoint(s) => pb.println(format!("checkpoint at step {s}")),
+    });
+    pb.finish_and_clear();
+    if let Err(e) = result {
+        let ck = dir.join(trainer::checkpoint::CHECKPOINT_FILE);
+        let kept = if ck.exists() {
+            format!("; last good checkpoint kept at {}", ck.display())
+        } else {
+            String::new()
+        };
+        bail!(
+            "training stopped at env step {}: {e}{kept}",
+            run.env_steps()
+        );
+    }
+    finish(&dir, a.eval_episodes, run.config().task_index)
+}
+
+/// Evaluate the exported expert deterministically and write `eval.json`.
+fn finish(dir: &Path, episodes: usize, task_index: Option<usize>) -> Result<()> {
+    let ex = Expert::load(dir)?;
+    let family = ex.family();
+    let (tasks, label) = match task_index {
+        Some(i) => (vec![family.train_tasks()[i]], "its train task"),
+        None => (family.test_tasks(), "meta-test tasks"),
+    };
+    let (per_task, mean) = expert::evaluate(&ex, &tasks, episodes, EnvConfig::default())?;
+    let kind = format!("{:?}", family.metric_kind());
+    println!(
+        "{} expert in {}: {kind} = {mean:.4} (mean over {} {label}, {episodes} deterministic episodes each)",
+        ex.name(),
+        dir.display(),
+        tasks.len()
+    );
+    let json = serde_json::json!({
+        "expert": ex.name(), "env": family.name(), "metric": kind, "mean": mean,
+        "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(), "per_task": per_task,
+        "episodes_per_task": episodes,
+    });
+    std::fs::write(
+        dir.join("eval.json"),
+        serde_json::to_string_pretty(&json)? + "\n",
+    )?;
+    Ok(())
+}
+
+/// Arguments of `smile demos`.
+#[derive(Args, Debug)]
+pub struct DemosArgs {
+    /// Task family.
+    #[arg(long)]
+    env: String,
+    /// Which task list to record (also the split label stored in the file).
+    #[arg(long, default_value = "train")]
+    split: String,
+    /// Explicit task parameters instead of the split's tasks: goal angles (rad), target
+    /// velocities (m/s) or dynamics seeds, comma separated.
+    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
+    task_params: Option<Vec<f64>>,
+    /// Trajectories per task.
+    #[arg(long, default_value_t = 4)]
+    per_task: usize,
+    /// Subsampling factor k (keep step t when t mod k equals a per-trajectory random offset).
+    #[arg(long, default_value_t = 1)]
+    subsample: usize,
+    /// Expert: a run directory of `smile expert` or its policy.safetensors.
+    #[arg(long)]
+    expert: PathBuf,
+    /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Episode length override.
+    #[arg(long)]
+    horizon: Option<usize>,
+    /// Output dataset file.
+    #[arg(short, long)]
+    out: PathBuf,
+}
+
+/// Run `smile demos`.
+pub fn run_demos(a: DemosArgs) -> Result<()> {
+    let family: Family = a.env.parse()?;
+    let split: Split = a.split.parse().map_err(anyhow::Error::msg)?;
+    let ex = Expert::load(&a.expert)?;
+    if ex.family() != family {
+        bail!(
+            "expert {} is for {}, not {}",
+            a.expert.display(),
+            ex.family(),
+            family
+        );
+    }
+    let tasks = match &a.task_params {
+        Some(vs) => vs
+            .iter()
+            .map(|v| family.task_from_value(*v))
+            .collect::<Result<Vec<_>, _>>()?,
+        None => family.tasks(split),
+    };
+    let spec = DemoSpec {
+        tasks,
+        split,
+        per_task: a.per_task,
+        subsample: a.subsample,
+        seed: a.seed,
+        env: EnvConfig {
+            horizon: a.horizon,
+            ..EnvConfig::default()
+        },
+    };
+    let ds = record(&ex, &spec)?;
+    if let Some(parent) = a.out.parent() {
+        std::fs::create_dir_all(parent).ok();
+    }
+    ds.write(&a.out)?;
+    println!(
+        "wrote {}: {} tasks x {} trajectories, {} transitions (subsample {}), expert {}",
+        a.out.display(),
+        ds.tasks.len(),
+        a.per_task,
+        ds.transition_count(),
+        ds.subsample_factor,
+        ds.expert
+    );
+    Ok(())
+}

@@ -1,0 +1,57 @@
+//! Demonstrations: deterministic expert rollouts written in `sim`'s dataset format
+//! (`docs/DATASET.md`). Trajectory `j` of every task is reset with seed `seed + j`, so a file is
+//! a pure function of (expert, tasks, per-task count, seed, subsampling).
+
+use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
+
+use crate::expert::Expert;
+use crate::{Error, Result};
+
+/// What to record.
+#[derive(Debug, Clone)]
+pub struct DemoSpec {
+    /// The tasks (a split's list or explicit ones).
+    pub tasks: Vec<Task>,
+    /// The split label stored in the file.
+    pub split: Split,
+    /// Trajectories per task.
+    pub per_task: usize,
+    /// Subsampling factor k (1 = keep every step); offsets drawn from `seed`.
+    pub subsample: usize,
+    /// Base reset seed.
+    pub seed: u64,
+    /// Episode options (horizon).
+    pub env: EnvConfig,
+}
+
+/// Record `spec.per_task` deterministic expert episodes in every task.
+pub fn record(expert: &Expert, spec: &DemoSpec) -> Result<DemoDataset> {
+    let family: Family = expert.family();
+    let sim_err = |e: sim::DatasetError| Error::Sim(e.to_string());
+    let mut env = sim::make_env(family, spec.env).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut ds = DemoDataset::new(family, spec.split, expert.name());
+    for task in &spec.tasks {
+        let mut trajectories = Vec::with_capacity(spec.per_task);
+        for j in 0..spec.per_task {
+            let mut failure = None;
+            let tr = sim::record_trajectory(env.as_mut(), task, spec.seed + j as u64, |o, a| {
+                if let Err(e) = expert.act(o, a) {
+                    failure.get_or_insert(e);
+                }
+            })
+            .map_err(sim_err)?;
+            if let Some(e) = failure {
+                return Err(e);
+            }
+            trajectories.push(tr);
+        }
+        ds.tasks.push(TaskDemos {
+            task: *task,
+            trajectories,
+        });
+    }
+    if spec.subsample > 1 {
+        ds = ds.subsample(spec.subsample, spec.seed).map_err(sim_err)?;
+    }
+    Ok(ds)
+}

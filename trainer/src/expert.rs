@@ -1,0 +1,525 @@
+//! Task experts: SAC on the *oracle* observation (observation followed by the task parameter)
+//! across a family's meta-train tasks (or one task, for per-task experts), as the SMILe
+//! reference does (§4 "Experts"); and the scripted point-goal PD controller from `sim` as an
+//! explicitly selected expert kind.
+//!
+//! Training loop (one process, one thread: the environment step is microseconds, the update
+//! milliseconds, so a separate rollout thread would buy nothing for one update per step):
+//! each episode draws a train task uniformly and resets with a seed derived from the episode
+//! index; the first `learning_starts` steps act uniformly at random; after that every env step
+//! is followed by `updates_per_step` SAC updates. Checkpoints are taken at episode ends, so a
+//! resumed run continues exactly like an uninterrupted one.
+
+use std::path::Path;
+
+use candle_core::Tensor;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use sim::{EnvConfig, Environment, EpisodeMetric, Family, PointGoalPdExpert, Task};
+
+use crate::checkpoint;
+use crate::policy::TanhGaussianPolicy;
+use crate::replay::ReplayBuffer;
+use crate::sac::{Sac, SacConfig, SacCounters, SacStats};
+use crate::{Error, Result};
+
+/// File name of an exported expert policy inside a run directory.
+pub const POLICY_FILE: &str = "policy.safetensors";
+
+/// Expert training configuration (TOML section names match the field names).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ExpertConfig {
+    /// Task family (`point-goal`, `cheetah-vel`, `walker-dyn`). Default `point-goal`.
+    pub env: String,
+    /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
+    pub task_index: Option<usize>,
+    /// Environment steps in total. Default 30 000 (point-goal; cheetah needs ~160k, ref §7).
+    pub total_steps: u64,
+    /// Uniform-random-action steps before learning starts. Default 2 000 (CleanRL uses 5 000).
+    pub learning_starts: u64,
+    /// SAC updates per environment step. Default 1 (SAC-v2).
+    pub updates_per_step: usize,
+    /// Replay capacity in transitions. Default 300 000.
+    pub buffer_capacity: usize,
+    /// Checkpoint at the first episode end after every this many env steps. Default 10 000.
+    pub checkpoint_every: u64,
+    /// Episode length override; `None` uses the family's horizon. Default None.
+    pub horizon: Option<usize>,
+    /// Seed of everything (weights, task draws, noise, reset seeds). Default 0.
+    pub seed: u64,
+    /// SAC hyper-parameters.
+    pub sac: SacConfig,
+}
+
+impl Default for ExpertConfig {
+    fn default() -> Self {
+        Self {
+            env: "point-goal".into(),
+            task_index: None,
+            total_steps: 30_000,
+            learning_starts: 2_000,
+            updates_per_step: 1,
+            buffer_capacity: 300_000,
+            checkpoint_every: 10_000,
+            horizon: None,
+            seed: 0,
+            sac: SacConfig::default(),
+        }
+    }
+}
+
+impl ExpertConfig {
+    /// The family named by `env`.
+    pub fn family(&self) -> Result<Family> {
+        self.env
+            .parse::<Family>()
+            .map_err(|e| Error::Config(e.to_string()))
+    }
+
+    fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            horizon: self.horizon,
+            ..EnvConfig::default()
+        }
+    }
+
+    /// The tasks this expert trains on.
+    pub fn tasks(&self) -> Result<Vec<Task>> {
+        let all = self.family()?.train_tasks();
+        match self.task_index {
+            None => Ok(all),
+            Some(i) if i < all.len() => Ok(vec![all[i]]),
+            Some(i) => Err(Error::Config(format!(
+                "task_index {i} >= {} train tasks",
+                all.len()
+            ))),
+        }
+    }
+}
+
+fn sim_err(e: impl std::fmt::Display) -> Error {
+    Error::Sim(e.to_string())
+}
+
+/// What one finished episode reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EpisodeReport {
+    /// Env steps so far (after this episode).
+    pub env_steps: u64,
+    /// Episodes so far.
+    pub episodes: u64,
+    /// Undiscounted return of the episode.
+    pub episodic_return: f32,
+    /// The family's metric for the episode (min distance, mean |v - v*|, return).
+    pub metric: f32,
+    /// Stats of the last SAC update in the episode, if any.
+    pub last_update: Option<SacStats>,
+}
+
+/// The state of an expert training run: everything a checkpoint must hold.
+pub struct ExpertTrainer {
+    cfg: ExpertConfig,
+    family: Family,
+    tasks: Vec<Task>,
+    env: Box<dyn Environment>,
+    /// The SAC agent.
+    pub sac: Sac,
+    replay: ReplayBuffer,
+    rng: ChaCha8Rng,
+    env_steps: u64,
+    episodes: u64,
+}
+
+impl ExpertTrainer {
+    /// A fresh run.
+    pub fn new(cfg: ExpertConfig) -> Result<Self> {
+        let family = cfg.family()?;
+        let tasks = cfg.tasks()?;
+        let env = sim::make_env(family, cfg.env_config()).map_err(sim_err)?;
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let (od, ad) = (family.oracle_obs_dim(), family.act_dim());
+        let sac = Sac::new(od, ad, cfg.sac.clone(), &mut rng)?;
+        let replay = ReplayBuffer::new(od, ad, cfg.buffer_capacity)?;
+        Ok(Self {
+            cfg,
+            family,
+            tasks,
+            env,
+            sac,
+            replay,
+            rng,
+            env_steps: 0,
+            episodes: 0,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &ExpertConfig {
+        &self.cfg
+    }
+
+    /// Environment steps taken.
+    pub fn env_steps(&self) -> u64 {
+        self.env_steps
+    }
+
+    /// True once `total_steps` env steps are done.
+    pub fn finished(&self) -> bool {
+        self.env_steps >= self.cfg.total_steps
+    }
+
+    /// Run one episode (acting, storing, updating). `on_step` is called after every env step
+    /// with the env step count (for progress bars).
+    pub fn run_episode(&mut self, on_step: &mut dyn FnMut(u64)) -> Result<EpisodeReport> {
+        let task = self.tasks[self.rng.random_range(0..self.tasks.len())];
+        let reset_seed = self
+            .cfg
+            .seed
+            .wrapping_mul(1_000_003)
+            .wrapping_add(self.episodes);
+        self.env.reset(&task, reset_seed).map_err(sim_err)?;
+        let (od, ad) = (self.family.oracle_obs_dim(), self.family.act_dim());
+        let (mut obs, mut next) = (vec![0.0f32; od], vec![0.0f32; od]);
+        self.env.oracle_observation(&mut obs).map_err(sim_err)?;
+        let mut metric = EpisodeMetric::new(self.family);
+        let (mut ret, mut last_update) = (0.0f32, None);
+        loop {
+            let action: Vec<f32> = if self.env_steps < self.cfg.learning_starts {
+                (0..ad)
+                    .map(|_| self.rng.random_range(-1.0f32..1.0))
+                    .collect()
+            } else {
+                self.sac.actor.act(&obs, false, &mut self.rng)?
+            };
+            let tr = self.env.step(&action).map_err(sim_err)?;
+            let (reward, done, info) = (tr.reward, tr.done, tr.info);
+            self.env.oracle_observation(&mut next).map_err(sim_err)?;
+            self.replay
+                .push(&obs, &action, reward, &next, info.terminated)?;
+            metric.record(&info);
+            ret += reward;
+            self.env_steps += 1;
+            if self.env_steps > self.cfg.learning_starts {
+                for _ in 0..self.cfg.updates_per_step {
+                    let batch = self.replay.sample(self.cfg.sac.batch_size, &mut self.rng)?;
+                    last_update = Some(self.sac.update(&batch, &mut self.rng)?);
+                }
+            }
+            on_step(self.env_steps);
+            std::mem::swap(&mut obs, &mut next);
+            if done {
+                break;
+            }
+        }
+        self.episodes += 1;
+        Ok(EpisodeReport {
+            env_steps: self.env_steps,
+            episodes: self.episodes,
+            episodic_return: ret,
+            metric: metric.value(),
+            last_update,
+        })
+    }
+
+    /// Write a checkpoint of the whole run to `dir` (atomic).
+    pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        let (mut tensors, counters) = self.sac.state_tensors()?;
+        tensors.extend(self.replay.to_tensors("replay")?);
+        let meta = serde_json::json!({
+            "kind": "expert-run",
+            "config": self.cfg,
+            "sac_counters": counters,
+            "env_steps": self.env_steps,
+            "episodes": self.episodes,
+            "rng": rng_state(&self.rng),
+        });
+        checkpoint::save(dir, &tensors, &meta)?;
+        Ok(())
+    }
+
+    /// Restore a run from the checkpoint in `dir`. The saved configuration is used, except
+    /// `total_steps`, which may be raised by `total_steps` to train longer.
+    pub fn resume(dir: &Path, total_steps: Option<u64>) -> Result<Self> {
+        let ck = checkpoint::load(dir)?;
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-run") {
+            return Err(Error::Checkpoint {
+                path: ck.path().to_path_buf(),
+                reason: "not an expert training checkpoint".into(),
+            });
+        }
+        let mut cfg: ExpertConfig = ck.meta_field("config")?;
+        if let Some(t) = total_steps {
+            cfg.total_steps = t;
+        }
+        let mut run = Self::new(cfg)?;
+        let counters: SacCounters = ck.meta_field("sac_counters")?;
+        let wrap = |e: Error| Error::Checkpoint {
+            path: ck.path().to_path_buf(),
+            reason: format!("does not match this configuration: {e}"),
+        };
+        run.sac.load_state(&|n| ck.get(n), counters).map_err(wrap)?;
+        run.replay
+            .load_tensors("replay", &|n| ck.get(n))
+            .map_err(wrap)?;
+        run.env_steps = ck.meta_field("env_steps")?;
+        run.episodes = ck.meta_field("episodes")?;
+        run.rng = rng_from_state(&ck.meta_field("rng")?).map_err(wrap)?;
+        Ok(run)
+    }
+
+    /// Export the deterministic policy (actor weights + metadata) to `dir/policy.safetensors`.
+    pub fn export_policy(&self, dir: &Path) -> Result<()> {
+        let net = self.sac.actor.net();
+        let tensors: Vec<(String, Tensor)> = net
+            .vars()
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (format!("actor.{i}"), v.as_tensor().detach()))
+            .collect();
+        let meta = serde_json::json!({
+            "kind": "expert-policy",
+            "expert": "sac-oracle",
+            "env": self.family.name(),
+            "widths": net.widths(),
+            "log_std_bounds": [self.cfg.sac.log_std_min, self.cfg.sac.log_std_max],
+            "env_steps": self.env_steps,
+        });
+        write_policy(dir, &tensors, &meta)
+    }
+}
+
+fn write_policy(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) -> Result<()> {
+    let tmp = dir.join(".policy-export");
+    checkpoint::save(&tmp, tensors, meta)?;
+    let io = |e: std::io::Error| Error::Io {
+        path: dir.join(POLICY_FILE),
+        source: e,
+    };
+    std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), dir.join(POLICY_FILE)).map_err(io)?;
+    std::fs::remove_dir_all(&tmp).map_err(io)?;
+    Ok(())
+}
+
+/// Write a scripted point-goal PD expert descriptor to `dir/policy.safetensors`.
+pub fn export_scripted_pd(dir: &Path) -> Result<()> {
+    let pd = PointGoalPdExpert::default();
+    let meta = serde_json::json!({
+        "kind": "expert-policy", "expert": "scripted-pd", "env": Family::PointGoal.name(),
+        "kp": pd.kp, "kd": pd.kd,
+    });
+    write_policy(dir, &[], &meta)
+}
+
+/// An expert that acts on oracle observations.
+#[derive(Debug, Clone)]
+pub enum Expert {
+    /// A SAC policy trained on the oracle observation; acts with `tanh(mu)`.
+    Sac {
+        /// The family it was trained for.
+        family: Family,
+        /// The policy.
+        policy: TanhGaussianPolicy,
+    },
+    /// The scripted point-goal PD controller from `sim`.
+    ScriptedPd(PointGoalPdExpert),
+}
+
+impl Expert {
+    /// Load an expert from a run directory or a `policy.safetensors` file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let file = if path.is_dir() {
+            path.join(POLICY_FILE)
+        } else {
+            path.to_path_buf()
+        };
+        let ck = checkpoint::load(&file)?;
+        let bad = |r: &str| Error::Checkpoint {
+            path: file.clone(),
+            reason: r.to_string(),
+        };
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") {
+            return Err(bad("not an expert policy file"));
+        }
+        let env: String = ck.meta_field("env")?;
+        let family = env.parse::<Family>().map_err(|e| bad(&e.to_string()))?;
+        match ck.meta_field::<String>("expert")?.as_str() {
+            "scripted-pd" => Ok(Expert::ScriptedPd(PointGoalPdExpert {
+                kp: ck.meta_field("kp")?,
+                kd: ck.meta_field("kd")?,
+            })),
+            "sac-oracle" => {
+                let widths: Vec<usize> = ck.meta_field("widths")?;
+                let bounds: (f32, f32) = ck.meta_field("log_std_bounds")?;
+                if widths.len() < 2 || widths[0] != family.oracle_obs_dim() {
+                    return Err(bad("policy input width does not match the family"));
+                }
+                let hidden = &widths[1..widths.len() - 1];
+                let mut rng = ChaCha8Rng::seed_from_u64(0);
+                let policy =
+                    TanhGaussianPolicy::new(widths[0], family.act_dim(), hidden, bounds, &mut rng)?;
+                let n = policy.net().vars().len();
+                let ts = (0..n)
+                    .map(|i| ck.get(&format!("actor.{i}")))
+                    .collect::<Result<Vec<_>>>()?;
+                policy.net().load_from(&ts)?;
+                Ok(Expert::Sac { family, policy })
+            }
+            other => Err(bad(&format!("unknown expert kind {other:?}"))),
+        }
+    }
+
+    /// Short name stored in datasets (`sac-oracle`, `scripted-pd`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Expert::Sac { .. } => "sac-oracle",
+            Expert::ScriptedPd(_) => "scripted-pd",
+        }
+    }
+
+    /// The family this expert acts in.
+    pub fn family(&self) -> Family {
+        match self {
+            Expert::Sac { family, .. } => *family,
+            Expert::ScriptedPd(_) => Family::PointGoal,
+        }
+    }
+
+    /// Deterministic action for an oracle observation.
+    pub fn act(&self, oracle_obs: &[f32], action: &mut [f32]) -> Result<()> {
+        match self {
+            Expert::Sac { policy, .. } => {
+                let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic action
+                action.copy_from_slice(&policy.act(oracle_obs, true, &mut rng)?);
+                Ok(())
+            }
+            Expert::ScriptedPd(pd) => pd.act(oracle_obs, action).map_err(sim_err),
+        }
+    }
+}
+
+/// Mean of the family's metric over `tasks`, `episodes` deterministic rollouts each (reset seeds
+/// `1_000_000 + k`). Returns `(per-task means, overall mean)`.
+pub fn evaluate(
+    expert: &Expert,
+    tasks: &[Task],
+    episodes: usize,
+    env_cfg: EnvConfig,
+) -> Result<(Vec<f32>, f32)> {
+    let family = expert.family();
+    let mut env = sim::make_env(family, env_cfg).map_err(sim_err)?;
+    let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
+    let mut action = vec![0.0f32; family.act_dim()];
+    let mut per_task = Vec::with_capacity(tasks.len());
+    for task in tasks {
+        let mut sum = 0.0f32;
+        for k in 0..episodes {
+            env.reset(task, 1_000_000 + k as u64).map_err(sim_err)?;
+            let mut m = EpisodeMetric::new(family);
+            loop {
+                env.oracle_observation(&mut oracle).map_err(sim_err)?;
+                expert.act(&oracle, &mut action)?;
+                let tr = env.step(&action).map_err(sim_err)?;
+                m.record(&tr.info);
+                if tr.done {
+                    break;
+                }
+            }
+            sum += m.value();
+        }
+        per_task.push(sum / episodes.max(1) as f32);
+    }
+    let mean = per_task.iter().sum::<f32>() / per_task.len().max(1) as f32;
+    Ok((per_task, mean))
+}
+
+impl ExpertTrainer {
+    /// The current actor as an [`Expert`] (for evaluation during training).
+    pub fn expert(&self) -> Expert {
+        Expert::Sac {
+            family: self.family,
+            policy: self.sac.actor.clone(),
+        }
+    }
+}
+
+/// ChaCha8 state as JSON: seed (hex), stream and word position (decimal strings).
+pub fn rng_state(rng: &ChaCha8Rng) -> serde_json::Value {
+    let seed: String = rng.get_seed().iter().map(|b| format!("{b:02x}")).collect();
+    serde_json::json!({
+        "seed": seed,
+        "stream": rng.get_stream().to_string(),
+        "word_pos": rng.get_word_pos().to_string(),
+    })
+}
+
+/// Inverse of [`rng_state`].
+pub fn rng_from_state(v: &serde_json::Value) -> Result<ChaCha8Rng> {
+    let bad = || Error::Shape("malformed RNG state".into());
+    let hex = v["seed"].as_str().ok_or_else(bad)?;
+    if hex.len() != 64 {
+        return Err(bad());
+    }
+    let mut seed = [0u8; 32];
+    for (i, b) in seed.iter_mut().enumerate() {
+        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|_| bad())?;
+    }
+    let stream: u64 = v["stream"]
+        .as_str()
+        .ok_or_else(bad)?
+        .parse()
+        .map_err(|_| bad())?;
+    let word_pos: u128 = v["word_pos"]
+        .as_str()
+        .ok_or_else(bad)?
+        .parse()
+        .map_err(|_| bad())?;
+    let mut rng = ChaCha8Rng::from_seed(seed);
+    rng.set_stream(stream);
+    rng.set_word_pos(word_pos);
+    Ok(rng)
+}
+
+/// What [`train`] reports to its caller (progress bars).
+#[derive(Debug, Clone, Copy)]
+pub enum Event {
+    /// One env step done; the value is the env step count.
+    Step(u64),
+    /// An episode finished; steps per second since the start of this call.
+    Episode(EpisodeReport, f64),
+    /// A checkpoint was written at this env step.
+    Checkpoint(u64),
+}
+
+/// Train until `total_steps`, logging to `dir/metrics.jsonl`, checkpointing to `dir` every
+/// `checkpoint_every` env steps (at episode ends) and at the end, then exporting the policy to
+/// `dir/policy.safetensors`. A non-finite loss returns [`Error::NonFinite`]; the last
+/// checkpoint on disk is the last good one.
+pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
+    let mut log = crate::metrics::MetricsLog::open(dir)?;
+    let every = run.cfg.checkpoint_every.max(1);
+    let mut next_ckpt = (run.env_steps / every + 1) * every;
+    let (t0, s0) = (std::time::Instant::now(), run.env_steps);
+    while !run.finished() {
+        let rep = run.run_episode(&mut |s| on(Event::Step(s)))?;
+        let sps = (rep.env_steps - s0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+        let mut fields = vec![
+            ("charts/episodic_return", rep.episodic_return as f64),
+            ("charts/metric", rep.metric as f64),
+            ("charts/sps", sps),
+            ("charts/updates", run.sac.updates() as f64),
+        ];
+        if let Some(s) = &rep.last_update {
+            fields.extend(crate::metrics::sac_fields(s));
+        }
+        log.log(rep.env_steps, &fields)?;
+        on(Event::Episode(rep, sps));
+        if rep.env_steps >= next_ckpt || run.finished() {
+            run.save_checkpoint(dir)?;
+            on(Event::Checkpoint(rep.env_steps));
+            next_ckpt = (rep.env_steps / every + 1) * every;
+        }
+    }
+    run.export_policy(dir)
+}

@@ -1,0 +1,156 @@
+//! Expert runs: resume == uninterrupted, corrupt checkpoints, divergence, demo round trip.
+
+use std::path::PathBuf;
+
+use sim::{EnvConfig, Family, Split};
+use trainer::checkpoint;
+use trainer::demos::{DemoSpec, record};
+use trainer::expert::{self, Expert, ExpertConfig, ExpertTrainer};
+use trainer::sac::SacConfig;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("smile-test-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+fn tiny(total: u64) -> ExpertConfig {
+    ExpertConfig {
+        total_steps: total,
+        learning_starts: 30,
+        horizon: Some(20),
+        checkpoint_every: 60,
+        buffer_capacity: 1000,
+        sac: SacConfig {
+            hidden: vec![16, 16],
+            batch_size: 16,
+            ..Default::default()
+        },
+        ..Default::default()
+    }
+}
+
+#[test]
+fn resumed_run_equals_uninterrupted_run() {
+    trainer::threads::set_compute_threads(1);
+    let (a, b) = (tmp("full"), tmp("split"));
+    let mut full = ExpertTrainer::new(tiny(120)).unwrap();
+    expert::train(&mut full, &a, &mut |_| {}).unwrap();
+
+    let mut first = ExpertTrainer::new(tiny(60)).unwrap();
+    expert::train(&mut first, &b, &mut |_| {}).unwrap();
+    drop(first); // "killed" after its checkpoint at step 60
+    let mut resumed = ExpertTrainer::resume(&b, Some(120)).unwrap();
+    assert_eq!(resumed.env_steps(), 60);
+    expert::train(&mut resumed, &b, &mut |_| {}).unwrap();
+
+    let (ca, cb) = (checkpoint::load(&a).unwrap(), checkpoint::load(&b).unwrap());
+    for key in ["sac_counters", "env_steps", "episodes", "rng"] {
+        assert_eq!(ca.meta[key], cb.meta[key], "{key}");
+    }
+    let (names, _) = full.sac.state_tensors().unwrap();
+    assert!(names.len() > 20);
+    for (name, _) in names
+        .iter()
+        .chain(&[("replay.obs".to_string(), names[0].1.clone())])
+    {
+        let x = ca
+            .get(name)
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap();
+        let y = cb
+            .get(name)
+            .unwrap()
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap();
+        assert_eq!(x, y, "{name} differs after resume");
+    }
+    std::fs::remove_dir_all(&a).ok();
+    std::fs::remove_dir_all(&b).ok();
+}
+
+#[test]
+fn corrupt_or_foreign_checkpoint_is_a_clear_error() {
+    trainer::threads::set_compute_threads(1);
+    let d = tmp("corrupt");
+    let mut run = ExpertTrainer::new(tiny(40)).unwrap();
+    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    // A policy file is not a training checkpoint, and vice versa.
+    let e = ExpertTrainer::resume(&d.join(expert::POLICY_FILE), None)
+        .err()
+        .unwrap();
+    assert!(
+        e.to_string().contains("not an expert training checkpoint"),
+        "{e}"
+    );
+    let e = Expert::load(&d.join(checkpoint::CHECKPOINT_FILE)).unwrap_err();
+    assert!(e.to_string().contains("not an expert policy file"), "{e}");
+    // Truncated checkpoint.
+    let p = d.join(checkpoint::CHECKPOINT_FILE);
+    let bytes = std::fs::read(&p).unwrap();
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    let e = ExpertTrainer::resume(&d, None).err().unwrap().to_string();
+    assert!(
+        e.contains("checkpoint") && e.contains("checkpoint.safetensors"),
+        "{e}"
+    );
+    // Missing directory.
+    assert!(ExpertTrainer::resume(&d.join("nope"), None).is_err());
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn non_finite_loss_names_the_update() {
+    trainer::threads::set_compute_threads(1);
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let cfg = SacConfig {
+        hidden: vec![8],
+        ..Default::default()
+    };
+    let mut sac = trainer::sac::Sac::new(3, 1, cfg, &mut rng).unwrap();
+    let mut rb = trainer::replay::ReplayBuffer::new(3, 1, 10).unwrap();
+    rb.push(&[0.0; 3], &[0.0], f32::NAN, &[0.0; 3], false)
+        .unwrap();
+    let b = rb.sample(4, &mut rng).unwrap();
+    match sac.update(&b, &mut rng) {
+        Err(trainer::Error::NonFinite { what, update, .. }) => {
+            assert_eq!((what, update), ("losses/qf", 1));
+        }
+        other => panic!("expected NonFinite, got {other:?}"),
+    }
+}
+
+#[test]
+fn demos_round_trip_and_are_deterministic() {
+    let d = tmp("demos");
+    std::fs::create_dir_all(&d).unwrap();
+    expert::export_scripted_pd(&d).unwrap();
+    let ex = Expert::load(&d).unwrap();
+    assert_eq!(ex.name(), "scripted-pd");
+    let spec = DemoSpec {
+        tasks: Family::PointGoal.test_tasks()[..2].to_vec(),
+        split: Split::Test,
+        per_task: 2,
+        subsample: 5,
+        seed: 3,
+        env: EnvConfig {
+            horizon: Some(30),
+            ..Default::default()
+        },
+    };
+    let ds = record(&ex, &spec).unwrap();
+    assert_eq!(ds.trajectory_count(), 4);
+    assert_eq!(ds.subsample_factor, 5);
+    assert_eq!(ds.transition_count(), 4 * 6);
+    let f = d.join("demos.safetensors");
+    ds.write(&f).unwrap();
+    assert_eq!(sim::DemoDataset::read(&f).unwrap(), ds);
+    assert_eq!(record(&ex, &spec).unwrap(), ds);
+    std::fs::remove_dir_all(&d).ok();
+}
