@@ -134,7 +134,7 @@ pub(crate) fn half_cheetah() -> RobotSpec {
         ],
         physics_dt: 0.025,
         substeps: 2,
-        solver_iterations: 4,
+        solver_iterations: 2,
         position_noise: 0.1,
         velocity_noise: 0.1,
         uniform_velocity_noise: false,
