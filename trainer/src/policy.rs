@@ -120,7 +120,33 @@ impl TanhGaussianPolicy {
     }
 
     fn sample_impl(&self, obs: &Tensor, eps: &Tensor, const_w: bool) -> Result<PolicySample> {
-        let (mean, log_std) = self.heads_impl(obs, const_w)?;
+        let out = if const_w {
+            self.net.forward_const_weights(obs)?
+        } else {
+            self.net.forward(obs)?
+        };
+        let a = self.act_dim;
+        // One fused node for squash + log-density (crate::fused::TanhGaussian), equal to
+        // `sample_reference` below.
+        let op = crate::fused::TanhGaussian {
+            lo: self.log_std_min,
+            hi: self.log_std_max,
+        };
+        let fused = out.apply_op2(eps, op)?;
+        Ok(PolicySample {
+            action: fused.narrow(1, 0, a)?,
+            log_prob: fused.narrow(1, a, 1)?,
+            mean: out.narrow(1, 0, a)?,
+            log_std: out
+                .narrow(1, a, a)?
+                .clamp(self.log_std_min, self.log_std_max)?,
+        })
+    }
+
+    /// The same sample written with plain candle ops (the equations of the module doc); kept
+    /// as the reference the fused op is tested against.
+    pub fn sample_reference(&self, obs: &Tensor, eps: &Tensor) -> Result<PolicySample> {
+        let (mean, log_std) = self.heads(obs)?;
         let u = (&mean + (log_std.exp()? * eps)?)?;
         // log N(u; mu, sigma) = -eps^2/2 - log sigma - ln(2 pi)/2, summed over action dims
         let gauss = ((eps.sqr()? * -0.5)? - &log_std)?.affine(1.0, -HALF_LN_2PI)?;
@@ -181,5 +207,41 @@ mod tests {
         }
         let got = s.log_prob.flatten_all().unwrap().to_vec1::<f32>().unwrap()[0] as f64;
         assert!((got - want).abs() < 1e-4, "{got} vs {want}");
+    }
+
+    #[test]
+    fn fused_sample_matches_reference_with_gradients() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let pi = TanhGaussianPolicy::new(3, 2, &[8], (-1.0, 0.5), &mut rng).unwrap();
+        let obs = Tensor::from_vec(
+            (0..12)
+                .map(|i| (i as f32 * 0.9).sin() * 2.0)
+                .collect::<Vec<_>>(),
+            (4, 3),
+            &Device::Cpu,
+        )
+        .unwrap();
+        let eps = pi.noise(4, &mut rng).unwrap();
+        let f = pi.sample_with_noise(&obs, &eps).unwrap();
+        let r = pi.sample_reference(&obs, &eps).unwrap();
+        let w = Tensor::new(&[0.3f32, -1.7], &Device::Cpu).unwrap();
+        let loss = |s: &PolicySample| {
+            (s.action.broadcast_mul(&w).unwrap().sum_all().unwrap()
+                + (s.log_prob.sum_all().unwrap() * 0.7).unwrap())
+            .unwrap()
+        };
+        let (lf, lr) = (loss(&f), loss(&r));
+        let v = |t: &Tensor| t.flatten_all().unwrap().to_vec1::<f32>().unwrap();
+        let close = |a: Vec<f32>, b: Vec<f32>| {
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| (x - y).abs() < 1e-4 * (1.0 + y.abs()))
+        };
+        assert!(close(v(&f.log_prob), v(&r.log_prob)));
+        assert!(close(v(&f.action), v(&r.action)));
+        let (gf, gr) = (lf.backward().unwrap(), lr.backward().unwrap());
+        for var in pi.net().vars() {
+            assert!(close(v(gf.get(var).unwrap()), v(gr.get(var).unwrap())));
+        }
     }
 }
