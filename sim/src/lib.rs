@@ -7,7 +7,14 @@
 //!   returning a [`Transition`]. Environments are `Send`, deterministic, and never let a
 //!   non-finite action reach the physics ([`SimError`]).
 //! - [`EpisodeMetric`] turns the per-step [`StepInfo`] into the paper's per-episode metric.
-//! - [`render`] draws [`Frame`]s as SVG.
+//! - [`DemoDataset`] is the one demo file format (safetensors, grouped by task, with
+//!   subsampling); [`record_trajectory`] rolls an expert out into a [`Trajectory`].
+//!   Layout: `docs/DATASET.md`.
+//! - [`render`] draws [`Frame`]s (from [`Environment::frame`]) as SVG files or one animated SVG.
+//!
+//! Robots: [`PointGoalEnv`] (a damped point mass, with the scripted [`PointGoalPdExpert`]) and
+//! [`PlanarLeggedEnv`] (HalfCheetah and Walker2d analogues as Rapier multibodies with
+//! torque motors, joint limits, damping and ground contact).
 #![warn(missing_docs)]
 
 mod dataset;
