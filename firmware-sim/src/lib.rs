@@ -1,1 +1,30 @@
-//! A simulated microcontroller running an infer-core policy blob in a fixed-rate control loop.
+//! A simulated microcontroller that runs an `infer-core` policy blob in a fixed-rate control
+//! loop against a Rapier plant.
+//!
+//! The data path is the one a real device has: the host sends the blob to the
+//! [`Device`]'s bootloader over a lossy serial [`link`] (postcard messages, CRC-32, COBS
+//! framing, stop-and-wait retries) into a flash region; the application ([`Controller`])
+//! parses the blob in place, streams a context demo into the encoder one transition at a time
+//! ([`host::teach`]), fixes `z`, and then [`control::run`] ticks at the control rate: sensors
+//! (noise, ADC quantisation) -> `act` -> actuators (saturation, optional one-tick latency),
+//! with a compute budget and a fault counter. Nothing in the control path allocates.
+//!
+//! This crate never depends on the trainer: a device holds no trainer.
+#![warn(missing_docs)]
+
+pub mod control;
+mod device;
+pub mod host;
+pub mod link;
+pub mod trace;
+
+pub use control::{LoopConfig, RunReport, TickRecord, run};
+pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, ram_needed};
+
+/// Writes `bytes` to `path` via a temporary file and a rename, so a reader never sees a
+/// half-written file.
+pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path)
+}

@@ -1,0 +1,250 @@
+//! The fixed-rate control loop: a simulated clock ticks at the control rate; each tick reads
+//! the sensors, runs the policy, and writes the actuators, while the plant (a sim family)
+//! steps its physics in between.
+
+use std::time::Instant;
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use sim::{Environment, EpisodeMetric, Task};
+
+use crate::device::{Controller, DeviceError};
+
+/// Sensor, actuator and timing effects of the loop.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LoopConfig {
+    /// Control rate in Hz; `None` uses the plant's own rate (1 / control dt). Must divide the
+    /// plant rate: each tick holds its action for `plant rate / rate` plant steps.
+    pub rate_hz: Option<f32>,
+    /// Ticks to run; `None` runs one episode of the plant.
+    pub ticks: Option<usize>,
+    /// Std of Gaussian sensor noise added to every observation component.
+    pub noise_std: f32,
+    /// ADC resolution in bits (e.g. 12); `None` for ideal sensors.
+    pub adc_bits: Option<u8>,
+    /// ADC full scale: readings are clipped to +-this before quantisation.
+    pub adc_range: f32,
+    /// Apply each action one tick late (the actuator bus is one tick behind).
+    pub latency: bool,
+    /// Compute budget per tick in microseconds; a late action is discarded and the last
+    /// applied one held.
+    pub budget_us: f64,
+    /// Seed of the plant's reset noise and the sensor noise.
+    pub seed: u64,
+    /// Ticks whose sensor reading is replaced by NaN (fault injection).
+    pub nan_ticks: Vec<usize>,
+}
+
+impl Default for LoopConfig {
+    fn default() -> Self {
+        Self {
+            rate_hz: None,
+            ticks: None,
+            noise_std: 0.0,
+            adc_bits: None,
+            adc_range: 10.0,
+            latency: false,
+            budget_us: 1000.0,
+            seed: 0,
+            nan_ticks: Vec::new(),
+        }
+    }
+}
+
+/// What the loop saw and did at one tick. Deterministic: no wall-clock values in here.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TickRecord {
+    /// Tick index.
+    pub tick: usize,
+    /// Simulated time at the tick, seconds.
+    pub time: f32,
+    /// The observation as the sensors delivered it.
+    pub sensed: Vec<f32>,
+    /// The action the policy computed this tick.
+    pub computed: Vec<f32>,
+    /// The action the actuators applied this tick.
+    pub applied: Vec<f32>,
+    /// Reward summed over the plant steps of this tick.
+    pub reward: f32,
+    /// The family's metric sample after the tick (distance, |v - v*|, reward).
+    pub metric_sample: f32,
+    /// Forward velocity of the robot after the tick (0 for point-goal).
+    pub forward_velocity: f32,
+    /// The plant's true observation after the tick (what ideal sensors would read).
+    pub plant_obs: Vec<f32>,
+    /// A non-finite reading or output was replaced by the safe action.
+    pub fault: bool,
+    /// The computation overran its budget.
+    pub overrun: bool,
+}
+
+/// The outcome of a run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunReport {
+    /// Every tick.
+    pub records: Vec<TickRecord>,
+    /// The family's metric over the run.
+    pub metric: f32,
+    /// Ticks whose compute time exceeded the budget.
+    pub overruns: usize,
+    /// Ticks with a non-finite reading or output.
+    pub faults: usize,
+    /// Compute time of each tick's `act`, host nanoseconds (not deterministic; kept apart).
+    pub compute_ns: Vec<u64>,
+    /// Plant steps per tick.
+    pub steps_per_tick: usize,
+    /// The task run.
+    pub task: Task,
+}
+
+impl RunReport {
+    /// (min, median, p99, max) compute time in nanoseconds.
+    pub fn compute_percentiles(&self) -> (u64, u64, u64, u64) {
+        let mut v = self.compute_ns.clone();
+        v.sort_unstable();
+        if v.is_empty() {
+            return (0, 0, 0, 0);
+        }
+        let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
+        (v[0], at(0.5), at(0.99), v[v.len() - 1])
+    }
+}
+
+/// Errors of the loop itself.
+#[derive(Debug, thiserror::Error)]
+pub enum LoopError {
+    /// The device cannot run.
+    #[error(transparent)]
+    Device(#[from] DeviceError),
+    /// The plant refused something (a bug if it happens: actions are always finite).
+    #[error("plant: {0}")]
+    Plant(#[from] sim::SimError),
+    /// The requested rate is not a divisor of the plant's rate.
+    #[error("control rate {rate} Hz must divide the plant rate {plant} Hz")]
+    Rate {
+        /// Requested rate.
+        rate: f32,
+        /// The plant's rate.
+        plant: f32,
+    },
+}
+
+fn quantise(x: f32, bits: u8, range: f32) -> f32 {
+    let levels = ((1u32 << bits.min(24)) - 1) as f32;
+    let lsb = 2.0 * range / levels;
+    ((x.clamp(-range, range) + range) / lsb).round() * lsb - range
+}
+
+/// Runs `controller` against `plant` on `task`.
+pub fn run(
+    controller: &mut Controller<'_, '_>,
+    plant: &mut dyn Environment,
+    task: &Task,
+    config: &LoopConfig,
+) -> Result<RunReport, LoopError> {
+    let plant_rate = 1.0 / plant.control_dt();
+    let rate = config.rate_hz.unwrap_or(plant_rate);
+    let ratio = plant_rate / rate;
+    let steps_per_tick = ratio.round() as usize;
+    if steps_per_tick == 0 || (ratio - steps_per_tick as f32).abs() > 1e-3 {
+        return Err(LoopError::Rate {
+            rate,
+            plant: plant_rate,
+        });
+    }
+    let ticks = config
+        .ticks
+        .unwrap_or(plant.horizon().div_ceil(steps_per_tick));
+    let mut noise_rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45);
+    let noise = Normal::new(0.0f32, config.noise_std.max(0.0)).map_err(|_| LoopError::Rate {
+        rate,
+        plant: plant_rate,
+    })?;
+    let act_dim = plant.act_dim();
+    let mut metric = EpisodeMetric::new(task.family());
+    let mut safe = vec![0.0; act_dim];
+    controller.safe_action(&mut safe);
+    let mut last_applied = safe.clone();
+    let mut pending = safe.clone();
+    let mut sensed = plant.reset(task, config.seed)?.to_vec();
+    let (mut records, mut compute_ns) = (Vec::with_capacity(ticks), Vec::with_capacity(ticks));
+    let (mut overruns, mut faults) = (0, 0);
+    let mut computed = vec![0.0; act_dim];
+    let mut plant_done = false;
+    for tick in 0..ticks {
+        if plant_done {
+            break;
+        }
+        // Sensors.
+        for (s, &x) in sensed.iter_mut().zip(plant.observation()) {
+            let mut v = x + if config.noise_std > 0.0 {
+                noise.sample(&mut noise_rng)
+            } else {
+                0.0
+            };
+            if let Some(bits) = config.adc_bits {
+                v = quantise(v, bits, config.adc_range);
+            }
+            *s = v;
+        }
+        if config.nan_ticks.contains(&tick) {
+            sensed[0] = f32::NAN;
+        }
+        // Compute.
+        let start = Instant::now();
+        let outcome = controller.act(&sensed, &mut computed)?;
+        let ns = start.elapsed().as_nanos() as u64;
+        compute_ns.push(ns);
+        let fault = outcome.is_err();
+        faults += fault as usize;
+        let overrun = ns as f64 > config.budget_us * 1e3;
+        overruns += overrun as usize;
+        let fresh = if overrun {
+            last_applied.clone()
+        } else {
+            computed.clone()
+        };
+        // Actuators.
+        let applied = if config.latency {
+            std::mem::replace(&mut pending, fresh)
+        } else {
+            fresh
+        };
+        let mut reward = 0.0;
+        let mut info = sim::StepInfo::default();
+        for _ in 0..steps_per_tick {
+            let t = plant.step(&applied)?;
+            reward += t.reward;
+            info = t.info;
+            metric.record(&t.info);
+            if t.done {
+                plant_done = true;
+                break;
+            }
+        }
+        records.push(TickRecord {
+            tick,
+            time: tick as f32 / rate,
+            sensed: sensed.clone(),
+            computed: computed.clone(),
+            applied: applied.clone(),
+            reward,
+            metric_sample: info.metric_sample,
+            forward_velocity: info.forward_velocity,
+            plant_obs: plant.observation().to_vec(),
+            fault,
+            overrun,
+        });
+        last_applied = applied;
+    }
+    Ok(RunReport {
+        records,
+        metric: metric.value(),
+        overruns,
+        faults,
+        compute_ns,
+        steps_per_tick,
+        task: *task,
+    })
+}

@@ -1,0 +1,252 @@
+//! The simulated device: a flash region written by a bootloader, and the application
+//! (`Controller`) that teaches the context encoder and runs the policy, all in fixed-size
+//! state.
+
+use core::mem::size_of;
+
+use infer_core::{ContextEncoder, InferError, Model, Policy};
+
+use crate::link::{Dedup, Endpoint, HostMessage, MAX_DIM, MAX_FRAME, Refusal, serve};
+
+/// Widest layer the firmware is compiled for (hidden 128 fits; 256 does not).
+pub const CAPACITY: usize = 128;
+
+/// Memory budgets of the simulated microcontroller.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct DeviceConfig {
+    /// Flash bytes available for the policy blob.
+    pub flash_bytes: usize,
+    /// RAM bytes available for the model descriptors, encoder state, scratch and buffers.
+    pub ram_bytes: usize,
+}
+
+impl Default for DeviceConfig {
+    fn default() -> Self {
+        Self {
+            flash_bytes: 64 * 1024,
+            ram_bytes: 16 * 1024,
+        }
+    }
+}
+
+/// Why the device will not run.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum DeviceError {
+    /// No complete, verified blob in flash.
+    #[error("no verified blob in flash: a partial or corrupt blob is never run")]
+    NoBlob,
+    /// The blob failed validation.
+    #[error("blob rejected: {0}")]
+    Blob(#[from] infer_core::BlobError),
+    /// The application needs more RAM than the budget.
+    #[error("model needs {needed} B of RAM, budget is {budget} B")]
+    RamBudget {
+        /// Bytes the application state needs.
+        needed: usize,
+        /// The configured budget.
+        budget: usize,
+    },
+    /// A model dimension exceeds what a link message carries.
+    #[error("model dimension {dim} exceeds the link's {MAX_DIM}")]
+    DimTooLarge {
+        /// The offending dimension.
+        dim: usize,
+    },
+    /// Control was asked for before a context was taught.
+    #[error("no context taught yet: teach a demo before running")]
+    NotTaught,
+}
+
+/// The device's flash and its bootloader state.
+#[derive(Debug)]
+pub struct Device {
+    config: DeviceConfig,
+    flash: Box<[u8]>,
+    announced: Option<(usize, u32)>,
+    received: usize,
+    committed: Option<usize>,
+    dedup: Dedup,
+}
+
+impl Device {
+    /// A device with empty flash of `config.flash_bytes`.
+    pub fn new(config: DeviceConfig) -> Self {
+        Self {
+            config,
+            flash: vec![0xFF; config.flash_bytes].into_boxed_slice(),
+            announced: None,
+            received: 0,
+            committed: None,
+            dedup: Dedup::default(),
+        }
+    }
+
+    /// The budgets.
+    pub fn config(&self) -> DeviceConfig {
+        self.config
+    }
+
+    /// The committed blob, if a complete and verified one is in flash.
+    pub fn blob(&self) -> Result<&[u8], DeviceError> {
+        self.committed
+            .map(|len| &self.flash[..len])
+            .ok_or(DeviceError::NoBlob)
+    }
+
+    fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
+        match *message {
+            HostMessage::BlobBegin { len, crc } => {
+                let len = len as usize;
+                if len > self.flash.len() {
+                    return Err(Refusal::BlobTooLarge);
+                }
+                // Erase first: from here on the old blob is gone and nothing runs until the
+                // new one is complete and verified.
+                self.committed = None;
+                self.announced = Some((len, crc));
+                self.received = 0;
+                Ok(())
+            }
+            HostMessage::BlobChunk { offset, data } => {
+                let (len, _) = self.announced.ok_or(Refusal::NotReady)?;
+                if offset as usize != self.received || self.received + data.len() > len {
+                    return Err(Refusal::OutOfOrder);
+                }
+                self.flash[self.received..self.received + data.len()].copy_from_slice(data);
+                self.received += data.len();
+                Ok(())
+            }
+            HostMessage::BlobEnd => {
+                let (len, crc) = self.announced.take().ok_or(Refusal::NotReady)?;
+                let blob = &self.flash[..self.received];
+                if self.received != len
+                    || infer_core::format::crc32(blob) != crc
+                    || Model::from_bytes(blob).is_err()
+                {
+                    return Err(Refusal::BadBlob);
+                }
+                self.committed = Some(len);
+                Ok(())
+            }
+            _ => Err(Refusal::NotReady),
+        }
+    }
+}
+
+impl Endpoint for Device {
+    fn receive(&mut self, frame: &[u8], reply: &mut [u8]) -> Option<usize> {
+        let mut dedup = self.dedup;
+        let n = serve(frame, reply, &mut dedup, |m| self.apply(m));
+        self.dedup = dedup;
+        n
+    }
+}
+
+/// RAM the application needs while running: the controller (encoder state, scratch, z,
+/// buffers), the parsed model descriptors and the link's receive buffers.
+pub fn ram_needed() -> usize {
+    size_of::<Controller<'static, 'static>>() + size_of::<Model<'static>>() + 2 * MAX_FRAME
+}
+
+/// The application: teaches the context encoder from link messages and runs the policy.
+#[derive(Debug)]
+pub struct Controller<'m, 'a> {
+    model: &'m Model<'a>,
+    encoder: ContextEncoder<'m, 'a, CAPACITY>,
+    policy: Policy<'m, 'a, CAPACITY>,
+    z: [f32; MAX_DIM],
+    taught: bool,
+    dedup: Dedup,
+}
+
+impl<'m, 'a> Controller<'m, 'a> {
+    /// Checks that `model` fits the device and builds the application state.
+    pub fn new(model: &'m Model<'a>, config: DeviceConfig) -> Result<Self, DeviceError> {
+        let h = model.header();
+        for dim in [h.obs_dim, h.act_dim, h.z_dim] {
+            if dim as usize > MAX_DIM {
+                return Err(DeviceError::DimTooLarge { dim: dim as usize });
+            }
+        }
+        let needed = ram_needed();
+        if needed > config.ram_bytes {
+            return Err(DeviceError::RamBudget {
+                needed,
+                budget: config.ram_bytes,
+            });
+        }
+        Ok(Self {
+            model,
+            encoder: ContextEncoder::new(model)?,
+            policy: Policy::new(model)?,
+            z: [0.0; MAX_DIM],
+            taught: false,
+            dedup: Dedup::default(),
+        })
+    }
+
+    /// The latent fixed by the last completed teach phase.
+    pub fn z(&self) -> Option<&[f32]> {
+        self.taught
+            .then(|| &self.z[..self.model.header().z_dim as usize])
+    }
+
+    /// One control step: action for the sensed observation. On a non-finite observation the
+    /// safe action is written and the error returned (counted as a fault by the loop).
+    pub fn act(
+        &mut self,
+        obs: &[f32],
+        action: &mut [f32],
+    ) -> Result<Result<(), InferError>, DeviceError> {
+        if !self.taught {
+            return Err(DeviceError::NotTaught);
+        }
+        let z_dim = self.model.header().z_dim as usize;
+        Ok(self.policy.act(obs, &self.z[..z_dim], action))
+    }
+
+    /// The action sent when nothing better is known.
+    pub fn safe_action(&self, action: &mut [f32]) {
+        self.policy.safe_action(action);
+    }
+
+    fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
+        match message {
+            HostMessage::TeachBegin => {
+                self.encoder.reset();
+                Ok(())
+            }
+            HostMessage::Transition {
+                obs,
+                action,
+                next_obs,
+            } => self
+                .encoder
+                .push(obs, action, next_obs)
+                .map_err(|_| Refusal::BadTransition),
+            HostMessage::EndTrajectory => {
+                self.encoder.end_trajectory();
+                Ok(())
+            }
+            HostMessage::TeachEnd => {
+                self.encoder.end_trajectory();
+                let z_dim = self.model.header().z_dim as usize;
+                self.encoder
+                    .latent(&mut self.z[..z_dim])
+                    .map_err(|_| Refusal::BadTransition)?;
+                self.taught = true;
+                Ok(())
+            }
+            _ => Err(Refusal::NotReady),
+        }
+    }
+}
+
+impl Endpoint for Controller<'_, '_> {
+    fn receive(&mut self, frame: &[u8], reply: &mut [u8]) -> Option<usize> {
+        let mut dedup = self.dedup;
+        let n = serve(frame, reply, &mut dedup, |m| self.apply(m));
+        self.dedup = dedup;
+        n
+    }
+}

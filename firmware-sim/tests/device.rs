@@ -1,0 +1,363 @@
+//! The simulated device end to end: link, flash, teach, control loop, faults.
+
+use firmware_sim::link::{HostMessage, LinkConfig, LinkError, Refusal, SimLink};
+use firmware_sim::{Controller, Device, DeviceConfig, DeviceError, LoopConfig, host, run};
+use infer_core::{
+    Activation, Calibration, FloatLayer, FloatModel, Model, ModelKind, Quant, write_blob,
+};
+use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
+
+/// A hand-built, expert-quality context-conditioned point-goal policy, written through the
+/// blob writer (so it exercises the real format and quantization):
+/// - encoder: r = s'_xy - s_xy (per-step displacement), mean over the demo's 100 steps;
+/// - head: z = 100 * r = the demo's total displacement = goal - demo start (about the goal);
+/// - policy: pre-tanh action = kp (z - p) - kd v, the PD expert with z as its goal.
+fn pd_model() -> FloatModel {
+    let (kp, kd) = (2.0, 1.0);
+    let layer = |in_dim: usize, out_dim: usize, weights: Vec<f32>| FloatLayer {
+        in_dim,
+        out_dim,
+        weights,
+        bias: vec![0.0; out_dim],
+        activation: Activation::Identity,
+    };
+    #[rustfmt::skip]
+    let encoder = layer(10, 2, vec![
+        -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+        0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0,
+    ]);
+    #[rustfmt::skip]
+    let policy = layer(6, 2, vec![
+        -kp, 0.0, -kd, 0.0, kp, 0.0,
+        0.0, -kp, 0.0, -kd, 0.0, kp,
+    ]);
+    FloatModel {
+        kind: ModelKind::StateAction,
+        obs_dim: 4,
+        act_dim: 2,
+        r_dim: 2,
+        z_dim: 2,
+        obs_mean: vec![0.0; 4],
+        obs_std: vec![1.0; 4],
+        act_scale: vec![1.0; 2],
+        act_offset: vec![0.0; 2],
+        encoder: vec![encoder],
+        z_head: vec![layer(2, 2, vec![100.0, 0.0, 0.0, 100.0])],
+        policy: vec![policy],
+    }
+}
+
+fn demo(task: &Task, seed: u64) -> Trajectory {
+    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let expert = PointGoalPdExpert::default();
+    record_trajectory(env.as_mut(), task, seed, |oracle, action| {
+        expert.act(oracle, action).unwrap()
+    })
+    .unwrap()
+}
+
+fn blob(quant: Quant, demo: &Trajectory) -> Vec<u8> {
+    let rows: Vec<Vec<f32>> = (0..demo.len())
+        .filter_map(|i| demo.transition(i, 4, 2))
+        .map(|t| [t.obs, t.action, t.next_obs].concat())
+        .collect();
+    let calib = Calibration {
+        contexts: vec![vec![rows]],
+        observations: demo.obs.chunks(4).map(<[f32]>::to_vec).collect(),
+    };
+    write_blob(&pd_model(), quant, &calib).unwrap()
+}
+
+fn flashed(blob: &[u8], link: LinkConfig) -> (Device, SimLink) {
+    let mut device = Device::new(DeviceConfig::default());
+    let mut link = SimLink::new(link);
+    host::upload_blob(&mut link, &mut device, blob).unwrap();
+    (device, link)
+}
+
+fn run_task(blob: &[u8], task: &Task, config: &LoopConfig) -> firmware_sim::RunReport {
+    let (device, mut link) = flashed(blob, LinkConfig::default());
+    let model = Model::from_bytes(device.blob().unwrap()).unwrap();
+    let mut controller = Controller::new(&model, device.config()).unwrap();
+    let d = demo(task, 100);
+    host::teach(&mut link, &mut controller, &[&d], 4, 2).unwrap();
+    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    run(&mut controller, plant.as_mut(), task, config).unwrap()
+}
+
+#[test]
+fn a_taught_device_reaches_held_out_goals_over_a_lossy_link() {
+    let tasks = Family::PointGoal.test_tasks();
+    for task in tasks.iter().step_by(5) {
+        let d = demo(task, 7);
+        let bytes = blob(Quant::W8A8, &d);
+        let lossy = LinkConfig {
+            corrupt_probability: 0.05,
+            drop_probability: 0.05,
+            max_retries: 20,
+            seed: 3,
+        };
+        let (device, mut link) = flashed(&bytes, lossy);
+        assert_eq!(device.blob().unwrap(), &bytes[..]);
+        let model = Model::from_bytes(device.blob().unwrap()).unwrap();
+        let mut controller = Controller::new(&model, device.config()).unwrap();
+        host::teach(&mut link, &mut controller, &[&d], 4, 2).unwrap();
+        assert!(
+            link.stats.retries > 0,
+            "a 5% lossy link should have needed retries"
+        );
+        let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+        let report = run(
+            &mut controller,
+            plant.as_mut(),
+            task,
+            &LoopConfig {
+                seed: 11,
+                ..LoopConfig::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(report.faults, 0);
+        assert!(
+            report.metric < 0.15,
+            "{}: min distance {}",
+            task.label(),
+            report.metric
+        );
+    }
+}
+
+#[test]
+fn corrupted_frames_are_detected_and_resent() {
+    // A full-size blob (about 100 frames) so that corruption hits many of them.
+    let float = FloatModel::random(
+        ModelKind::StateAction,
+        infer_core::Dims::default_with_hidden(64),
+        1,
+    );
+    let bytes = write_blob(&float, Quant::W8A32, &Calibration::default()).unwrap();
+    let noisy = LinkConfig {
+        corrupt_probability: 0.3,
+        drop_probability: 0.0,
+        max_retries: 30,
+        seed: 9,
+    };
+    let (device, link) = flashed(&bytes, noisy);
+    assert!(link.stats.corrupted > 10, "{:?}", link.stats);
+    assert!(
+        link.stats.retries >= link.stats.corrupted / 2,
+        "{:?}",
+        link.stats
+    );
+    assert_eq!(
+        device.blob().unwrap(),
+        &bytes[..],
+        "corruption must never reach flash"
+    );
+}
+
+#[test]
+fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
+    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let bytes = blob(Quant::F32, &d);
+    let mut device = Device::new(DeviceConfig::default());
+    let dead = LinkConfig {
+        drop_probability: 1.0,
+        max_retries: 3,
+        ..LinkConfig::default()
+    };
+    let err = host::upload_blob(&mut SimLink::new(dead), &mut device, &bytes).unwrap_err();
+    assert!(
+        matches!(err, LinkError::RetriesExhausted { attempts: 4, .. }),
+        "{err}"
+    );
+    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+
+    // Half a blob, then silence: still nothing to run.
+    let mut link = SimLink::new(LinkConfig::default());
+    let crc = infer_core::format::crc32(&bytes);
+    link.send(
+        &mut device,
+        &HostMessage::BlobBegin {
+            len: bytes.len() as u32,
+            crc,
+        },
+    )
+    .unwrap();
+    link.send(
+        &mut device,
+        &HostMessage::BlobChunk {
+            offset: 0,
+            data: &bytes[..100],
+        },
+    )
+    .unwrap();
+    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+    let err = link.send(&mut device, &HostMessage::BlobEnd).unwrap_err();
+    assert_eq!(
+        err,
+        LinkError::Refused {
+            seq: 3,
+            reason: Refusal::BadBlob
+        }
+    );
+    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+}
+
+#[test]
+fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
+    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let bytes = blob(Quant::F32, &d);
+    let mut small = Device::new(DeviceConfig {
+        flash_bytes: 256,
+        ram_bytes: 16 * 1024,
+    });
+    let err = host::upload_blob(&mut SimLink::new(LinkConfig::default()), &mut small, &bytes)
+        .unwrap_err();
+    assert_eq!(
+        err,
+        LinkError::Refused {
+            seq: 1,
+            reason: Refusal::BlobTooLarge
+        }
+    );
+    let model = Model::from_bytes(&bytes).unwrap();
+    let err = Controller::new(
+        &model,
+        DeviceConfig {
+            flash_bytes: 65536,
+            ram_bytes: 1024,
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(err, DeviceError::RamBudget { budget: 1024, .. }),
+        "{err}"
+    );
+    // Teaching nothing and running is refused too.
+    let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
+    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let task = Family::PointGoal.test_tasks()[0];
+    assert!(
+        run(
+            &mut controller,
+            plant.as_mut(),
+            &task,
+            &LoopConfig::default()
+        )
+        .is_err()
+    );
+}
+
+#[test]
+fn a_nan_sensor_reading_gives_the_safe_action_and_a_fault() {
+    let task = Family::PointGoal.test_tasks()[2];
+    let bytes = blob(Quant::W8A8, &demo(&task, 1));
+    let report = run_task(
+        &bytes,
+        &task,
+        &LoopConfig {
+            nan_ticks: vec![3, 40],
+            ..LoopConfig::default()
+        },
+    );
+    assert_eq!(report.faults, 2);
+    for r in &report.records {
+        assert!(r.applied.iter().all(|a| a.is_finite()));
+        if r.tick == 3 || r.tick == 40 {
+            assert!(r.fault);
+            assert_eq!(
+                r.applied,
+                vec![0.0, 0.0],
+                "safe action = centre of the action range"
+            );
+        } else {
+            assert!(!r.fault);
+        }
+    }
+}
+
+#[test]
+fn each_tick_senses_acts_and_actuates_and_latency_shifts_by_exactly_one_tick() {
+    let task = Family::PointGoal.test_tasks()[4];
+    let bytes = blob(Quant::W8A8, &demo(&task, 2));
+    let now = run_task(&bytes, &task, &LoopConfig::default());
+    assert_eq!(now.records.len(), 100);
+    for r in &now.records {
+        assert_eq!(r.applied, r.computed);
+    }
+    // The sensed observation of tick t+1 is the plant state after tick t's action.
+    for pair in now.records.windows(2) {
+        assert_eq!(pair[1].sensed, pair[0].plant_obs);
+    }
+    let late = run_task(
+        &bytes,
+        &task,
+        &LoopConfig {
+            latency: true,
+            ..LoopConfig::default()
+        },
+    );
+    assert_eq!(late.records[0].applied, vec![0.0, 0.0]);
+    for pair in late.records.windows(2) {
+        assert_eq!(pair[1].applied, pair[0].computed);
+    }
+    assert!(
+        late.metric < 0.3,
+        "one tick of latency should still reach: {}",
+        late.metric
+    );
+}
+
+#[test]
+fn control_rate_holds_actions_over_plant_steps() {
+    let task = Family::PointGoal.test_tasks()[1];
+    let bytes = blob(Quant::W8A8, &demo(&task, 3));
+    let slow = run_task(
+        &bytes,
+        &task,
+        &LoopConfig {
+            rate_hz: Some(5.0),
+            ..LoopConfig::default()
+        },
+    );
+    assert_eq!(slow.steps_per_tick, 2);
+    assert_eq!(slow.records.len(), 50);
+    assert!((slow.records[1].time - 0.2).abs() < 1e-6);
+    let (device, mut link) = flashed(&bytes, LinkConfig::default());
+    let model = Model::from_bytes(device.blob().unwrap()).unwrap();
+    let mut controller = Controller::new(&model, device.config()).unwrap();
+    host::teach(&mut link, &mut controller, &[&demo(&task, 3)], 4, 2).unwrap();
+    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let err = run(
+        &mut controller,
+        plant.as_mut(),
+        &task,
+        &LoopConfig {
+            rate_hz: Some(3.0),
+            ..LoopConfig::default()
+        },
+    );
+    assert!(err.is_err());
+}
+
+#[test]
+fn same_seed_blob_and_context_give_a_bit_identical_trace() {
+    let task = Family::PointGoal.test_tasks()[6];
+    let bytes = blob(Quant::W8A8, &demo(&task, 4));
+    let config = LoopConfig {
+        noise_std: 0.01,
+        adc_bits: Some(12),
+        adc_range: 4.0,
+        seed: 5,
+        ..LoopConfig::default()
+    };
+    let a = run_task(&bytes, &task, &config);
+    let b = run_task(&bytes, &task, &config);
+    assert_eq!(a.records, b.records);
+    let c = run_task(&bytes, &task, &LoopConfig { seed: 6, ..config });
+    assert_ne!(
+        a.records, c.records,
+        "another seed must change the sensor noise"
+    );
+}
