@@ -183,17 +183,20 @@ fn finish(dir: &Path, episodes: usize, task_index: Option<usize>) -> Result<()> 
         Some(i) => (vec![family.train_tasks()[i]], "its train task"),
         None => (family.test_tasks(), "meta-test tasks"),
     };
-    let (per_task, mean) = expert::evaluate(&ex, &tasks, episodes, EnvConfig::default())?;
+    let rep = expert::evaluate(&ex, &tasks, episodes, EnvConfig::default())?;
     let kind = format!("{:?}", family.metric_kind());
     println!(
-        "{} expert in {}: {kind} = {mean:.4} (mean over {} {label}, {episodes} deterministic episodes each)",
+        "{} expert in {}: {kind} = {:.4}, last-step sample {:.4} (mean over {} {label}, \
+         {episodes} deterministic episodes each)",
         ex.name(),
         dir.display(),
+        rep.mean,
+        rep.final_sample_mean,
         tasks.len()
     );
     let json = serde_json::json!({
-        "expert": ex.name(), "env": family.name(), "metric": kind, "mean": mean,
-        "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(), "per_task": per_task,
+        "expert": ex.name(), "env": family.name(), "metric": kind, "report": rep,
+        "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(),
         "episodes_per_task": episodes,
     });
     std::fs::write(

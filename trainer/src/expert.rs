@@ -399,19 +399,32 @@ impl Expert {
     }
 }
 
-/// Mean of the family's metric over `tasks`, `episodes` deterministic rollouts each (reset seeds
-/// `1_000_000 + k`). Returns `(per-task means, overall mean)`.
+/// Result of [`evaluate`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EvalReport {
+    /// Per task: the family's metric averaged over episodes.
+    pub per_task: Vec<f32>,
+    /// Mean of `per_task`.
+    pub mean: f32,
+    /// Mean over all episodes of the metric sample at the last step (for point-goal: the final
+    /// distance to the goal; for cheetah-vel: the final |v - v*|).
+    pub final_sample_mean: f32,
+}
+
+/// The family's metric over `tasks`, `episodes` deterministic rollouts each (reset seeds
+/// `1_000_000 + k`).
 pub fn evaluate(
     expert: &Expert,
     tasks: &[Task],
     episodes: usize,
     env_cfg: EnvConfig,
-) -> Result<(Vec<f32>, f32)> {
+) -> Result<EvalReport> {
     let family = expert.family();
     let mut env = sim::make_env(family, env_cfg).map_err(sim_err)?;
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
     let mut action = vec![0.0f32; family.act_dim()];
     let mut per_task = Vec::with_capacity(tasks.len());
+    let (mut final_sum, mut n) = (0.0f32, 0usize);
     for task in tasks {
         let mut sum = 0.0f32;
         for k in 0..episodes {
@@ -423,6 +436,8 @@ pub fn evaluate(
                 let tr = env.step(&action).map_err(sim_err)?;
                 m.record(&tr.info);
                 if tr.done {
+                    final_sum += tr.info.metric_sample;
+                    n += 1;
                     break;
                 }
             }
@@ -431,7 +446,11 @@ pub fn evaluate(
         per_task.push(sum / episodes.max(1) as f32);
     }
     let mean = per_task.iter().sum::<f32>() / per_task.len().max(1) as f32;
-    Ok((per_task, mean))
+    Ok(EvalReport {
+        per_task,
+        mean,
+        final_sample_mean: final_sum / n.max(1) as f32,
+    })
 }
 
 impl ExpertTrainer {
