@@ -7,6 +7,8 @@
 //! * [`replay`]: flat preallocated ring replay buffers (one per task for meta-learning).
 //! * [`sac`]: soft actor-critic (SAC v2: twin Q, Polyak targets, learned temperature) and its
 //!   hyper-parameters.
+//! * [`context`]: the context encoder + conditioned policy every meta-learner shares, and its
+//!   conversion to infer-core's blob structure.
 //! * [`checkpoint`]: atomic safetensors checkpoints with JSON metadata.
 //! * [`demos`]: deterministic expert demonstrations in sim's dataset format.
 //! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert.
@@ -16,6 +18,7 @@
 
 pub mod bench;
 pub mod checkpoint;
+pub mod context;
 pub mod demos;
 pub mod expert;
 pub mod fused;
