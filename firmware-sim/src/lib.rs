@@ -16,6 +16,7 @@ pub mod control;
 mod device;
 pub mod host;
 pub mod link;
+pub mod reference;
 pub mod trace;
 
 pub use control::{LoopConfig, RunReport, TickRecord, run};

@@ -88,7 +88,11 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
                     RED.filled(),
                 )))?
                 .label("goal");
-            chart.configure_series_labels().border_style(BLACK).draw()?;
+            chart
+                .configure_series_labels()
+                .background_style(WHITE)
+                .border_style(BLACK)
+                .draw()?;
         }
         _ => {
             let t_max = report.records.last().map_or(1.0, |r| r.time.max(1e-3));
@@ -123,7 +127,11 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
                     .draw_series(LineSeries::new([(0.0, target), (t_max, target)], RED))?
                     .label("target");
             }
-            chart.configure_series_labels().border_style(BLACK).draw()?;
+            chart
+                .configure_series_labels()
+                .background_style(WHITE)
+                .border_style(BLACK)
+                .draw()?;
         }
     }
     root.present()?;

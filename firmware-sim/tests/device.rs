@@ -1,51 +1,13 @@
 //! The simulated device end to end: link, flash, teach, control loop, faults.
 
 use firmware_sim::link::{HostMessage, LinkConfig, LinkError, Refusal, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, DeviceError, LoopConfig, host, run};
+use firmware_sim::{
+    Controller, Device, DeviceConfig, DeviceError, LoopConfig, host, reference, run,
+};
 use infer_core::{
     Activation, Calibration, FloatLayer, FloatModel, Model, ModelKind, Quant, write_blob,
 };
 use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
-
-/// A hand-built, expert-quality context-conditioned point-goal policy, written through the
-/// blob writer (so it exercises the real format and quantization):
-/// - encoder: r = s'_xy - s_xy (per-step displacement), mean over the demo's 100 steps;
-/// - head: z = 100 * r = the demo's total displacement = goal - demo start (about the goal);
-/// - policy: pre-tanh action = kp (z - p) - kd v, the PD expert with z as its goal.
-fn pd_model() -> FloatModel {
-    let (kp, kd) = (2.0, 1.0);
-    let layer = |in_dim: usize, out_dim: usize, weights: Vec<f32>| FloatLayer {
-        in_dim,
-        out_dim,
-        weights,
-        bias: vec![0.0; out_dim],
-        activation: Activation::Identity,
-    };
-    #[rustfmt::skip]
-    let encoder = layer(10, 2, vec![
-        -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
-        0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0,
-    ]);
-    #[rustfmt::skip]
-    let policy = layer(6, 2, vec![
-        -kp, 0.0, -kd, 0.0, kp, 0.0,
-        0.0, -kp, 0.0, -kd, 0.0, kp,
-    ]);
-    FloatModel {
-        kind: ModelKind::StateAction,
-        obs_dim: 4,
-        act_dim: 2,
-        r_dim: 2,
-        z_dim: 2,
-        obs_mean: vec![0.0; 4],
-        obs_std: vec![1.0; 4],
-        act_scale: vec![1.0; 2],
-        act_offset: vec![0.0; 2],
-        encoder: vec![encoder],
-        z_head: vec![layer(2, 2, vec![100.0, 0.0, 0.0, 100.0])],
-        policy: vec![policy],
-    }
-}
 
 fn demo(task: &Task, seed: u64) -> Trajectory {
     let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
@@ -65,7 +27,7 @@ fn blob(quant: Quant, demo: &Trajectory) -> Vec<u8> {
         contexts: vec![vec![rows]],
         observations: demo.obs.chunks(4).map(<[f32]>::to_vec).collect(),
     };
-    write_blob(&pd_model(), quant, &calib).unwrap()
+    write_blob(&reference::pd_point_goal_model(), quant, &calib).unwrap()
 }
 
 fn flashed(blob: &[u8], link: LinkConfig) -> (Device, SimLink) {
