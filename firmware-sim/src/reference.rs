@@ -9,6 +9,7 @@ use infer_core::{Activation, FloatLayer, FloatModel, ModelKind};
 /// - encoder: r = s'_xy - s_xy (per-step displacement), mean over the demo's 100 steps;
 /// - head: z = 100 * r = the demo's total displacement = goal - demo start (about the goal);
 /// - policy: pre-tanh action = kp (z - p) - kd v, the PD expert with z as its goal.
+///
 /// point-goal only (obs 4, act 2, horizon 100). The 100 assumes unsubsampled 100-step demos.
 pub fn pd_point_goal_model() -> FloatModel {
     let (kp, kd) = (2.0, 1.0);
