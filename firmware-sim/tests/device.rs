@@ -4,9 +4,7 @@ use firmware_sim::link::{HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::{
     Controller, Device, DeviceConfig, DeviceError, LoopConfig, host, reference, run,
 };
-use infer_core::{
-    Activation, Calibration, FloatLayer, FloatModel, Model, ModelKind, Quant, write_blob,
-};
+use infer_core::{Calibration, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
 
 fn demo(task: &Task, seed: u64) -> Trajectory {
