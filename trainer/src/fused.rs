@@ -220,10 +220,6 @@ pub struct TanhGaussian {
 
 const HALF_LN_2PI: f32 = 0.918_938_5;
 
-fn softplus(x: f32) -> f32 {
-    x.max(0.0) + (-x.abs()).exp().ln_1p()
-}
-
 impl candle_core::CustomOp2 for TanhGaussian {
     fn name(&self) -> &'static str {
         "tanh-gaussian"
@@ -254,8 +250,13 @@ impl candle_core::CustomOp2 for TanhGaussian {
                 let ls = hr[a_dim + i].clamp(self.lo, self.hi);
                 let e = er[i];
                 let u = hr[i] + ls.exp() * e;
-                o[i] = u.tanh();
-                let squash = 2.0 * (std::f32::consts::LN_2 - u - softplus(-2.0 * u));
+                // One exp serves both: t = e^{-2|u|}, tanh|u| = (1 - t) / (1 + t),
+                // softplus(-2u) = max(-2u, 0) + ln(1 + t). (libm tanhf + a second exp cost
+                // ~10% of a whole H=64 update.)
+                let t = (-2.0 * u.abs()).exp();
+                o[i] = ((1.0 - t) / (1.0 + t)).copysign(u);
+                let softplus_m2u = (-2.0 * u).max(0.0) + t.ln_1p();
+                let squash = 2.0 * (std::f32::consts::LN_2 - u - softplus_m2u);
                 logp += -0.5 * e * e - ls - HALF_LN_2PI - squash;
             }
             o[a_dim] = logp;
