@@ -127,7 +127,7 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
             .unwrap_or_else(|| PathBuf::from("runs/expert-point-goal-pd"));
         std::fs::create_dir_all(&dir)?;
         expert::export_scripted_pd(&dir)?;
-        return finish(&dir, a.eval_episodes, None);
+        return finish(&dir, a.eval_episodes, None, EnvConfig::default());
     }
     let (mut run, dir) = match &a.resume {
         Some(dir) => {
@@ -172,18 +172,28 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
             run.env_steps()
         );
     }
-    finish(&dir, a.eval_episodes, run.config().task_index)
+    let env_cfg = EnvConfig {
+        horizon: run.config().horizon,
+        ..EnvConfig::default()
+    };
+    finish(&dir, a.eval_episodes, run.config().task_index, env_cfg)
 }
 
-/// Evaluate the exported expert deterministically and write `eval.json`.
-fn finish(dir: &Path, episodes: usize, task_index: Option<usize>) -> Result<()> {
+/// Evaluate the exported expert deterministically (episodes as in training) and write
+/// `eval.json`.
+fn finish(
+    dir: &Path,
+    episodes: usize,
+    task_index: Option<usize>,
+    env_cfg: EnvConfig,
+) -> Result<()> {
     let ex = Expert::load(dir)?;
     let family = ex.family();
     let (tasks, label) = match task_index {
         Some(i) => (vec![family.train_tasks()[i]], "its train task"),
         None => (family.test_tasks(), "meta-test tasks"),
     };
-    let rep = expert::evaluate(&ex, &tasks, episodes, EnvConfig::default())?;
+    let rep = expert::evaluate(&ex, &tasks, episodes, env_cfg)?;
     let kind = format!("{:?}", family.metric_kind());
     println!(
         "{} expert in {}: {kind} = {:.4}, last-step sample {:.4} (mean over {} {label}, \
@@ -197,7 +207,7 @@ fn finish(dir: &Path, episodes: usize, task_index: Option<usize>) -> Result<()> 
     let json = serde_json::json!({
         "expert": ex.name(), "env": family.name(), "metric": kind, "report": rep,
         "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(),
-        "episodes_per_task": episodes,
+        "episodes_per_task": episodes, "horizon": env_cfg.horizon,
     });
     std::fs::write(
         dir.join("eval.json"),
