@@ -1,0 +1,184 @@
+//! The `smile` binary end to end on tiny budgets: expert (TOML config) -> resume -> demos,
+//! corrupt checkpoint and bad config errors.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn smile(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(args)
+        .output()
+        .expect("run smile")
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("smile-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn ok(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "stdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+fn last_metrics(dir: &Path) -> serde_json::Value {
+    let text = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
+    serde_json::from_str(text.lines().last().unwrap()).unwrap()
+}
+
+#[test]
+fn help_lists_working_commands() {
+    let out = smile(&["--help"]);
+    ok(&out);
+    let help = String::from_utf8_lossy(&out.stdout);
+    for cmd in ["expert", "demos", "bench"] {
+        assert!(help.contains(cmd), "{help}");
+    }
+    let out = smile(&["expert", "--help"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("Examples:"));
+}
+
+#[test]
+fn expert_resume_demos_pipeline() {
+    let d = tmp("pipeline");
+    let run = d.join("run");
+    let cfg = d.join("expert.toml");
+    std::fs::write(
+        &cfg,
+        "env = \"point-goal\"\ntotal_steps = 60\nlearning_starts = 20\nhorizon = 20\n\
+         checkpoint_every = 40\n[sac]\nhidden = [16, 16]\nbatch_size = 16\n",
+    )
+    .unwrap();
+    let (cfg_s, run_s) = (cfg.to_str().unwrap(), run.to_str().unwrap());
+    ok(&smile(&[
+        "expert",
+        "--config",
+        cfg_s,
+        "-o",
+        run_s,
+        "--quiet",
+        "--eval-episodes",
+        "1",
+    ]));
+    for f in [
+        "config.toml",
+        "checkpoint.safetensors",
+        "policy.safetensors",
+        "eval.json",
+    ] {
+        assert!(run.join(f).exists(), "{f}");
+    }
+    let m = last_metrics(&run);
+    assert_eq!(m["step"], 60);
+    assert!(m["losses/qf"].is_number() && m["charts/sps"].is_number());
+
+    ok(&smile(&[
+        "expert",
+        "--resume",
+        run_s,
+        "--total-steps",
+        "100",
+        "--quiet",
+        "--eval-episodes",
+        "1",
+    ]));
+    assert_eq!(last_metrics(&run)["step"], 100);
+
+    let demos = d.join("demos.safetensors");
+    let demos_s = demos.to_str().unwrap();
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--split",
+        "test",
+        "--per-task",
+        "1",
+        "--subsample",
+        "5",
+        "--horizon",
+        "20",
+        "--expert",
+        run_s,
+        "-o",
+        demos_s,
+    ]));
+    let ds = sim::DemoDataset::read(&demos).unwrap();
+    assert_eq!(
+        (ds.tasks.len(), ds.expert.as_str(), ds.subsample_factor),
+        (16, "sac-oracle", 5)
+    );
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        "0.3,-1.2",
+        "--per-task",
+        "2",
+        "--horizon",
+        "20",
+        "--expert",
+        run_s,
+        "-o",
+        demos_s,
+    ]));
+    assert_eq!(
+        sim::DemoDataset::read(&demos).unwrap().trajectory_count(),
+        4
+    );
+    // Wrong family for this expert.
+    assert!(
+        !smile(&[
+            "demos",
+            "--env",
+            "cheetah-vel",
+            "--expert",
+            run_s,
+            "-o",
+            demos_s
+        ])
+        .status
+        .success()
+    );
+
+    // Corrupt checkpoint: a clear error naming it.
+    let ck = run.join("checkpoint.safetensors");
+    let bytes = std::fs::read(&ck).unwrap();
+    std::fs::write(&ck, &bytes[..100]).unwrap();
+    let out = smile(&[
+        "expert",
+        "--resume",
+        run_s,
+        "--total-steps",
+        "200",
+        "--quiet",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("checkpoint.safetensors"), "{err}");
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn unknown_config_key_is_rejected() {
+    let d = tmp("badcfg");
+    let cfg = d.join("bad.toml");
+    std::fs::write(&cfg, "env = \"point-goal\"\ntotal_stepz = 5\n").unwrap();
+    let out = smile(&[
+        "expert",
+        "--config",
+        cfg.to_str().unwrap(),
+        "-o",
+        d.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("total_stepz"));
+    std::fs::remove_dir_all(&d).ok();
+}
