@@ -2,6 +2,16 @@
 //! CleanRL-style names: `losses/qf`, `losses/actor`, `losses/alpha`, `charts/alpha`,
 //! `charts/entropy`, `charts/episodic_return`, `charts/metric`, `charts/sps`. Every line has
 //! `step` (environment steps) and `wall_s` (seconds since the log was opened).
+//!
+//! The same scalars also go to a TensorBoard event file (`tb/events.out.tfevents.*`; watch with
+//! `tensorboard --logdir runs`), written by [`TbWriter`]: TFRecord framing with masked CRC-32C
+//! around hand-encoded `Event { wall_time, step, summary { value { tag, simple_value } } }`
+//! protobufs, a few dozen lines instead of a protobuf toolchain.
+//!
+//! The same scalars also go to a TensorBoard event file (`tb/events.out.tfevents.*`, watch with
+//! `tensorboard --logdir runs`), written by [`TbWriter`]: TFRecord framing with masked CRC-32C
+//! around hand-encoded `Event { wall_time, step, summary { value { tag, simple_value } } }`
+//! protobufs (no maintained Rust crate does this without pulling in a protobuf toolchain).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -18,6 +28,7 @@ pub struct MetricsLog {
     path: PathBuf,
     file: std::io::BufWriter<std::fs::File>,
     t0: Instant,
+    tb: TbWriter,
 }
 
 impl MetricsLog {
@@ -34,10 +45,12 @@ impl MetricsLog {
             .append(true)
             .open(&path)
             .map_err(io)?;
+        let tb = TbWriter::create(&dir.join("tb"))?;
         Ok(Self {
             path,
             file: std::io::BufWriter::new(f),
             t0: Instant::now(),
+            tb,
         })
     }
 
@@ -59,7 +72,8 @@ impl MetricsLog {
             .map_err(|e| Error::Io {
                 path: self.path.clone(),
                 source: e,
-            })
+            })?;
+        self.tb.scalars(step, values)
     }
 }
 
@@ -73,4 +87,152 @@ pub fn sac_fields(s: &SacStats) -> [(&'static str, f64); 6] {
         ("charts/alpha", s.alpha as f64),
         ("charts/entropy", s.entropy as f64),
     ]
+}
+
+/// CRC-32C (Castagnoli), as TFRecord uses.
+fn crc32c(data: &[u8]) -> u32 {
+    static TABLE: std::sync::OnceLock<[u32; 256]> = std::sync::OnceLock::new();
+    let table = TABLE.get_or_init(|| {
+        let mut t = [0u32; 256];
+        for (i, e) in t.iter_mut().enumerate() {
+            let mut c = i as u32;
+            for _ in 0..8 {
+                c = if c & 1 != 0 {
+                    0x82f6_3b78 ^ (c >> 1)
+                } else {
+                    c >> 1
+                };
+            }
+            *e = c;
+        }
+        t
+    });
+    !data.iter().fold(!0u32, |c, &b| {
+        table[((c ^ b as u32) & 0xff) as usize] ^ (c >> 8)
+    })
+}
+
+fn masked_crc(data: &[u8]) -> u32 {
+    crc32c(data).rotate_right(15).wrapping_add(0xa282_ead8)
+}
+
+fn varint(mut v: u64, out: &mut Vec<u8>) {
+    while v >= 0x80 {
+        out.push((v as u8) | 0x80);
+        v >>= 7;
+    }
+    out.push(v as u8);
+}
+
+/// Protobuf length-delimited field `field` holding `bytes`.
+fn len_field(field: u32, bytes: &[u8], out: &mut Vec<u8>) {
+    varint(((field << 3) | 2) as u64, out);
+    varint(bytes.len() as u64, out);
+    out.extend_from_slice(bytes);
+}
+
+/// A TensorBoard event-file writer for scalars.
+pub struct TbWriter {
+    path: PathBuf,
+    file: std::io::BufWriter<std::fs::File>,
+}
+
+impl TbWriter {
+    /// Create `dir/events.out.tfevents.<unix seconds>.<pid>.smile` and write the version event.
+    pub fn create(dir: &Path) -> Result<Self> {
+        let secs = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs());
+        let path = dir.join(format!(
+            "events.out.tfevents.{secs}.{}.smile",
+            std::process::id()
+        ));
+        let io = |e| Error::Io {
+            path: path.clone(),
+            source: e,
+        };
+        std::fs::create_dir_all(dir).map_err(io)?;
+        let f = std::fs::File::create(&path).map_err(io)?;
+        let mut w = Self {
+            path,
+            file: std::io::BufWriter::new(f),
+        };
+        let mut ev = Self::event_head(0);
+        len_field(3, b"brain.Event:2", &mut ev);
+        w.record(&ev)?;
+        Ok(w)
+    }
+
+    fn event_head(step: u64) -> Vec<u8> {
+        let wall = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map_or(0.0, |d| d.as_secs_f64());
+        let mut ev = vec![0x09]; // field 1 (wall_time), fixed64
+        ev.extend_from_slice(&wall.to_le_bytes());
+        ev.push(0x10); // field 2 (step), varint
+        varint(step, &mut ev);
+        ev
+    }
+
+    fn record(&mut self, data: &[u8]) -> Result<()> {
+        let len = (data.len() as u64).to_le_bytes();
+        let mut rec = Vec::with_capacity(data.len() + 16);
+        rec.extend_from_slice(&len);
+        rec.extend_from_slice(&masked_crc(&len).to_le_bytes());
+        rec.extend_from_slice(data);
+        rec.extend_from_slice(&masked_crc(data).to_le_bytes());
+        self.file
+            .write_all(&rec)
+            .and_then(|_| self.file.flush())
+            .map_err(|e| Error::Io {
+                path: self.path.clone(),
+                source: e,
+            })
+    }
+
+    /// One event holding every finite `(tag, value)` as a scalar at `step`.
+    pub fn scalars(&mut self, step: u64, values: &[(&str, f64)]) -> Result<()> {
+        let mut summary = Vec::new();
+        for (tag, v) in values.iter().filter(|(_, v)| v.is_finite()) {
+            let mut val = Vec::new();
+            len_field(1, tag.as_bytes(), &mut val);
+            val.push(0x15); // field 2 (simple_value), fixed32
+            val.extend_from_slice(&(*v as f32).to_le_bytes());
+            len_field(1, &val, &mut summary);
+        }
+        let mut ev = Self::event_head(step);
+        len_field(5, &summary, &mut ev);
+        self.record(&ev)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc32c_known_value_and_record_framing() {
+        assert_eq!(crc32c(b"123456789"), 0xe306_9283);
+        let dir = std::env::temp_dir().join(format!("smile-tb-{}", std::process::id()));
+        let mut w = TbWriter::create(&dir).unwrap();
+        w.scalars(7, &[("losses/qf", 0.5), ("charts/sps", f64::NAN)])
+            .unwrap();
+        let bytes = std::fs::read(&w.path).unwrap();
+        // Walk the records: every length and payload CRC must check out; two records.
+        let (mut at, mut n) = (0usize, 0);
+        while at < bytes.len() {
+            let len = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+            let lcrc = u32::from_le_bytes(bytes[at + 8..at + 12].try_into().unwrap());
+            assert_eq!(lcrc, masked_crc(&bytes[at..at + 8]));
+            let data = &bytes[at + 12..at + 12 + len];
+            let dcrc = u32::from_le_bytes(bytes[at + 12 + len..at + 16 + len].try_into().unwrap());
+            assert_eq!(dcrc, masked_crc(data));
+            at += 16 + len;
+            n += 1;
+        }
+        assert_eq!(n, 2);
+        let text = String::from_utf8_lossy(&bytes);
+        assert!(text.contains("losses/qf") && !text.contains("charts/sps"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
 }
