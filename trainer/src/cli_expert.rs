@@ -6,8 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use indicatif::{ProgressBar, ProgressStyle};
 use sim::{EnvConfig, Family, Split};
-use trainer::demos::{DemoSpec, record};
-use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertTrainer};
+use trainer::demos::{DemoSpec, record_with};
+use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertSet, ExpertTrainer};
 
 /// Which expert `smile expert` produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -55,8 +55,12 @@ pub struct ExpertArgs {
     #[arg(long)]
     horizon: Option<usize>,
     /// Train a per-task expert on this meta-train task index.
-    #[arg(long)]
+    #[arg(long, conflicts_with = "task_value")]
     task_index: Option<usize>,
+    /// Train a per-task expert on the task with this parameter (goal angle, target velocity
+    /// or dynamics seed), e.g. a meta-test task.
+    #[arg(long, allow_hyphen_values = true)]
+    task_value: Option<f64>,
     /// Checkpoint every N env steps.
     #[arg(long)]
     checkpoint_every: Option<u64>,
@@ -93,6 +97,9 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     }
     if a.task_index.is_some() {
         cfg.task_index = a.task_index;
+    }
+    if a.task_value.is_some() {
+        cfg.task_value = a.task_value;
     }
     cfg.family()?;
     cfg.sac.validate()?;
@@ -176,7 +183,11 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
         horizon: run.config().horizon,
         ..EnvConfig::default()
     };
-    finish(&dir, a.eval_episodes, run.config().task_index, env_cfg)
+    let tasks = match (run.config().task_index, run.config().task_value) {
+        (None, None) => None,
+        _ => Some(run.config().tasks()?),
+    };
+    finish(&dir, a.eval_episodes, tasks, env_cfg)
 }
 
 /// Evaluate the exported expert deterministically (episodes as in training) and write
@@ -184,13 +195,13 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
 fn finish(
     dir: &Path,
     episodes: usize,
-    task_index: Option<usize>,
+    own_tasks: Option<Vec<sim::Task>>,
     env_cfg: EnvConfig,
 ) -> Result<()> {
     let ex = Expert::load(dir)?;
     let family = ex.family();
-    let (tasks, label) = match task_index {
-        Some(i) => (vec![family.train_tasks()[i]], "its train task"),
+    let (tasks, label) = match own_tasks {
+        Some(t) => (t, "its own task"),
         None => (family.test_tasks(), "meta-test tasks"),
     };
     let rep = expert::evaluate(&ex, &tasks, episodes, env_cfg)?;
@@ -235,9 +246,11 @@ pub struct DemosArgs {
     /// Subsampling factor k (keep step t when t mod k equals a per-trajectory random offset).
     #[arg(long, default_value_t = 1)]
     subsample: usize,
-    /// Expert: a run directory of `smile expert` or its policy.safetensors.
-    #[arg(long)]
-    expert: PathBuf,
+    /// Expert: a run directory of `smile expert` or its policy.safetensors. Repeat (or give
+    /// several, comma separated) for per-task experts: each task uses the expert trained on it
+    /// (`smile expert --task-value`), else the one general expert.
+    #[arg(long, required = true, num_args = 1.., value_delimiter = ',')]
+    expert: Vec<PathBuf>,
     /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -253,14 +266,9 @@ pub struct DemosArgs {
 pub fn run_demos(a: DemosArgs) -> Result<()> {
     let family: Family = a.env.parse()?;
     let split: Split = a.split.parse().map_err(anyhow::Error::msg)?;
-    let ex = Expert::load(&a.expert)?;
+    let ex = ExpertSet::load(&a.expert)?;
     if ex.family() != family {
-        bail!(
-            "expert {} is for {}, not {}",
-            a.expert.display(),
-            ex.family(),
-            family
-        );
+        bail!("the expert is for {}, not {}", ex.family(), family);
     }
     let tasks = match &a.task_params {
         Some(vs) => vs
@@ -280,7 +288,7 @@ pub fn run_demos(a: DemosArgs) -> Result<()> {
             ..EnvConfig::default()
         },
     };
-    let ds = record(&ex, &spec)?;
+    let ds = record_with(&ex, &spec)?;
     if let Some(parent) = a.out.parent() {
         std::fs::create_dir_all(parent).ok();
     }

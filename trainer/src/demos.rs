@@ -4,7 +4,7 @@
 
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
-use crate::expert::Expert;
+use crate::expert::{Expert, ExpertSet};
 use crate::{Error, Result};
 
 /// What to record.
@@ -26,11 +26,18 @@ pub struct DemoSpec {
 
 /// Record `spec.per_task` deterministic expert episodes in every task.
 pub fn record(expert: &Expert, spec: &DemoSpec) -> Result<DemoDataset> {
-    let family: Family = expert.family();
+    let set = ExpertSet::from(expert.clone());
+    record_with(&set, spec)
+}
+
+/// As [`record`], each task acted by its expert in `experts` (per-task experts).
+pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> {
+    let family: Family = experts.family();
     let sim_err = |e: sim::DatasetError| Error::Sim(e.to_string());
     let mut env = sim::make_env(family, spec.env).map_err(|e| Error::Sim(e.to_string()))?;
-    let mut ds = DemoDataset::new(family, spec.split, expert.name());
+    let mut ds = DemoDataset::new(family, spec.split, experts.name());
     for task in &spec.tasks {
+        let expert = experts.for_task(task)?;
         let mut trajectories = Vec::with_capacity(spec.per_task);
         for j in 0..spec.per_task {
             let mut failure = None;

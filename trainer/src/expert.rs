@@ -35,6 +35,10 @@ pub struct ExpertConfig {
     pub env: String,
     /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
     pub task_index: Option<usize>,
+    /// Train on this one task given by its parameter instead (goal angle in rad, target
+    /// velocity in m/s, dynamics seed), e.g. a meta-test task: per-task experts for demos.
+    /// Default: None.
+    pub task_value: Option<f64>,
     /// Environment steps in total. Default 30 000 (point-goal; cheetah needs ~160k, ref §7).
     pub total_steps: u64,
     /// Uniform-random-action steps before learning starts. Default 2 000 (CleanRL uses 5 000).
@@ -58,6 +62,7 @@ impl Default for ExpertConfig {
         Self {
             env: "point-goal".into(),
             task_index: None,
+            task_value: None,
             total_steps: 30_000,
             learning_starts: 2_000,
             updates_per_step: 1,
@@ -87,7 +92,16 @@ impl ExpertConfig {
 
     /// The tasks this expert trains on.
     pub fn tasks(&self) -> Result<Vec<Task>> {
-        let all = self.family()?.train_tasks();
+        let family = self.family()?;
+        if let Some(v) = self.task_value {
+            if self.task_index.is_some() {
+                return Err(Error::Config(
+                    "give task_index or task_value, not both".into(),
+                ));
+            }
+            return Ok(vec![family.task_from_value(v).map_err(sim_err)?]);
+        }
+        let all = family.train_tasks();
         match self.task_index {
             None => Ok(all),
             Some(i) if i < all.len() => Ok(vec![all[i]]),
@@ -285,6 +299,7 @@ impl ExpertTrainer {
             "widths": net.widths(),
             "log_std_bounds": [self.cfg.sac.log_std_min, self.cfg.sac.log_std_max],
             "env_steps": self.env_steps,
+            "task_value": (self.tasks.len() == 1).then(|| self.tasks[0].value()),
         });
         write_policy(dir, &tensors, &meta)
     }
@@ -396,6 +411,92 @@ impl Expert {
             }
             Expert::ScriptedPd(pd) => pd.act(oracle_obs, action).map_err(sim_err),
         }
+    }
+}
+
+/// Several experts for one family: per-task experts (trained with one task, their policy
+/// file records its `task_value`) and at most one general expert. Demos pick, for each task,
+/// the per-task expert of that task, else the general one.
+#[derive(Debug, Clone)]
+pub struct ExpertSet {
+    family: Family,
+    general: Option<Expert>,
+    per_task: Vec<(f64, Expert)>,
+}
+
+impl From<Expert> for ExpertSet {
+    fn from(e: Expert) -> Self {
+        Self {
+            family: e.family(),
+            general: Some(e),
+            per_task: Vec::new(),
+        }
+    }
+}
+
+impl ExpertSet {
+    /// Load every path (run directories or policy files) as in [`Expert::load`].
+    pub fn load(paths: &[impl AsRef<Path>]) -> Result<Self> {
+        let mut set: Option<Self> = None;
+        for p in paths {
+            let p = p.as_ref();
+            let ex = Expert::load(p)?;
+            let file = if p.is_dir() {
+                p.join(POLICY_FILE)
+            } else {
+                p.to_path_buf()
+            };
+            let task_value: Option<f64> = checkpoint::load(&file)?
+                .meta
+                .get("task_value")
+                .and_then(|v| v.as_f64());
+            let s = set.get_or_insert_with(|| Self {
+                family: ex.family(),
+                general: None,
+                per_task: Vec::new(),
+            });
+            if ex.family() != s.family {
+                return Err(Error::Config(format!(
+                    "{} is a {} expert; the others are {}",
+                    p.display(),
+                    ex.family(),
+                    s.family
+                )));
+            }
+            match task_value {
+                Some(v) => s.per_task.push((v, ex)),
+                None if s.general.is_none() => s.general = Some(ex),
+                None => {
+                    return Err(Error::Config("more than one general expert given".into()));
+                }
+            }
+        }
+        set.ok_or_else(|| Error::Config("no expert given".into()))
+    }
+
+    /// The family of every expert in the set.
+    pub fn family(&self) -> Family {
+        self.family
+    }
+
+    /// Dataset label: the single expert's name, or `<name>-per-task`.
+    pub fn name(&self) -> String {
+        match (&self.general, self.per_task.first()) {
+            (Some(g), None) => g.name().to_string(),
+            (_, Some((_, e))) => format!("{}-per-task", e.name()),
+            (None, None) => String::new(),
+        }
+    }
+
+    /// The expert to use in `task`.
+    pub fn for_task(&self, task: &Task) -> Result<&Expert> {
+        let v = task.value();
+        self.per_task
+            .iter()
+            .find(|(tv, _)| (tv - v).abs() <= 1e-6 * (1.0 + v.abs()))
+            .map(|(_, e)| e)
+            .or(self.general.as_ref())
+            .ok_or_else(|| Error::Config(format!("no expert for task {}", task.label())))
     }
 }
 

@@ -182,3 +182,77 @@ fn unknown_config_key_is_rejected() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("total_stepz"));
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn per_task_experts_make_demos_for_their_tasks() {
+    let d = tmp("pertask");
+    let mut dirs = Vec::new();
+    for v in ["0.3", "-1.2"] {
+        let run = d.join(format!("task{v}"));
+        ok(&smile(&[
+            "expert",
+            "--env",
+            "point-goal",
+            "--task-value",
+            v,
+            "--total-steps",
+            "40",
+            "--learning-starts",
+            "20",
+            "--horizon",
+            "20",
+            "--hidden",
+            "8,8",
+            "--batch-size",
+            "8",
+            "-o",
+            run.to_str().unwrap(),
+            "--quiet",
+            "--eval-episodes",
+            "1",
+        ]));
+        let eval: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(run.join("eval.json")).unwrap()).unwrap();
+        assert_eq!(eval["tasks"].as_array().unwrap().len(), 1);
+        dirs.push(run.to_str().unwrap().to_string());
+    }
+    let experts = dirs.join(",");
+    let demos = d.join("demos.safetensors");
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        "0.3,-1.2",
+        "--per-task",
+        "1",
+        "--horizon",
+        "20",
+        "--expert",
+        &experts,
+        "-o",
+        demos.to_str().unwrap(),
+    ]));
+    let ds = sim::DemoDataset::read(&demos).unwrap();
+    assert_eq!(
+        (ds.tasks.len(), ds.expert.as_str()),
+        (2, "sac-oracle-per-task")
+    );
+    // A task without its expert (and no general expert) is an error.
+    let out = smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        "0.5",
+        "--horizon",
+        "20",
+        "--expert",
+        &experts,
+        "-o",
+        demos.to_str().unwrap(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no expert for task"));
+    std::fs::remove_dir_all(&d).ok();
+}
