@@ -9,6 +9,10 @@
 //!   hyper-parameters.
 //! * [`context`]: the context encoder + conditioned policy every meta-learner shares, and its
 //!   conversion to infer-core's blob structure.
+//! * [`meta_data`]: meta-train demos split into training / held-out train tasks (refuses
+//!   meta-test data), context sampling, rollouts.
+//! * [`smile`]: SMILe (state-action and state-only): discriminator, encoder, SAC on its reward.
+//! * [`meta_bc`]: Meta-BC and Meta-DAgger (validation-based early stopping).
 //! * [`checkpoint`]: atomic safetensors checkpoints with JSON metadata.
 //! * [`demos`]: deterministic expert demonstrations in sim's dataset format.
 //! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert.
@@ -22,11 +26,14 @@ pub mod context;
 pub mod demos;
 pub mod expert;
 pub mod fused;
+pub mod meta_bc;
+pub mod meta_data;
 pub mod metrics;
 pub mod nn;
 pub mod policy;
 pub mod replay;
 pub mod sac;
+pub mod smile;
 pub mod threads;
 
 /// Errors of the trainer library.

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 mod cli_bench;
 mod cli_expert;
+mod cli_train;
 
 #[derive(Parser, Debug)]
 #[command(
@@ -40,6 +41,11 @@ enum Cmd {
         after_help = "Examples:\n  smile bench\n  smile bench --hidden 64 256 --iters 500 --json bench.json"
     )]
     Bench(cli_bench::BenchArgs),
+    /// Meta-train SMILe (state-action or state-only), Meta-BC or Meta-DAgger on meta-train demos.
+    #[command(
+        after_help = "Examples:\n  smile train --algo smile --env point-goal --demos demos/pg-train.safetensors -o runs/pg-smile\n  smile train --algo meta-bc --env point-goal --demos demos/pg-train.safetensors -o runs/pg-bc\n  smile train --algo smile -o runs/pg-smile --demos demos/pg-train.safetensors --resume --updates 30000"
+    )]
+    Train(cli_train::TrainArgs),
 }
 
 fn main() -> Result<()> {
@@ -49,5 +55,6 @@ fn main() -> Result<()> {
         Cmd::Bench(a) => cli_bench::run(a),
         Cmd::Expert(a) => cli_expert::run_expert(a),
         Cmd::Demos(a) => cli_expert::run_demos(a),
+        Cmd::Train(a) => cli_train::run(a),
     }
 }

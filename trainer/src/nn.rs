@@ -326,6 +326,12 @@ impl Adam {
     /// the step size and epsilon (algebraically identical to PyTorch's formulation).
     pub fn backward_step(&mut self, loss: &Tensor) -> Result<()> {
         let grads = loss.backward()?;
+        self.step(&grads)
+    }
+
+    /// One Adam step from already computed gradients (several optimisers can share one
+    /// `backward()`, e.g. SMILe's discriminator and encoder with different betas).
+    pub fn step(&mut self, grads: &candle_core::backprop::GradStore) -> Result<()> {
         self.t += 1;
         let t = self.t as i32;
         let bc1 = 1.0 - self.cfg.beta1.powi(t);

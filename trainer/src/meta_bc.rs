@@ -1,0 +1,583 @@
+//! Meta-BC and Meta-DAgger (reference §3): the same context encoder and policy as SMILe,
+//! trained jointly by supervised regression of expert actions.
+//!
+//! ```text
+//! z ~ q(z | c_task)      c_task: k in 1..=4 demos of the task
+//! a_hat = tanh(mu_pi([norm(s), z]))          (the action the policy actually outputs)
+//! L = mean over tasks and rows of || a_hat - a_E ||^2 / act_dim      (MSE)
+//! ```
+//! on `tasks_per_batch` tasks x `per_task` expert pairs `(s, a_E)` per step. The original
+//! regressed the pre-tanh mean while evaluating `tanh(mean)`; this regresses what is executed.
+//!
+//! **Stopping rule** (Meta-BC overfits the few subsampled demos, reference §7): every
+//! `eval_every` steps the MSE on the held-out *train* tasks' demos (context = their first demo,
+//! z = posterior mean) is measured; the weights with the lowest validation MSE are kept
+//! (`meta_policy.safetensors`) and training stops after `patience` evaluations without
+//! improvement. The meta-test tasks are never read.
+//!
+//! **Meta-DAgger**: per-task aggregate datasets start with the demos; every `dagger_every`
+//! steps, `dagger_rollouts` rollouts of the current policy (a random training task and
+//! context, deterministic actions) are stored with the expert's action for every visited
+//! state; training samples the aggregate.
+
+use std::path::Path;
+
+use candle_core::{Device, Tensor};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use sim::{EnvConfig, Environment, Family, TaskDemos};
+
+use crate::checkpoint;
+use crate::context::{ContextConfig, ContextEncoder, ContextSpec, MetaPolicy};
+use crate::expert::{Expert, rng_from_state, rng_state};
+use crate::meta_data::{MetaData, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::metrics::MetricsLog;
+use crate::nn::{Adam, AdamConfig};
+use crate::policy::TanhGaussianPolicy;
+use crate::{Error, Result};
+
+/// Meta-BC / Meta-DAgger hyper-parameters.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct MetaBcConfig {
+    /// Task family. Default `point-goal`.
+    pub env: String,
+    /// Encoder and latent (as SMILe's).
+    pub context: ContextConfig,
+    /// Policy hidden widths. Default [128, 128] (as SMILe's SAC actor).
+    pub policy_hidden: Vec<usize>,
+    /// Adam learning rate (encoder and policy). Default 3e-4.
+    pub lr: f32,
+    /// Tasks per step. Default 8 (ref).
+    pub tasks_per_batch: usize,
+    /// Expert pairs per task per step. Default 128 (ref).
+    pub per_task: usize,
+    /// Most context trajectories. Default 4.
+    pub max_context: usize,
+    /// Maximum gradient steps. Default 20 000.
+    pub total_steps: u64,
+    /// Hold out every n-th meta-train task for validation. Default 8.
+    pub holdout_every: usize,
+    /// Validate every this many steps. Default 250.
+    pub eval_every: u64,
+    /// Stop after this many validations without a lower validation MSE (0: never stop).
+    /// Default 8.
+    pub patience: u32,
+    /// Deterministic rollouts per held-out task and context when validating. Default 2.
+    pub eval_episodes: usize,
+    /// Meta-DAgger (needs an expert). Default false.
+    pub dagger: bool,
+    /// Meta-DAgger: relabelled rollouts every this many steps. Default 50.
+    pub dagger_every: u64,
+    /// Meta-DAgger: rollouts each time. Default 2.
+    pub dagger_rollouts: usize,
+    /// Checkpoint every this many steps. Default 2000.
+    pub checkpoint_every: u64,
+    /// Episode length override. Default None.
+    pub horizon: Option<usize>,
+    /// Seed. Default 0.
+    pub seed: u64,
+}
+
+impl Default for MetaBcConfig {
+    fn default() -> Self {
+        Self {
+            env: "point-goal".into(),
+            context: ContextConfig::default(),
+            policy_hidden: vec![128, 128],
+            lr: 3e-4,
+            tasks_per_batch: 8,
+            per_task: 128,
+            max_context: 4,
+            total_steps: 20_000,
+            holdout_every: 8,
+            eval_every: 250,
+            patience: 8,
+            eval_episodes: 2,
+            dagger: false,
+            dagger_every: 50,
+            dagger_rollouts: 2,
+            checkpoint_every: 2000,
+            horizon: None,
+            seed: 0,
+        }
+    }
+}
+
+impl MetaBcConfig {
+    /// `meta-bc` or `meta-dagger`.
+    pub fn algo_name(&self) -> &'static str {
+        if self.dagger {
+            "meta-dagger"
+        } else {
+            "meta-bc"
+        }
+    }
+
+    fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            horizon: self.horizon,
+            ..EnvConfig::default()
+        }
+    }
+}
+
+/// One validation.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ValReport {
+    /// Action MSE on the held-out train tasks' demos.
+    pub val_mse: f32,
+    /// The family's metric of deterministic rollouts on the held-out train tasks.
+    pub val_metric: f32,
+}
+
+/// Events reported to the caller of [`train`].
+#[derive(Debug, Clone, Copy)]
+pub enum Event {
+    /// Gradient steps so far.
+    Steps(u64),
+    /// A validation at this step.
+    Eval(u64, ValReport),
+    /// Early stop at this step.
+    Stopped(u64),
+}
+
+/// Per-task `(s, a)` pairs: the demos, plus relabelled visits for Meta-DAgger.
+#[derive(Debug, Clone, Default)]
+struct Pairs {
+    obs: Vec<f32>,
+    act: Vec<f32>,
+}
+
+/// A Meta-BC / Meta-DAgger run.
+pub struct MetaBc {
+    cfg: MetaBcConfig,
+    data: MetaData,
+    expert: Option<Expert>,
+    env: Box<dyn Environment>,
+    /// The context encoder.
+    pub encoder: ContextEncoder,
+    /// The policy on `[norm(s), z]`.
+    pub policy: TanhGaussianPolicy,
+    opt: Adam,
+    pairs: Vec<Pairs>,
+    rng: ChaCha8Rng,
+    steps: u64,
+    episodes: u64,
+    best_mse: f32,
+    bad_evals: u32,
+    stopped: bool,
+}
+
+fn scalar(t: &Tensor) -> Result<f32> {
+    Ok(t.flatten_all()?.to_vec1::<f32>()?[0])
+}
+
+impl MetaBc {
+    /// A fresh run; Meta-DAgger needs `expert`.
+    pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<Expert>) -> Result<Self> {
+        let family: Family = cfg
+            .env
+            .parse()
+            .map_err(|e: sim::SimError| Error::Config(e.to_string()))?;
+        if data.family != family {
+            return Err(Error::Config(format!(
+                "demos are {}, config says {family}",
+                data.family
+            )));
+        }
+        if cfg.dagger && expert.as_ref().is_none_or(|e| e.family() != family) {
+            return Err(Error::Config(format!(
+                "meta-dagger needs an expert for {family}"
+            )));
+        }
+        if cfg.tasks_per_batch == 0 || cfg.per_task == 0 || cfg.max_context == 0 {
+            return Err(Error::Config("meta-bc batch sizes must be positive".into()));
+        }
+        let env = sim::make_env(family, cfg.env_config()).map_err(|e| Error::Sim(e.to_string()))?;
+        let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
+        let (od, ad) = (family.obs_dim(), family.act_dim());
+        let encoder = ContextEncoder::new(od, ad, cfg.context.clone(), &mut rng)?;
+        let policy = TanhGaussianPolicy::new(
+            od + cfg.context.z_dim,
+            ad,
+            &cfg.policy_hidden,
+            (-20.0, 2.0),
+            &mut rng,
+        )?;
+        let vars = [encoder.vars(), policy.net().vars().to_vec()].concat();
+        let opt = Adam::new(vars, AdamConfig::with_lr(cfg.lr));
+        let pairs = data
+            .train
+            .iter()
+            .map(|td| {
+                let mut p = Pairs::default();
+                for t in &td.trajectories {
+                    p.obs.extend_from_slice(&t.obs);
+                    p.act.extend_from_slice(&t.actions);
+                }
+                p
+            })
+            .collect();
+        Ok(Self {
+            cfg,
+            data,
+            expert,
+            env,
+            encoder,
+            policy,
+            opt,
+            pairs,
+            rng,
+            steps: 0,
+            episodes: 0,
+            best_mse: f32::INFINITY,
+            bad_evals: 0,
+            stopped: false,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &MetaBcConfig {
+        &self.cfg
+    }
+
+    /// Gradient steps done.
+    pub fn steps(&self) -> u64 {
+        self.steps
+    }
+
+    /// Pairs in the aggregate dataset of every training task (demos + relabelled visits).
+    pub fn dataset_size(&self) -> usize {
+        self.pairs.iter().map(|p| p.act.len()).sum::<usize>() / self.data.family.act_dim()
+    }
+
+    /// The current policy as a [`MetaPolicy`] (shares the live weights).
+    pub fn meta_policy(&self) -> MetaPolicy {
+        MetaPolicy {
+            family: self.data.family,
+            algo: self.cfg.algo_name().into(),
+            norm: self.data.norm.clone(),
+            encoder: self.encoder.clone(),
+            policy: self.policy.clone(),
+        }
+    }
+
+    /// `mean ||tanh(mu([norm(s), z])) - a||^2 / act_dim` with one z per context.
+    fn mse(&self, z: &Tensor, obs: &[Vec<f32>], act: &[Vec<f32>]) -> Result<Tensor> {
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        // Rows of context c use z[c]: broadcast with a one-hot matrix so gradients reach z.
+        let rows: usize = act.iter().map(|a| a.len() / ad).sum();
+        let mut onehot = vec![0.0f32; rows * obs.len()];
+        let (mut o_all, mut a_all) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
+        let mut r = 0;
+        for (c, (o, a)) in obs.iter().zip(act).enumerate() {
+            for _ in 0..a.len() / ad {
+                onehot[r * obs.len() + c] = 1.0;
+                r += 1;
+            }
+            for row in o.chunks_exact(od) {
+                self.data.norm.push(row, &mut o_all);
+            }
+            a_all.extend_from_slice(a);
+        }
+        let dev = &Device::Cpu;
+        let z_rows = Tensor::from_vec(onehot, (rows, obs.len()), dev)?.matmul(z)?;
+        let x_obs = Tensor::from_vec(o_all, (rows, od), dev)?;
+        let x = Tensor::cat(&[&x_obs, &z_rows], 1)?;
+        let (mean, _) = self.policy.heads(&x)?;
+        let target = Tensor::from_vec(a_all, (rows, ad), dev)?;
+        Ok((mean.tanh()? - target)?.sqr()?.mean_all()?)
+    }
+
+    /// One gradient step; returns the training MSE.
+    pub fn step(&mut self) -> Result<f32> {
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        let tasks = distinct_tasks(
+            self.data.train.len(),
+            self.cfg.tasks_per_batch,
+            &mut self.rng,
+        );
+        let mut specs: Vec<ContextSpec<'_>> = Vec::new();
+        let (mut obs, mut act) = (Vec::new(), Vec::new());
+        for &ti in &tasks {
+            specs.push(sample_context(
+                &self.data.train[ti],
+                self.cfg.max_context,
+                &mut self.rng,
+            ));
+            let p = &self.pairs[ti];
+            let n = p.act.len() / ad;
+            let (mut o, mut a) = (Vec::new(), Vec::new());
+            for _ in 0..self.cfg.per_task {
+                let i = self.rng.random_range(0..n);
+                o.extend_from_slice(&p.obs[i * od..(i + 1) * od]);
+                a.extend_from_slice(&p.act[i * ad..(i + 1) * ad]);
+            }
+            obs.push(o);
+            act.push(a);
+        }
+        let b = self.encoder.batch(&self.data.norm, &specs)?;
+        let z = self.encoder.z(&b, true, &mut self.rng)?;
+        let loss = self.mse(&z, &obs, &act)?;
+        let v = scalar(&loss)?;
+        if !v.is_finite() {
+            return Err(Error::NonFinite {
+                what: "losses/bc_mse",
+                value: v,
+                update: self.steps + 1,
+            });
+        }
+        self.opt.backward_step(&loss)?;
+        self.steps += 1;
+        Ok(v)
+    }
+
+    /// Validation MSE on held-out train tasks: context = first demo, z = posterior mean,
+    /// targets = all of the task's demo pairs.
+    pub fn val_mse(&self) -> Result<f32> {
+        val_mse_on(self, &self.data.val)
+    }
+
+    /// Meta-DAgger: `n` deterministic rollouts relabelled by the expert.
+    pub fn dagger_rollouts(&mut self, n: usize) -> Result<()> {
+        let Some(expert) = self.expert.clone() else {
+            return Err(Error::Config("meta-dagger needs an expert".into()));
+        };
+        let mp = self.meta_policy();
+        for _ in 0..n {
+            let ti = self.rng.random_range(0..self.data.train.len());
+            let spec = sample_context(&self.data.train[ti], self.cfg.max_context, &mut self.rng);
+            let ctx: Vec<_> = spec.trajectories[..spec.k].to_vec();
+            let z = mp.latent(&ctx)?;
+            let task = self.data.train[ti].task;
+            let seed = 5_000_000 + self.episodes;
+            let (rng, pairs) = (&mut self.rng, &mut self.pairs[ti]);
+            let mut a_exp = vec![0.0f32; self.data.family.act_dim()];
+            run_episode(
+                self.env.as_mut(),
+                &task,
+                seed,
+                &mut |o, a| {
+                    a.copy_from_slice(&mp.act(o, &z, true, rng)?);
+                    Ok(())
+                },
+                &mut |st| {
+                    expert.act(st.oracle, &mut a_exp)?;
+                    pairs.obs.extend_from_slice(st.obs);
+                    pairs.act.extend(a_exp.iter().map(|v| v.clamp(-1.0, 1.0)));
+                    Ok(())
+                },
+            )?;
+            self.episodes += 1;
+        }
+        Ok(())
+    }
+
+    /// Writes the checkpoint to `dir`.
+    pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        let mut ts: Vec<(String, Tensor)> = Vec::new();
+        for (p, m) in [
+            ("phi", &self.encoder.phi),
+            ("head", &self.encoder.head),
+            ("policy", self.policy.net()),
+        ] {
+            for (i, v) in m.vars().iter().enumerate() {
+                ts.push((format!("{p}.{i}"), v.as_tensor().detach()));
+            }
+        }
+        let (m, v, t) = self.opt.state()?;
+        for (i, x) in m.into_iter().enumerate() {
+            ts.push((format!("opt.m.{i}"), x));
+        }
+        for (i, x) in v.into_iter().enumerate() {
+            ts.push((format!("opt.v.{i}"), x));
+        }
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        for (i, p) in self.pairs.iter().enumerate() {
+            let n = p.act.len() / ad;
+            ts.push((
+                format!("pairs.{i}.obs"),
+                Tensor::from_slice(&p.obs, (n, od), &Device::Cpu)?,
+            ));
+            ts.push((
+                format!("pairs.{i}.act"),
+                Tensor::from_slice(&p.act, (n, ad), &Device::Cpu)?,
+            ));
+        }
+        let meta = serde_json::json!({
+            "kind": "meta-bc-run",
+            "config": self.cfg,
+            "adam_steps": t,
+            "steps": self.steps,
+            "episodes": self.episodes,
+            "best_mse": if self.best_mse.is_finite() { serde_json::Value::from(self.best_mse) } else { serde_json::Value::Null },
+            "bad_evals": self.bad_evals,
+            "stopped": self.stopped,
+            "rng": rng_state(&self.rng),
+        });
+        checkpoint::save(dir, &ts, &meta)?;
+        Ok(())
+    }
+
+    /// Resumes the run checkpointed in `dir`; `total_steps` overrides the saved target.
+    pub fn resume(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<Expert>,
+        total_steps: Option<u64>,
+    ) -> Result<Self> {
+        let ck = checkpoint::load(dir)?;
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("meta-bc-run") {
+            return Err(Error::Checkpoint {
+                path: ck.path().into(),
+                reason: "not a Meta-BC run".into(),
+            });
+        }
+        let mut cfg: MetaBcConfig = ck.meta_field("config")?;
+        if let Some(t) = total_steps {
+            cfg.total_steps = t;
+        }
+        let mut run = Self::new(cfg, data, expert)?;
+        let get = |n: &str| ck.get(n);
+        for (p, m) in [
+            ("phi", &run.encoder.phi),
+            ("head", &run.encoder.head),
+            ("policy", run.policy.net()),
+        ] {
+            let ts = (0..m.vars().len())
+                .map(|i| get(&format!("{p}.{i}")))
+                .collect::<Result<Vec<_>>>()?;
+            m.load_from(&ts)?;
+        }
+        let n = run.encoder.vars().len() + run.policy.net().vars().len();
+        let m = (0..n)
+            .map(|i| get(&format!("opt.m.{i}")))
+            .collect::<Result<Vec<_>>>()?;
+        let v = (0..n)
+            .map(|i| get(&format!("opt.v.{i}")))
+            .collect::<Result<Vec<_>>>()?;
+        run.opt.set_state(&m, &v, ck.meta_field("adam_steps")?)?;
+        for (i, p) in run.pairs.iter_mut().enumerate() {
+            p.obs = get(&format!("pairs.{i}.obs"))?
+                .flatten_all()?
+                .to_vec1::<f32>()?;
+            p.act = get(&format!("pairs.{i}.act"))?
+                .flatten_all()?
+                .to_vec1::<f32>()?;
+        }
+        run.steps = ck.meta_field("steps")?;
+        run.episodes = ck.meta_field("episodes")?;
+        run.best_mse = ck
+            .meta_field::<Option<f32>>("best_mse")?
+            .unwrap_or(f32::INFINITY);
+        run.bad_evals = ck.meta_field("bad_evals")?;
+        run.stopped = ck.meta_field("stopped")?;
+        run.rng = rng_from_state(&ck.meta_field("rng")?)?;
+        Ok(run)
+    }
+}
+
+fn val_mse_on(run: &MetaBc, tasks: &[TaskDemos]) -> Result<f32> {
+    if tasks.is_empty() {
+        return Ok(f32::NAN);
+    }
+    let specs: Vec<ContextSpec<'_>> = tasks
+        .iter()
+        .map(|td| ContextSpec::all(vec![&td.trajectories[0]]))
+        .collect();
+    let b = run.encoder.batch(&run.data.norm, &specs)?;
+    let (mu, _) = run.encoder.posterior(&b)?;
+    let obs: Vec<Vec<f32>> = tasks
+        .iter()
+        .map(|td| td.trajectories.iter().flat_map(|t| t.obs.clone()).collect())
+        .collect();
+    let act: Vec<Vec<f32>> = tasks
+        .iter()
+        .map(|td| {
+            td.trajectories
+                .iter()
+                .flat_map(|t| t.actions.clone())
+                .collect()
+        })
+        .collect();
+    scalar(&run.mse(&mu.detach(), &obs, &act)?)
+}
+
+/// Trains until `total_steps` or the stopping rule; logs `losses/bc_mse`, `eval/val_mse`,
+/// `eval/val_metric`; keeps the lowest-validation-MSE weights in `dir/meta_policy.safetensors`
+/// and the final ones in `dir/last/`.
+pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
+    let mut log = MetricsLog::open(dir)?;
+    let cfg = run.cfg.clone();
+    let t0 = std::time::Instant::now();
+    let s0 = run.steps;
+    let every = cfg.checkpoint_every.max(1);
+    while run.steps < cfg.total_steps && !run.stopped {
+        if cfg.dagger && run.steps.is_multiple_of(cfg.dagger_every.max(1)) {
+            run.dagger_rollouts(cfg.dagger_rollouts)?;
+        }
+        let mse = run.step()?;
+        on(Event::Steps(run.steps));
+        if run.steps.is_multiple_of(50) {
+            let sps = (run.steps - s0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+            log.log(
+                run.steps,
+                &[
+                    ("losses/bc_mse", mse as f64),
+                    ("charts/sps", sps),
+                    ("charts/dataset_size", run.dataset_size() as f64),
+                ],
+            )?;
+        }
+        let at_end = run.steps >= cfg.total_steps;
+        if cfg.eval_every > 0 && (run.steps.is_multiple_of(cfg.eval_every) || at_end) {
+            let val_mse = run.val_mse()?;
+            let val_metric = quick_eval(
+                &run.meta_policy(),
+                &run.data.val,
+                2,
+                cfg.eval_episodes,
+                cfg.env_config(),
+            )?;
+            let rep = ValReport {
+                val_mse,
+                val_metric,
+            };
+            if val_mse < run.best_mse || (run.data.val.is_empty() && at_end) {
+                run.best_mse = val_mse;
+                run.bad_evals = 0;
+                run.meta_policy().save(dir)?;
+            } else {
+                run.bad_evals += 1;
+                if cfg.patience > 0 && run.bad_evals >= cfg.patience {
+                    run.stopped = true;
+                    on(Event::Stopped(run.steps));
+                }
+            }
+            log.log(
+                run.steps,
+                &[
+                    ("eval/val_mse", val_mse as f64),
+                    ("eval/val_metric", val_metric as f64),
+                    ("eval/val_best_mse", run.best_mse as f64),
+                ],
+            )?;
+            on(Event::Eval(run.steps, rep));
+        }
+        if run.steps.is_multiple_of(every) || at_end || run.stopped {
+            run.save_checkpoint(dir)?;
+        }
+    }
+    let last = dir.join("last");
+    std::fs::create_dir_all(&last).map_err(|e| Error::Io {
+        path: last.clone(),
+        source: e,
+    })?;
+    run.meta_policy().save(&last)?;
+    if !dir.join(crate::context::META_POLICY_FILE).exists() {
+        run.meta_policy().save(dir)?;
+    }
+    Ok(())
+}

@@ -1,0 +1,115 @@
+//! Meta-BC and Meta-DAgger on tiny networks.
+
+use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+use trainer::context::MetaPolicy;
+use trainer::expert::Expert;
+use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
+use trainer::meta_data::MetaData;
+
+fn demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
+    let fam = Family::PointGoal;
+    let mut ds = DemoDataset::new(fam, Split::Train, "scripted-pd");
+    let mut env = sim::make_env(
+        fam,
+        EnvConfig {
+            horizon: Some(horizon),
+            ..EnvConfig::default()
+        },
+    )
+    .unwrap();
+    let pd = sim::PointGoalPdExpert::default();
+    for task in fam.train_tasks().into_iter().take(tasks) {
+        let trajectories = (0..per_task)
+            .map(|j| {
+                sim::record_trajectory(env.as_mut(), &task, j as u64, |o, a| pd.act(o, a).unwrap())
+                    .unwrap()
+            })
+            .collect();
+        ds.tasks.push(TaskDemos { task, trajectories });
+    }
+    ds
+}
+
+fn tiny(dagger: bool) -> MetaBcConfig {
+    let mut cfg = MetaBcConfig {
+        policy_hidden: vec![32, 32],
+        lr: 3e-3,
+        tasks_per_batch: 4,
+        per_task: 32,
+        total_steps: 300,
+        holdout_every: 4,
+        eval_every: 50,
+        patience: 0,
+        eval_episodes: 1,
+        dagger,
+        dagger_every: 50,
+        dagger_rollouts: 1,
+        horizon: Some(30),
+        seed: 1,
+        ..MetaBcConfig::default()
+    };
+    cfg.context.enc_hidden = vec![16];
+    cfg.context.r_dim = 8;
+    cfg.context.z_dim = 4;
+    cfg
+}
+
+#[test]
+fn meta_bc_fits_and_keeps_the_best_validation_weights() {
+    trainer::threads::set_compute_threads(1);
+    let dir = std::env::temp_dir().join(format!("smile-bc-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let mut run = MetaBc::new(tiny(false), data, None).unwrap();
+    let v0 = run.val_mse().unwrap();
+    let mut vals = Vec::new();
+    meta_bc::train(&mut run, &dir, &mut |e| {
+        if let meta_bc::Event::Eval(_, r) = e {
+            vals.push(r.val_mse);
+        }
+    })
+    .unwrap();
+    assert_eq!(vals.len(), 6);
+    let best = vals.iter().cloned().fold(f32::INFINITY, f32::min);
+    assert!(best < 0.5 * v0, "validation MSE {v0} -> {vals:?}");
+    // The saved policy is the best-validation one.
+    let mp = MetaPolicy::load(&dir).unwrap();
+    assert_eq!(mp.algo, "meta-bc");
+    let saved = MetaBc::resume(&dir, run_data(), None, None).unwrap();
+    assert_eq!(saved.steps(), 300);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn run_data() -> MetaData {
+    MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap()
+}
+
+#[test]
+fn early_stopping_and_dagger_relabelling() {
+    trainer::threads::set_compute_threads(1);
+    let dir = std::env::temp_dir().join(format!("smile-dagger-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut cfg = tiny(true);
+    cfg.patience = 1;
+    cfg.lr = 0.3; // diverging steps: the validation MSE stops improving quickly
+    cfg.total_steps = 2000;
+    let expert = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+    let mut run = MetaBc::new(cfg, run_data(), Some(expert)).unwrap();
+    let before = run.dataset_size();
+    let mut stopped = None;
+    meta_bc::train(&mut run, &dir, &mut |e| {
+        if let meta_bc::Event::Stopped(s) = e {
+            stopped = Some(s);
+        }
+    })
+    .unwrap();
+    let s = stopped.expect("early stop");
+    assert!(s < 2000 && run.steps() == s);
+    // One 30-step relabelled rollout every 50 steps.
+    assert_eq!(run.dataset_size(), before + 30 * (s as usize).div_ceil(50));
+    assert!(
+        MetaBc::new(tiny(true), run_data(), None).is_err(),
+        "dagger needs an expert"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
