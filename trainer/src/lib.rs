@@ -25,6 +25,7 @@ pub mod checkpoint;
 pub mod context;
 pub mod demos;
 pub mod expert;
+pub mod expert_eval;
 pub mod fused;
 pub mod meta_bc;
 pub mod meta_data;

@@ -1,0 +1,155 @@
+//! Sets of experts (per-task experts for demos) and deterministic expert evaluation with the
+//! family's metric. Re-exported from [`crate::expert`].
+
+use std::path::Path;
+
+use serde::Serialize;
+use sim::{EnvConfig, EpisodeMetric, Family, Task};
+
+use crate::checkpoint;
+use crate::expert::{Expert, POLICY_FILE};
+use crate::{Error, Result};
+
+fn sim_err(e: impl std::fmt::Display) -> Error {
+    Error::Sim(e.to_string())
+}
+
+/// Several experts for one family: per-task experts (trained with one task, their policy
+/// file records its `task_value`) and at most one general expert. Demos pick, for each task,
+/// the per-task expert of that task, else the general one.
+#[derive(Debug, Clone)]
+pub struct ExpertSet {
+    family: Family,
+    general: Option<Expert>,
+    per_task: Vec<(f64, Expert)>,
+}
+
+impl From<Expert> for ExpertSet {
+    fn from(e: Expert) -> Self {
+        Self {
+            family: e.family(),
+            general: Some(e),
+            per_task: Vec::new(),
+        }
+    }
+}
+
+impl ExpertSet {
+    /// Load every path (run directories or policy files) as in [`Expert::load`].
+    pub fn load(paths: &[impl AsRef<Path>]) -> Result<Self> {
+        let mut set: Option<Self> = None;
+        for p in paths {
+            let p = p.as_ref();
+            let ex = Expert::load(p)?;
+            let file = if p.is_dir() {
+                p.join(POLICY_FILE)
+            } else {
+                p.to_path_buf()
+            };
+            let task_value: Option<f64> = checkpoint::load(&file)?
+                .meta
+                .get("task_value")
+                .and_then(|v| v.as_f64());
+            let s = set.get_or_insert_with(|| Self {
+                family: ex.family(),
+                general: None,
+                per_task: Vec::new(),
+            });
+            if ex.family() != s.family {
+                return Err(Error::Config(format!(
+                    "{} is a {} expert; the others are {}",
+                    p.display(),
+                    ex.family(),
+                    s.family
+                )));
+            }
+            match task_value {
+                Some(v) => s.per_task.push((v, ex)),
+                None if s.general.is_none() => s.general = Some(ex),
+                None => {
+                    return Err(Error::Config("more than one general expert given".into()));
+                }
+            }
+        }
+        set.ok_or_else(|| Error::Config("no expert given".into()))
+    }
+
+    /// The family of every expert in the set.
+    pub fn family(&self) -> Family {
+        self.family
+    }
+
+    /// Dataset label: the single expert's name, or `<name>-per-task`.
+    pub fn name(&self) -> String {
+        match (&self.general, self.per_task.first()) {
+            (Some(g), None) => g.name().to_string(),
+            (_, Some((_, e))) => format!("{}-per-task", e.name()),
+            (None, None) => String::new(),
+        }
+    }
+
+    /// The expert to use in `task`.
+    pub fn for_task(&self, task: &Task) -> Result<&Expert> {
+        let v = task.value();
+        self.per_task
+            .iter()
+            .find(|(tv, _)| (tv - v).abs() <= 1e-6 * (1.0 + v.abs()))
+            .map(|(_, e)| e)
+            .or(self.general.as_ref())
+            .ok_or_else(|| Error::Config(format!("no expert for task {}", task.label())))
+    }
+}
+
+/// Result of [`evaluate`].
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EvalReport {
+    /// Per task: the family's metric averaged over episodes.
+    pub per_task: Vec<f32>,
+    /// Mean of `per_task`.
+    pub mean: f32,
+    /// Mean over all episodes of the metric sample at the last step (for point-goal: the final
+    /// distance to the goal; for cheetah-vel: the final |v - v*|).
+    pub final_sample_mean: f32,
+}
+
+/// The family's metric over `tasks`, `episodes` deterministic rollouts each (reset seeds
+/// `1_000_000 + k`).
+pub fn evaluate(
+    expert: &Expert,
+    tasks: &[Task],
+    episodes: usize,
+    env_cfg: EnvConfig,
+) -> Result<EvalReport> {
+    let family = expert.family();
+    let mut env = sim::make_env(family, env_cfg).map_err(sim_err)?;
+    let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
+    let mut action = vec![0.0f32; family.act_dim()];
+    let mut per_task = Vec::with_capacity(tasks.len());
+    let (mut final_sum, mut n) = (0.0f32, 0usize);
+    for task in tasks {
+        let mut sum = 0.0f32;
+        for k in 0..episodes {
+            env.reset(task, 1_000_000 + k as u64).map_err(sim_err)?;
+            let mut m = EpisodeMetric::new(family);
+            loop {
+                env.oracle_observation(&mut oracle).map_err(sim_err)?;
+                expert.act(&oracle, &mut action)?;
+                let tr = env.step(&action).map_err(sim_err)?;
+                m.record(&tr.info);
+                if tr.done {
+                    final_sum += tr.info.metric_sample;
+                    n += 1;
+                    break;
+                }
+            }
+            sum += m.value();
+        }
+        per_task.push(sum / episodes.max(1) as f32);
+    }
+    let mean = per_task.iter().sum::<f32>() / per_task.len().max(1) as f32;
+    Ok(EvalReport {
+        per_task,
+        mean,
+        final_sample_mean: final_sum / n.max(1) as f32,
+    })
+}
