@@ -14,10 +14,18 @@
 /// Call it first thing in `main` (or a test), before any other thread is spawned: it mutates
 /// the process environment. Returns the value previously set, if any.
 pub fn set_compute_threads(n: usize) -> Option<String> {
+    static LOCK: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    let _guard = LOCK.lock().unwrap_or_else(|e| e.into_inner());
     let n = n.max(1).to_string();
     let prev = std::env::var("RAYON_NUM_THREADS").ok();
-    // SAFETY: documented precondition: called before other threads exist (or, in tests, with
-    // the same value by every caller), so no thread reads the environment concurrently.
+    if prev.as_deref() == Some(n.as_str())
+        && std::env::var("CANDLE_NUM_THREADS").ok().as_deref() == Some(n.as_str())
+    {
+        // Already set: do not write the environment again (tests call this from many threads).
+        return prev;
+    }
+    // SAFETY: documented precondition: called before other threads exist, or (tests) first
+    // thing in every test with the same value, so after the first call nothing is written.
     unsafe {
         std::env::set_var("RAYON_NUM_THREADS", &n);
         std::env::set_var("CANDLE_NUM_THREADS", &n);
