@@ -52,6 +52,15 @@ pub struct Timing {
     pub p90_us: f64,
     /// `1e6 / median_us`.
     pub updates_per_s: f64,
+    /// Mean on-CPU time of the timing thread per iteration (Linux `schedstat`), which, unlike
+    /// wall-clock, does not count time the thread waited for a core busy with other work.
+    pub cpu_mean_us: Option<f64>,
+}
+
+/// Nanoseconds this thread has spent on a CPU (`/proc/thread-self/schedstat`), if available.
+pub fn thread_cpu_ns() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
+    s.split_whitespace().next()?.parse().ok()
 }
 
 /// Time `f` `iters` times after `warmup` untimed calls.
@@ -60,11 +69,16 @@ pub fn time_it(warmup: usize, iters: usize, mut f: impl FnMut() -> Result<()>) -
         f()?;
     }
     let mut ts = Vec::with_capacity(iters.max(1));
+    let cpu0 = thread_cpu_ns();
     for _ in 0..iters.max(1) {
         let t0 = Instant::now();
         f()?;
         ts.push(t0.elapsed().as_secs_f64() * 1e6);
     }
+    let cpu_mean_us = match (cpu0, thread_cpu_ns()) {
+        (Some(a), Some(b)) => Some((b - a) as f64 / 1e3 / ts.len() as f64),
+        _ => None,
+    };
     ts.sort_by(f64::total_cmp);
     let med = ts[ts.len() / 2];
     Ok(Timing {
@@ -72,6 +86,7 @@ pub fn time_it(warmup: usize, iters: usize, mut f: impl FnMut() -> Result<()>) -
         p10_us: ts[ts.len() / 10],
         p90_us: ts[9 * ts.len() / 10],
         updates_per_s: 1e6 / med,
+        cpu_mean_us,
     })
 }
 
