@@ -64,6 +64,9 @@ pub struct ExpertArgs {
     /// Checkpoint every N env steps.
     #[arg(long)]
     checkpoint_every: Option<u64>,
+    /// Evaluate deterministically every N env steps (0 = never), logged as eval/metric.
+    #[arg(long)]
+    eval_every: Option<u64>,
     /// Deterministic evaluation episodes per meta-test task at the end.
     #[arg(long, default_value_t = 2)]
     eval_episodes: usize,
@@ -92,6 +95,7 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     set!(sac.batch_size <- a.batch_size);
     set!(learning_starts <- a.learning_starts);
     set!(checkpoint_every <- a.checkpoint_every);
+    set!(eval_every <- a.eval_every);
     if a.horizon.is_some() {
         cfg.horizon = a.horizon;
     }

@@ -50,6 +50,12 @@ pub struct ExpertConfig {
     pub buffer_capacity: usize,
     /// Checkpoint at the first episode end after every this many env steps. Default 10 000.
     pub checkpoint_every: u64,
+    /// Deterministic evaluation on the meta-test tasks (or the expert's own task) at the first
+    /// episode end after every this many env steps, logged as `eval/metric` and
+    /// `eval/final_sample`; 0 = never. Default 10 000.
+    pub eval_every: u64,
+    /// Episodes per task in those evaluations. Default 1.
+    pub eval_episodes: usize,
     /// Episode length override; `None` uses the family's horizon. Default None.
     pub horizon: Option<usize>,
     /// Seed of everything (weights, task draws, noise, reset seeds). Default 0.
@@ -69,6 +75,8 @@ impl Default for ExpertConfig {
             updates_per_step: 1,
             buffer_capacity: 300_000,
             checkpoint_every: 10_000,
+            eval_every: 10_000,
+            eval_episodes: 1,
             horizon: None,
             seed: 0,
             sac: SacConfig::default(),
@@ -481,6 +489,12 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
     let mut log = crate::metrics::MetricsLog::open(dir)?;
     let every = run.cfg.checkpoint_every.max(1);
     let mut next_ckpt = (run.env_steps / every + 1) * every;
+    let eval_every = run.cfg.eval_every;
+    let mut next_eval = (run.env_steps / eval_every.max(1) + 1) * eval_every.max(1);
+    let eval_tasks = match (run.cfg.task_index, run.cfg.task_value) {
+        (None, None) => run.family.test_tasks(),
+        _ => run.tasks.clone(),
+    };
     let (t0, s0) = (std::time::Instant::now(), run.env_steps);
     while !run.finished() {
         let rep = run.run_episode(&mut |s| on(Event::Step(s)))?;
@@ -496,6 +510,21 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
         }
         log.log(rep.env_steps, &fields)?;
         on(Event::Episode(rep, sps));
+        if eval_every > 0 && rep.env_steps >= next_eval {
+            // Deterministic, on its own environment: does not touch the run's state or RNG.
+            let ev = evaluate(
+                &run.expert(),
+                &eval_tasks,
+                run.cfg.eval_episodes,
+                run.cfg.env_config(),
+            )?;
+            let fields = [
+                ("eval/metric", ev.mean as f64),
+                ("eval/final_sample", ev.final_sample_mean as f64),
+            ];
+            log.log(rep.env_steps, &fields)?;
+            next_eval = (rep.env_steps / eval_every + 1) * eval_every;
+        }
         if rep.env_steps >= next_ckpt || run.finished() {
             run.save_checkpoint(dir)?;
             on(Event::Checkpoint(rep.env_steps));

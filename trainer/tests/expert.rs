@@ -20,6 +20,7 @@ fn tiny(total: u64) -> ExpertConfig {
         learning_starts: 30,
         horizon: Some(20),
         checkpoint_every: 60,
+        eval_every: 40,
         buffer_capacity: 1000,
         sac: SacConfig {
             hidden: vec![16, 16],
