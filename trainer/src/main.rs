@@ -7,6 +7,7 @@ use anyhow::Result;
 use clap::{Parser, Subcommand};
 
 mod cli_bench;
+mod cli_eval;
 mod cli_expert;
 mod cli_train;
 
@@ -46,6 +47,16 @@ enum Cmd {
         after_help = "Examples:\n  smile train --algo smile --env point-goal --demos demos/pg-train.safetensors -o runs/pg-smile\n  smile train --algo meta-bc --env point-goal --demos demos/pg-train.safetensors -o runs/pg-bc\n  smile train --algo smile -o runs/pg-smile --demos demos/pg-train.safetensors --resume --updates 30000"
     )]
     Train(cli_train::TrainArgs),
+    /// Evaluate trained meta-policies on a split's tasks with the paper's protocol.
+    #[command(
+        after_help = "Examples:\n  smile eval --policy runs/pg-smile runs/pg-bc --env point-goal --split test --contexts demos/pg-test.safetensors -o runs/pg-eval\n  smile eval --policy runs/pg-smile --contexts demos/pg-test.safetensors --render"
+    )]
+    Eval(cli_eval::EvalArgs),
+    /// Export a meta-policy as an infer-core blob and verify it (parity + metric).
+    #[command(
+        after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob"
+    )]
+    Export(cli_eval::ExportArgs),
 }
 
 fn main() -> Result<()> {
@@ -56,5 +67,7 @@ fn main() -> Result<()> {
         Cmd::Expert(a) => cli_expert::run_expert(a),
         Cmd::Demos(a) => cli_expert::run_demos(a),
         Cmd::Train(a) => cli_train::run(a),
+        Cmd::Eval(a) => cli_eval::run_eval(a),
+        Cmd::Export(a) => cli_eval::run_export(a),
     }
 }

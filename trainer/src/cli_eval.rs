@@ -1,0 +1,266 @@
+//! `smile eval` and `smile export`.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use indicatif::{ProgressBar, ProgressStyle};
+use sim::{DemoDataset, EnvConfig, Family, Split};
+use trainer::context::MetaPolicy;
+use trainer::eval::{self, EvalReport, Protocol};
+use trainer::export::{self, BlobActor};
+
+/// Arguments of `smile eval`.
+#[derive(Args, Debug)]
+pub struct EvalArgs {
+    /// Trained run directories (or meta_policy.safetensors files); one line per method.
+    #[arg(long, required = true, num_args = 1..)]
+    policy: Vec<PathBuf>,
+    /// Task family.
+    #[arg(long, default_value = "point-goal")]
+    env: String,
+    /// Which tasks to evaluate on.
+    #[arg(long, default_value = "test")]
+    split: Split,
+    /// Demos of those tasks, the contexts (`smile demos --split test`).
+    #[arg(long)]
+    contexts: PathBuf,
+    /// Output directory for eval.json, eval.md and eval.svg.
+    #[arg(short, long, default_value = "eval")]
+    out: PathBuf,
+    /// Override the protocol's rollouts per context draw.
+    #[arg(long)]
+    rollouts: Option<usize>,
+    /// Episode length override.
+    #[arg(long)]
+    horizon: Option<usize>,
+    /// Also save one animated SVG episode per method (first task, first context trajectory).
+    #[arg(long)]
+    render: bool,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+fn env_cfg(horizon: Option<usize>) -> EnvConfig {
+    EnvConfig {
+        horizon,
+        ..EnvConfig::default()
+    }
+}
+
+fn method_name(p: &std::path::Path, mp: &MetaPolicy) -> String {
+    let dir = p
+        .file_name()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    format!("{} ({dir})", mp.algo)
+}
+
+/// Run `smile eval`.
+pub fn run_eval(a: EvalArgs) -> Result<()> {
+    let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let ctx = DemoDataset::read(&a.contexts)
+        .with_context(|| format!("reading {}", a.contexts.display()))?;
+    if ctx.split != a.split {
+        bail!(
+            "{} holds {} demos but --split is {}",
+            a.contexts.display(),
+            ctx.split,
+            a.split
+        );
+    }
+    let mut protocol = Protocol::for_family(family);
+    if let Some(r) = a.rollouts {
+        protocol.rollouts = r;
+    }
+    protocol.horizon = a.horizon;
+    std::fs::create_dir_all(&a.out)?;
+    let mut methods = Vec::new();
+    for (idx, p) in a.policy.iter().enumerate() {
+        let mut mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
+        if mp.family != family {
+            bail!("{} was trained on {}, not {family}", p.display(), mp.family);
+        }
+        let name = method_name(p, &mp);
+        let n = family.tasks(a.split).len() as u64;
+        let pb = if a.quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(n)
+        };
+        pb.set_style(
+            ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} tasks {msg}")
+                .expect("static")
+                .progress_chars("=> "),
+        );
+        pb.set_message(name.clone());
+        let r = eval::evaluate(
+            &mut mp,
+            &name,
+            family,
+            a.split,
+            &ctx,
+            &protocol,
+            &mut |i, _| pb.set_position(i as u64),
+        )?;
+        pb.finish_and_clear();
+        eprintln!(
+            "{name}: mean {:.4} +- {:.4} over tasks",
+            r.mean, r.std_over_tasks
+        );
+        if a.render {
+            let task = family.tasks(a.split)[0];
+            let tds = eval::contexts_for(&ctx, family, &[task])?;
+            let path = a.out.join(format!("episode-{idx}-{}.svg", mp.algo));
+            let m = eval::render_episode(
+                &mut mp,
+                family,
+                &task,
+                &[&tds[0].trajectories[0]],
+                env_cfg(a.horizon),
+                &path,
+            )?;
+            eprintln!("rendered {} (metric {m:.3})", path.display());
+        }
+        methods.push(r);
+    }
+    let report = EvalReport {
+        env: family.name().into(),
+        split: a.split.to_string(),
+        metric: eval::metric_name(family.metric_kind()).into(),
+        lower_is_better: family.metric_kind() != sim::MetricKind::Return,
+        protocol,
+        methods,
+    };
+    std::fs::write(
+        a.out.join("eval.json"),
+        serde_json::to_string_pretty(&report)?,
+    )?;
+    let md = report.markdown();
+    std::fs::write(a.out.join("eval.md"), &md)?;
+    report.plot_svg(&a.out.join("eval.svg"))?;
+    println!("{md}");
+    eprintln!("wrote {}/eval.json, eval.md, eval.svg", a.out.display());
+    Ok(())
+}
+
+/// Arguments of `smile export`.
+#[derive(Args, Debug)]
+pub struct ExportArgs {
+    /// Trained run directory (or meta_policy.safetensors).
+    #[arg(long)]
+    policy: PathBuf,
+    /// Quantization: f32, w8a32 or w8a8.
+    #[arg(long, default_value = "w8a8")]
+    quant: String,
+    /// Output blob file; a JSON report is written next to it (`<blob>.json`).
+    #[arg(short, long)]
+    out: PathBuf,
+    /// Meta-train demos: calibration inputs for w8a8.
+    #[arg(long)]
+    demos: PathBuf,
+    /// Held-out contexts (e.g. the meta-test demos) for the parity check and the metric.
+    #[arg(long)]
+    contexts: PathBuf,
+    /// Override the protocol's rollouts per context draw in the metric check.
+    #[arg(long)]
+    rollouts: Option<usize>,
+    /// Episode length override.
+    #[arg(long)]
+    horizon: Option<usize>,
+}
+
+/// Run `smile export`.
+pub fn run_export(a: ExportArgs) -> Result<()> {
+    let quant = export::parse_quant(&a.quant)?;
+    let mut mp =
+        MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
+    let family = mp.family;
+    let demos =
+        DemoDataset::read(&a.demos).with_context(|| format!("reading {}", a.demos.display()))?;
+    if demos.split != Split::Train {
+        bail!(
+            "--demos must be meta-train demos (calibration); {} is {}",
+            a.demos.display(),
+            demos.split
+        );
+    }
+    let ctx = DemoDataset::read(&a.contexts)
+        .with_context(|| format!("reading {}", a.contexts.display()))?;
+    let blob = export::export_blob(&mp, quant, &demos)?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir)?;
+    }
+    trainer::checkpoint::write_atomic(&a.out, &blob)?;
+    eprintln!(
+        "wrote {} ({} bytes, {})",
+        a.out.display(),
+        blob.len(),
+        a.quant
+    );
+    let mut actor = BlobActor::new(&blob)?;
+    let parity = export::parity(&mp, &mut actor, &ctx)?;
+    eprintln!(
+        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}",
+        parity.contexts,
+        parity.actions,
+        parity.action_max_abs_diff,
+        parity.action_mean_abs_diff,
+        parity.z_max_abs_diff
+    );
+    let mut protocol = Protocol::for_family(family);
+    if let Some(r) = a.rollouts {
+        protocol.rollouts = r;
+    }
+    protocol.horizon = a.horizon;
+    let blob_m = eval::evaluate(
+        &mut actor,
+        &format!("blob {}", a.quant),
+        family,
+        ctx.split,
+        &ctx,
+        &protocol,
+        &mut |_, _| {},
+    )?;
+    let float_m = eval::evaluate(
+        &mut mp,
+        "candle f32",
+        family,
+        ctx.split,
+        &ctx,
+        &protocol,
+        &mut |_, _| {},
+    )?;
+    let rel = (blob_m.mean - float_m.mean) / float_m.mean.abs().max(1e-9);
+    eprintln!(
+        "{} on {} {} tasks: blob {:.4}, candle {:.4} (relative difference {:+.2}%)",
+        eval::metric_name(family.metric_kind()),
+        family,
+        ctx.split,
+        blob_m.mean,
+        float_m.mean,
+        100.0 * rel
+    );
+    let report = serde_json::json!({
+        "blob": a.out,
+        "bytes": blob.len(),
+        "quant": a.quant,
+        "algo": mp.algo,
+        "env": family.name(),
+        "parity": parity,
+        "metric": eval::metric_name(family.metric_kind()),
+        "split": ctx.split.to_string(),
+        "metric_blob": blob_m.mean,
+        "metric_candle": float_m.mean,
+        "metric_relative_difference": rel,
+        "per_task_blob": blob_m.tasks,
+        "per_task_candle": float_m.tasks,
+    });
+    let json = a.out.with_extension(format!(
+        "{}.json",
+        a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")
+    ));
+    std::fs::write(&json, serde_json::to_string_pretty(&report)?)?;
+    eprintln!("wrote {}", json.display());
+    Ok(())
+}

@@ -1,0 +1,429 @@
+//! Evaluation with the paper's protocols (reference §5), on a split's tasks with contexts from
+//! a demo file: deterministic actions, z = posterior mean.
+//!
+//! | family | context sizes | draws x rollouts | per-episode metric |
+//! |---|---|---|---|
+//! | point-goal | 1 | 3 x 10 | min distance to the goal |
+//! | cheetah-vel | 1, 2, 3, 4 | 3 x 5 | mean over steps of abs(v - v*) |
+//! | walker-dyn | 1 | 3 x 1 | return (the custom normalised metric needs base and expert returns; not computed here) |
+//!
+//! Draw `d` of size `k` for task `i` uses `k` distinct trajectories chosen by a seeded RNG
+//! (seed from `(i, k, d)`), so every method sees the same contexts. Outputs: JSON
+//! ([`EvalReport`]), a markdown table and an SVG plot (metric per task, one line per method).
+
+use std::path::Path;
+
+use rand::SeedableRng;
+use rand::seq::SliceRandom;
+use rand_chacha::ChaCha8Rng;
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
+
+use crate::context::MetaPolicy;
+use crate::meta_data::run_episode;
+use crate::{Error, Result};
+
+/// Something that turns a context into z and acts deterministically given z: a candle
+/// [`MetaPolicy`] or an exported blob.
+pub trait ConditionedActor {
+    /// Posterior mean of z for a context of trajectories.
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>>;
+    /// Deterministic action for a raw observation.
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()>;
+}
+
+impl ConditionedActor for MetaPolicy {
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
+        MetaPolicy::latent(self, context)
+    }
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
+        let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic
+        action.copy_from_slice(&MetaPolicy::act(self, obs, z, true, &mut rng)?);
+        Ok(())
+    }
+}
+
+/// Context sizes, draws and rollouts of a family's protocol.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Protocol {
+    /// Context sizes (trajectories per context).
+    pub context_sizes: Vec<usize>,
+    /// Context draws per size.
+    pub draws: usize,
+    /// Deterministic rollouts per draw.
+    pub rollouts: usize,
+    /// Episode length override (None: the family's horizon).
+    #[serde(default)]
+    pub horizon: Option<usize>,
+}
+
+impl Protocol {
+    /// The reference protocol of `family` (§5).
+    pub fn for_family(family: Family) -> Self {
+        match family {
+            Family::CheetahVel => Self {
+                context_sizes: vec![1, 2, 3, 4],
+                draws: 3,
+                rollouts: 5,
+                horizon: None,
+            },
+            Family::WalkerDyn => Self {
+                context_sizes: vec![1],
+                draws: 3,
+                rollouts: 1,
+                horizon: None,
+            },
+            _ => Self {
+                context_sizes: vec![1],
+                draws: 3,
+                rollouts: 10,
+                horizon: None,
+            },
+        }
+    }
+}
+
+/// One task's result for one method.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskResult {
+    /// Task label, e.g. `goal_angle=0.0982`.
+    pub task: String,
+    /// The task parameter (goal angle, target velocity, dynamics seed).
+    pub value: f64,
+    /// Mean metric over all sizes, draws and rollouts.
+    pub metric: f32,
+    /// Mean metric per context size (same order as the protocol's sizes).
+    pub by_context_size: Vec<f32>,
+}
+
+/// One method's results.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MethodResult {
+    /// Display name (algorithm and run directory).
+    pub name: String,
+    /// Per task.
+    pub tasks: Vec<TaskResult>,
+    /// Mean over tasks.
+    pub mean: f32,
+    /// Std over tasks.
+    pub std_over_tasks: f32,
+    /// Mean and std over all episodes (pooled), as the paper's Table 1.
+    pub episode_mean: f32,
+    /// Std over all episodes.
+    pub episode_std: f32,
+    /// Mean over tasks per context size.
+    pub by_context_size: Vec<f32>,
+}
+
+/// A whole evaluation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct EvalReport {
+    /// Family name.
+    pub env: String,
+    /// Split evaluated.
+    pub split: String,
+    /// Metric name.
+    pub metric: String,
+    /// True if lower is better.
+    pub lower_is_better: bool,
+    /// The protocol used.
+    pub protocol: Protocol,
+    /// One entry per method.
+    pub methods: Vec<MethodResult>,
+}
+
+/// Metric name of a family.
+pub fn metric_name(kind: MetricKind) -> &'static str {
+    match kind {
+        MetricKind::MinGoalDistance => "min distance to goal",
+        MetricKind::MeanVelocityError => "mean |v - v*|",
+        MetricKind::Return => "return",
+    }
+}
+
+fn mean_std(xs: &[f32]) -> (f32, f32) {
+    if xs.is_empty() {
+        return (f32::NAN, f32::NAN);
+    }
+    let n = xs.len() as f64;
+    let m = xs.iter().map(|x| *x as f64).sum::<f64>() / n;
+    let v = xs.iter().map(|x| (*x as f64 - m).powi(2)).sum::<f64>() / n;
+    (m as f32, v.sqrt() as f32)
+}
+
+/// The demos of each of `tasks`, from `contexts`; errors on a missing task or wrong family.
+pub fn contexts_for<'a>(
+    contexts: &'a DemoDataset,
+    family: Family,
+    tasks: &[Task],
+) -> Result<Vec<&'a sim::TaskDemos>> {
+    contexts
+        .ensure_family(family)
+        .map_err(|e| Error::Sim(e.to_string()))?;
+    tasks
+        .iter()
+        .map(|t| {
+            contexts
+                .tasks
+                .iter()
+                .find(|td| td.task == *t && td.trajectories.iter().any(|tr| !tr.is_empty()))
+                .ok_or_else(|| {
+                    Error::Config(format!("the contexts file has no demos for task {t}"))
+                })
+        })
+        .collect()
+}
+
+/// Evaluates `actor` on `family`'s `split` tasks with contexts from `contexts`.
+/// `on_task(i, n)` reports progress.
+pub fn evaluate(
+    actor: &mut dyn ConditionedActor,
+    name: &str,
+    family: Family,
+    split: Split,
+    contexts: &DemoDataset,
+    protocol: &Protocol,
+    on_task: &mut dyn FnMut(usize, usize),
+) -> Result<MethodResult> {
+    let tasks = family.tasks(split);
+    let demos = contexts_for(contexts, family, &tasks)?;
+    let env_cfg = EnvConfig {
+        horizon: protocol.horizon,
+        ..EnvConfig::default()
+    };
+    let mut env = sim::make_env(family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut results = Vec::with_capacity(tasks.len());
+    let mut all = Vec::new();
+    for (i, (task, td)) in tasks.iter().zip(&demos).enumerate() {
+        let trajs: Vec<&Trajectory> = td.trajectories.iter().filter(|t| !t.is_empty()).collect();
+        let mut by_k = Vec::with_capacity(protocol.context_sizes.len());
+        let mut task_eps = Vec::new();
+        for &k in &protocol.context_sizes {
+            let mut eps = Vec::new();
+            for d in 0..protocol.draws {
+                let mut rng =
+                    ChaCha8Rng::seed_from_u64(((i as u64) << 32) ^ ((k as u64) << 16) ^ d as u64);
+                let mut pick = trajs.clone();
+                pick.shuffle(&mut rng);
+                pick.truncate(k.min(trajs.len()));
+                let z = actor.latent(&pick)?;
+                for r in 0..protocol.rollouts {
+                    let seed = 7_000_000 + (d * 1000 + r) as u64;
+                    let ep = run_episode(
+                        env.as_mut(),
+                        task,
+                        seed,
+                        &mut |o, a| actor.act(o, &z, a),
+                        &mut |_| Ok(()),
+                    )?;
+                    eps.push(ep.metric);
+                }
+            }
+            by_k.push(mean_std(&eps).0);
+            task_eps.extend(eps);
+        }
+        all.extend_from_slice(&task_eps);
+        results.push(TaskResult {
+            task: task.label(),
+            value: task.value(),
+            metric: mean_std(&task_eps).0,
+            by_context_size: by_k,
+        });
+        on_task(i + 1, tasks.len());
+    }
+    let per_task: Vec<f32> = results.iter().map(|t| t.metric).collect();
+    let (mean, std_over_tasks) = mean_std(&per_task);
+    let (episode_mean, episode_std) = mean_std(&all);
+    let by_context_size = (0..protocol.context_sizes.len())
+        .map(|j| {
+            mean_std(
+                &results
+                    .iter()
+                    .map(|t| t.by_context_size[j])
+                    .collect::<Vec<_>>(),
+            )
+            .0
+        })
+        .collect();
+    Ok(MethodResult {
+        name: name.into(),
+        tasks: results,
+        mean,
+        std_over_tasks,
+        episode_mean,
+        episode_std,
+        by_context_size,
+    })
+}
+
+impl EvalReport {
+    /// The report as a markdown table: one row per task, one column per method, then the
+    /// means (and per-context-size means when there are several sizes).
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "# {} on {} ({} tasks), metric: {} ({} is better)\n\nProtocol: context sizes {:?}, {} draws x {} deterministic rollouts, z = posterior mean.\n\n| task |",
+            self.env,
+            self.split,
+            self.methods.first().map_or(0, |m| m.tasks.len()),
+            self.metric,
+            if self.lower_is_better {
+                "lower"
+            } else {
+                "higher"
+            },
+            self.protocol.context_sizes,
+            self.protocol.draws,
+            self.protocol.rollouts
+        );
+        for m in &self.methods {
+            s.push_str(&format!(" {} |", m.name));
+        }
+        s.push_str("\n|---|");
+        s.push_str(&"---|".repeat(self.methods.len()));
+        s.push('\n');
+        if let Some(first) = self.methods.first() {
+            for (i, t) in first.tasks.iter().enumerate() {
+                s.push_str(&format!("| {} |", t.task));
+                for m in &self.methods {
+                    s.push_str(&format!(" {:.3} |", m.tasks[i].metric));
+                }
+                s.push('\n');
+            }
+        }
+        s.push_str("| **mean over tasks (+- std)** |");
+        for m in &self.methods {
+            s.push_str(&format!(" **{:.3}** +- {:.3} |", m.mean, m.std_over_tasks));
+        }
+        s.push_str("\n| episodes pooled (+- std) |");
+        for m in &self.methods {
+            s.push_str(&format!(" {:.3} +- {:.3} |", m.episode_mean, m.episode_std));
+        }
+        s.push('\n');
+        if self.protocol.context_sizes.len() > 1 {
+            for (j, k) in self.protocol.context_sizes.iter().enumerate() {
+                s.push_str(&format!("| mean, {k} context demos |"));
+                for m in &self.methods {
+                    s.push_str(&format!(" {:.3} |", m.by_context_size[j]));
+                }
+                s.push('\n');
+            }
+        }
+        s
+    }
+
+    /// An SVG plot of the metric per task (x = task parameter), one line per method.
+    pub fn plot_svg(&self, path: &Path) -> Result<()> {
+        use plotters::prelude::*;
+        let err = |e: &dyn std::fmt::Display| Error::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::other(e.to_string()),
+        };
+        let pts: Vec<(f64, f32)> = self
+            .methods
+            .iter()
+            .flat_map(|m| m.tasks.iter().map(|t| (t.value, t.metric)))
+            .collect();
+        let (x0, x1) = pts
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.0), b.max(p.0))
+            });
+        let (y0, y1) = pts
+            .iter()
+            .filter(|p| p.1.is_finite())
+            .fold((0.0f32, f32::NEG_INFINITY), |(a, b), p| {
+                (a.min(p.1), b.max(p.1))
+            });
+        let (x0, x1) = if x0.is_finite() && x1 > x0 {
+            (x0, x1)
+        } else {
+            (0.0, 1.0)
+        };
+        let y1 = if y1.is_finite() && y1 > y0 {
+            y1 * 1.1
+        } else {
+            y0 + 1.0
+        };
+        let root = SVGBackend::new(path, (760, 480)).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| err(&e))?;
+        let x_desc = match self.env.as_str() {
+            "point-goal" => "goal angle (rad)",
+            "cheetah-vel" => "target velocity (m/s)",
+            _ => "task",
+        };
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                format!("{} {} tasks: {}", self.env, self.split, self.metric),
+                ("sans-serif", 18),
+            )
+            .margin(12)
+            .x_label_area_size(38)
+            .y_label_area_size(50)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| err(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_desc)
+            .y_desc(self.metric.clone())
+            .draw()
+            .map_err(|e| err(&e))?;
+        for (i, m) in self.methods.iter().enumerate() {
+            let color = Palette99::pick(i).to_rgba();
+            let line: Vec<(f64, f32)> = m.tasks.iter().map(|t| (t.value, t.metric)).collect();
+            chart
+                .draw_series(LineSeries::new(line.clone(), color.stroke_width(2)))
+                .map_err(|e| err(&e))?
+                .label(format!("{} (mean {:.3})", m.name, m.mean))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+                });
+            chart
+                .draw_series(line.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+                .map_err(|e| err(&e))?;
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE)
+            .border_style(BLACK)
+            .position(SeriesLabelPosition::UpperRight)
+            .draw()
+            .map_err(|e| err(&e))?;
+        root.present().map_err(|e| err(&e))?;
+        Ok(())
+    }
+}
+
+/// Rolls `actor` once on `task` with the first `k` trajectories of `context` and writes the
+/// episode as an animated SVG at `path`.
+pub fn render_episode(
+    actor: &mut dyn ConditionedActor,
+    family: Family,
+    task: &Task,
+    context: &[&Trajectory],
+    env_cfg: EnvConfig,
+    path: &Path,
+) -> Result<f32> {
+    let mut env = sim::make_env(family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
+    let z = actor.latent(context)?;
+    env.reset(task, 7_000_000)
+        .map_err(|e| Error::Sim(e.to_string()))?;
+    let mut frames = vec![env.frame()];
+    let mut metric = sim::EpisodeMetric::new(family);
+    let mut action = vec![0.0f32; family.act_dim()];
+    loop {
+        let obs = env.observation().to_vec();
+        actor.act(&obs, &z, &mut action)?;
+        let tr = env.step(&action).map_err(|e| Error::Sim(e.to_string()))?;
+        metric.record(&tr.info);
+        let done = tr.done;
+        frames.push(env.frame());
+        if done {
+            break;
+        }
+    }
+    sim::render::write_animated_svg(&frames, env.control_dt(), path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    Ok(metric.value())
+}

@@ -1,0 +1,200 @@
+//! Export of a trained [`MetaPolicy`] to an infer-core blob, and its verification.
+//!
+//! The blob is written only through `infer_core::write_blob` (the one definition of the
+//! format), from [`MetaPolicy::to_float_model`]: observation normalisation and action scaling
+//! are baked in. `w8a8` activation scales are calibrated on the meta-train demos (contexts =
+//! every training task's demos, observations = their states). Verification loads the blob with
+//! `infer_core::Model`, compares z and actions with the candle policy on held-out contexts
+//! (max / mean absolute difference), and runs the family's metric with the blob policy.
+
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, Trajectory};
+
+use crate::context::MetaPolicy;
+use crate::eval::ConditionedActor;
+use crate::{Error, Result};
+
+/// Widest layer the blob runners here accept.
+pub const BLOB_CAPACITY: usize = 512;
+
+/// Parses `f32`, `w8a32` or `w8a8`.
+pub fn parse_quant(s: &str) -> Result<infer_core::Quant> {
+    match s {
+        "f32" => Ok(infer_core::Quant::F32),
+        "w8a32" => Ok(infer_core::Quant::W8A32),
+        "w8a8" => Ok(infer_core::Quant::W8A8),
+        other => Err(Error::Config(format!(
+            "unknown quantization {other:?}; expected f32, w8a32 or w8a8"
+        ))),
+    }
+}
+
+/// Raw transitions of a trajectory in the blob's context layout: `[s, a, s']` or `[s, s']`.
+pub fn raw_transitions(
+    t: &Trajectory,
+    obs_dim: usize,
+    act_dim: usize,
+    state_only: bool,
+) -> Vec<Vec<f32>> {
+    (0..t.len())
+        .map(|i| {
+            let mut v = t.obs[i * obs_dim..(i + 1) * obs_dim].to_vec();
+            if !state_only {
+                v.extend_from_slice(&t.actions[i * act_dim..(i + 1) * act_dim]);
+            }
+            v.extend_from_slice(&t.next_obs[i * obs_dim..(i + 1) * obs_dim]);
+            v
+        })
+        .collect()
+}
+
+/// Calibration inputs from demos: one context per task (all its trajectories) and every
+/// demo state as an observation.
+pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibration {
+    let (od, ad) = (demos.obs_dim, demos.act_dim);
+    let so = mp.encoder.config().state_only;
+    let contexts = demos
+        .tasks
+        .iter()
+        .map(|td| {
+            td.trajectories
+                .iter()
+                .map(|t| raw_transitions(t, od, ad, so))
+                .collect()
+        })
+        .collect();
+    let observations = demos
+        .tasks
+        .iter()
+        .flat_map(|td| &td.trajectories)
+        .flat_map(|t| t.obs.chunks_exact(od).map(<[f32]>::to_vec))
+        .collect();
+    infer_core::Calibration {
+        contexts,
+        observations,
+    }
+}
+
+/// The blob bytes of `mp` with `quant`, calibrated on `calib_demos` (meta-train demos).
+pub fn export_blob(
+    mp: &MetaPolicy,
+    quant: infer_core::Quant,
+    calib_demos: &DemoDataset,
+) -> Result<Vec<u8>> {
+    let fm = mp.to_float_model()?;
+    infer_core::write_blob(&fm, quant, &calibration(mp, calib_demos))
+        .map_err(|e| Error::Config(format!("blob writer: {e}")))
+}
+
+/// A loaded blob as a [`ConditionedActor`].
+pub struct BlobActor<'a> {
+    model: infer_core::Model<'a>,
+}
+
+impl<'a> BlobActor<'a> {
+    /// Loads (and fully validates) `blob`.
+    pub fn new(blob: &'a [u8]) -> Result<Self> {
+        let model = infer_core::Model::from_bytes(blob)
+            .map_err(|e| Error::Config(format!("blob does not load: {e}")))?;
+        if model.max_width() > BLOB_CAPACITY {
+            return Err(Error::Shape(format!(
+                "blob layer width {} exceeds {BLOB_CAPACITY}",
+                model.max_width()
+            )));
+        }
+        Ok(Self { model })
+    }
+
+    /// The loaded model.
+    pub fn model(&self) -> &infer_core::Model<'a> {
+        &self.model
+    }
+}
+
+fn infer_err(e: infer_core::InferError) -> Error {
+    Error::Config(format!("blob inference: {e}"))
+}
+
+impl ConditionedActor for BlobActor<'_> {
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
+        let h = *self.model.header();
+        let (od, ad) = (h.obs_dim as usize, h.act_dim as usize);
+        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(&self.model)
+            .map_err(|e| Error::Config(e.to_string()))?;
+        for t in context {
+            for i in 0..t.len() {
+                enc.push(
+                    &t.obs[i * od..(i + 1) * od],
+                    &t.actions[i * ad..(i + 1) * ad],
+                    &t.next_obs[i * od..(i + 1) * od],
+                )
+                .map_err(infer_err)?;
+            }
+            enc.end_trajectory();
+        }
+        let mut z = vec![0.0f32; h.z_dim as usize];
+        enc.latent(&mut z).map_err(infer_err)?;
+        Ok(z)
+    }
+
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
+        let mut p = infer_core::Policy::<BLOB_CAPACITY>::new(&self.model)
+            .map_err(|e| Error::Config(e.to_string()))?;
+        p.act(obs, z, action).map_err(infer_err)
+    }
+}
+
+/// Blob-vs-candle differences on held-out contexts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Parity {
+    /// Contexts compared (one per task of the contexts file, its first trajectory).
+    pub contexts: usize,
+    /// Actions compared.
+    pub actions: usize,
+    /// Max abs difference of z.
+    pub z_max_abs_diff: f32,
+    /// Max abs difference of actions (each side with its own z: end to end).
+    pub action_max_abs_diff: f32,
+    /// Mean abs difference of actions.
+    pub action_mean_abs_diff: f32,
+}
+
+/// Compares the blob with the candle policy on every task of `contexts` (context = the
+/// task's first trajectory; observations = the states of all its trajectories).
+pub fn parity(mp: &MetaPolicy, blob: &mut BlobActor<'_>, contexts: &DemoDataset) -> Result<Parity> {
+    let mut mp = mp.clone();
+    let ad = contexts.act_dim;
+    let (mut zmax, mut amax, mut asum, mut n, mut c) = (0.0f32, 0.0f32, 0.0f64, 0usize, 0usize);
+    let (mut a1, mut a2) = (vec![0.0f32; ad], vec![0.0f32; ad]);
+    for td in &contexts.tasks {
+        let Some(first) = td.trajectories.iter().find(|t| !t.is_empty()) else {
+            continue;
+        };
+        let zc = ConditionedActor::latent(&mut mp, &[first])?;
+        let zb = blob.latent(&[first])?;
+        zmax = zc
+            .iter()
+            .zip(&zb)
+            .fold(zmax, |m, (a, b)| m.max((a - b).abs()));
+        c += 1;
+        for t in &td.trajectories {
+            for o in t.obs.chunks_exact(contexts.obs_dim) {
+                ConditionedActor::act(&mut mp, o, &zc, &mut a1)?;
+                blob.act(o, &zb, &mut a2)?;
+                for (x, y) in a1.iter().zip(&a2) {
+                    let d = (x - y).abs();
+                    amax = amax.max(d);
+                    asum += d as f64;
+                    n += 1;
+                }
+            }
+        }
+    }
+    Ok(Parity {
+        contexts: c,
+        actions: n / ad.max(1),
+        z_max_abs_diff: zmax,
+        action_max_abs_diff: amax,
+        action_mean_abs_diff: (asum / n.max(1) as f64) as f32,
+    })
+}
