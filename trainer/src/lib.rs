@@ -34,6 +34,7 @@ pub mod meta_data;
 pub mod metrics;
 pub mod nn;
 pub mod policy;
+pub mod quickstart;
 pub mod replay;
 pub mod sac;
 pub mod smile;
@@ -75,6 +76,9 @@ pub enum Error {
     /// An environment or dataset error from `sim`.
     #[error("sim: {0}")]
     Sim(String),
+    /// The simulated device (firmware-sim) refused the blob or failed to run it.
+    #[error("device: {0}")]
+    Device(String),
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 mod cli_bench;
 mod cli_eval;
 mod cli_expert;
+mod cli_quickstart;
 mod cli_train;
 
 #[derive(Parser, Debug)]
@@ -57,6 +58,11 @@ enum Cmd {
         after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob"
     )]
     Export(cli_eval::ExportArgs),
+    /// The whole pipeline on point-goal: expert, demos, SMILe + Meta-BC, eval, blob, device.
+    #[command(
+        after_help = "Examples:\n  smile quickstart\n  smile quickstart --out runs/qs-seed1 --seed 1\n  smile quickstart --budget tiny --quiet"
+    )]
+    Quickstart(cli_quickstart::QuickstartArgs),
 }
 
 fn main() -> Result<()> {
@@ -69,5 +75,6 @@ fn main() -> Result<()> {
         Cmd::Train(a) => cli_train::run(a),
         Cmd::Eval(a) => cli_eval::run_eval(a),
         Cmd::Export(a) => cli_eval::run_export(a),
+        Cmd::Quickstart(a) => cli_quickstart::run(a),
     }
 }

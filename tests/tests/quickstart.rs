@@ -1,0 +1,99 @@
+//! A miniature quickstart (tiny nets, a few hundred updates) end to end: every artefact a
+//! user is promised exists, parses, and agrees with the others.
+
+use sim::{DemoDataset, Family, Split};
+use trainer::context::MetaPolicy;
+use trainer::expert::Expert;
+use trainer::quickstart::{Budget, QuickstartConfig, Summary, run};
+
+#[test]
+fn a_tiny_quickstart_leaves_consistent_artefacts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("qs");
+    let config = QuickstartConfig {
+        out: out.clone(),
+        budget: Budget::Tiny,
+        quiet: true,
+        ..QuickstartConfig::default()
+    };
+    let summary = run(&config).unwrap();
+
+    // The expert can record more demos later.
+    assert_eq!(
+        Expert::load(&out.join("expert")).unwrap().family(),
+        Family::PointGoal
+    );
+    let train = DemoDataset::read(out.join("demos-train.safetensors")).unwrap();
+    let test = DemoDataset::read(out.join("demos-test.safetensors")).unwrap();
+    assert_eq!((train.split, test.split), (Split::Train, Split::Test));
+    assert_eq!(train.tasks.len(), Family::PointGoal.train_tasks().len());
+    assert_eq!(test.tasks.len(), Family::PointGoal.test_tasks().len());
+    assert!(
+        train
+            .tasks
+            .iter()
+            .all(|t| !Family::PointGoal.test_tasks().contains(&t.task))
+    );
+
+    for policy in ["smile", "meta-bc"] {
+        let mp = MetaPolicy::load(&out.join(policy)).unwrap();
+        assert_eq!(mp.family, Family::PointGoal);
+        assert!(
+            out.join(policy).join("metrics.jsonl").exists(),
+            "{policy} has no metrics log"
+        );
+    }
+
+    // The blob loads in infer-core and is the size the summary reports.
+    let blob = std::fs::read(out.join("policy.blob")).unwrap();
+    let model = infer_core::Model::from_bytes(&blob).unwrap();
+    assert_eq!(model.header().quant, infer_core::Quant::W8A8);
+    assert_eq!(blob.len(), summary.blob_bytes);
+    assert!(
+        summary.parity.action_max_abs_diff < 0.1,
+        "{:?}",
+        summary.parity
+    );
+
+    // summary.json is the returned summary; eval.json holds the same means.
+    let on_disk: Summary =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(on_disk, summary);
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
+    let methods = eval["methods"].as_array().unwrap();
+    assert_eq!(methods.len(), summary.eval.len());
+    for (m, (name, mean, _)) in methods.iter().zip(&summary.eval) {
+        assert_eq!(m["name"].as_str().unwrap(), name);
+        assert!((m["mean"].as_f64().unwrap() as f32 - mean).abs() < 1e-6);
+        assert_eq!(
+            m["tasks"].as_array().unwrap().len(),
+            Family::PointGoal.test_tasks().len()
+        );
+    }
+
+    // The report shows exactly those numbers.
+    let report = std::fs::read_to_string(out.join("report.md")).unwrap();
+    for (name, mean, std) in &summary.eval {
+        assert!(
+            report.contains(&format!("| {name} | {mean:.4} | {std:.4} |")),
+            "report lacks {name}:\n{report}"
+        );
+    }
+    assert!(report.contains(&format!("{:.4}", summary.device_metric)));
+
+    // Device trace: a header and one row per tick.
+    let trace = std::fs::read_to_string(out.join("device/trace.csv")).unwrap();
+    let mut lines = trace.lines();
+    assert!(lines.next().unwrap().starts_with("tick,time,obs0"));
+    assert_eq!(lines.count(), summary.device_ticks);
+    assert_eq!(summary.device_faults, 0);
+
+    for svg in ["eval.svg", "device/plot.svg"] {
+        let text = std::fs::read_to_string(out.join(svg)).unwrap();
+        assert!(
+            text.starts_with("<svg") || text.starts_with("<?xml"),
+            "{svg} is not an SVG"
+        );
+    }
+}

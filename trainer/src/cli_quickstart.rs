@@ -1,0 +1,49 @@
+//! `smile quickstart`: flags for [`trainer::quickstart`].
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use sim::Family;
+use trainer::quickstart::{Budget, QuickstartConfig};
+
+/// Arguments of `smile quickstart`.
+#[derive(Args, Debug)]
+pub struct QuickstartArgs {
+    /// Task family (point-goal is the fast one; the others need a trained SAC expert first).
+    #[arg(long, default_value = "point-goal")]
+    env: Family,
+    /// Run directory.
+    #[arg(short, long, default_value = "runs/quickstart")]
+    out: PathBuf,
+    /// Seed of the whole pipeline.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Compute budget: tiny (seconds, plumbing only), short (about 10 min), long.
+    #[arg(long, value_enum, default_value_t = Budget::Short)]
+    budget: Budget,
+    /// Demos per meta-train task.
+    #[arg(long, default_value_t = 4)]
+    demos_per_task: usize,
+    /// Subsampling factor of the demos (keep every k-th step).
+    #[arg(long, default_value_t = 20)]
+    subsample: usize,
+    /// No progress bars.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Run `smile quickstart`.
+pub fn run(a: QuickstartArgs) -> Result<()> {
+    let config = QuickstartConfig {
+        env: a.env,
+        out: a.out,
+        seed: a.seed,
+        budget: a.budget,
+        demos_per_task: a.demos_per_task,
+        subsample: a.subsample,
+        quiet: a.quiet,
+    };
+    trainer::quickstart::run(&config)?;
+    Ok(())
+}

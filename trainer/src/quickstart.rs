@@ -1,0 +1,570 @@
+//! The whole pipeline in one call (`smile quickstart`), on the fast family by default.
+//!
+//! expert -> demos (train, test) -> SMILe and Meta-BC -> evaluation on the held-out test tasks
+//! -> w8a8 blob with its parity check -> a firmware-sim device run of the blob, taught one
+//! test demo. Everything lands in one run directory with a `report.md`.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use clap::ValueEnum;
+use firmware_sim::link::{LinkConfig, SimLink};
+use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, trace};
+use indicatif::{ProgressBar, ProgressStyle};
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, EnvConfig, Family, Split};
+
+use crate::context::MetaPolicy;
+use crate::demos::{DemoSpec, record};
+use crate::eval::{self, EvalReport, MethodResult, Protocol};
+use crate::expert::{self, Expert};
+use crate::export::{self, BlobActor, Parity};
+use crate::meta_bc::{self, MetaBc, MetaBcConfig};
+use crate::meta_data::MetaData;
+use crate::smile::{self, Smile, SmileConfig};
+use crate::{Error, Result};
+
+fn io(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
+    move |source| Error::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+fn device_err<E: std::fmt::Display>(e: E) -> Error {
+    Error::Device(e.to_string())
+}
+
+fn write(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
+    firmware_sim::write_atomic(path, bytes.as_ref()).map_err(io(path))
+}
+
+fn json<T: Serialize>(value: &T) -> Result<String> {
+    serde_json::to_string_pretty(value).map_err(|e| Error::Config(format!("json: {e}")))
+}
+
+/// How much compute the quickstart spends.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Budget {
+    /// Seconds: tiny nets and a few hundred updates. Proves the plumbing, not the learning.
+    Tiny,
+    /// The default: about 10 minutes on 2 cores for point-goal.
+    Short,
+    /// Longer training (point-goal: 2x the updates); required for the slow families.
+    Long,
+}
+
+/// What `smile quickstart` runs.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct QuickstartConfig {
+    /// Task family (point-goal is the fast one; the others need an SAC expert and hours).
+    #[serde(with = "family_name")]
+    pub env: Family,
+    /// Run directory. Default `runs/quickstart`.
+    pub out: PathBuf,
+    /// Seed of the whole pipeline. Default 0.
+    pub seed: u64,
+    /// Compute budget. Default short.
+    pub budget: Budget,
+    /// Demos per meta-train task. Default 4 (the paper's smallest budget).
+    pub demos_per_task: usize,
+    /// Subsampling factor of the demos. Default 20 (the paper's low-data regime).
+    pub subsample: usize,
+    /// No progress bars.
+    pub quiet: bool,
+}
+
+mod family_name {
+    use serde::{Deserialize, Deserializer, Serializer};
+    use sim::Family;
+
+    pub fn serialize<S: Serializer>(f: &Family, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(f.name())
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Family, D::Error> {
+        String::deserialize(d)?
+            .parse()
+            .map_err(serde::de::Error::custom)
+    }
+}
+
+impl Default for QuickstartConfig {
+    fn default() -> Self {
+        Self {
+            env: Family::PointGoal,
+            out: PathBuf::from("runs/quickstart"),
+            seed: 0,
+            budget: Budget::Short,
+            demos_per_task: 4,
+            subsample: 20,
+            quiet: false,
+        }
+    }
+}
+
+fn bar(total: u64, quiet: bool, what: &str) -> ProgressBar {
+    if quiet {
+        return ProgressBar::hidden();
+    }
+    let pb = ProgressBar::new(total);
+    pb.set_style(
+        ProgressStyle::with_template(&format!(
+            "  {{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what} {{per_sec}} ETA {{eta}} {{msg}}"
+        ))
+        .expect("static template")
+        .progress_chars("=> "),
+    );
+    pb
+}
+
+fn stage(n: usize, what: &str) {
+    eprintln!("\n[{n}/7] {what}");
+}
+
+/// What a quickstart run measured; written as `summary.json`, rendered as `report.md`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    /// Task family.
+    pub env: String,
+    /// Budget name.
+    pub budget: String,
+    /// Seed.
+    pub seed: u64,
+    /// Which expert made the demos.
+    pub expert: String,
+    /// (method, mean over test tasks, std over test tasks) of the family's metric.
+    pub eval: Vec<(String, f32, f32)>,
+    /// Blob size in bytes.
+    pub blob_bytes: usize,
+    /// Blob quantization.
+    pub blob_quant: String,
+    /// Blob vs float policy on held-out contexts.
+    pub parity: Parity,
+    /// Test metric of the blob policy.
+    pub blob_metric: f32,
+    /// Test metric of the float policy it came from.
+    pub float_metric: f32,
+    /// Task of the device run.
+    pub device_task: String,
+    /// Metric of the device run.
+    pub device_metric: f32,
+    /// Control ticks run.
+    pub device_ticks: usize,
+    /// Ticks with a non-finite reading.
+    pub device_faults: usize,
+    /// Ticks over the compute budget.
+    pub device_overruns: usize,
+    /// Median compute per tick, microseconds.
+    pub device_median_us: f64,
+    /// 99th percentile compute per tick, microseconds.
+    pub device_p99_us: f64,
+    /// Wall time of the whole run.
+    pub seconds: f64,
+}
+
+fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)> {
+    if args.env == Family::PointGoal {
+        expert::export_scripted_pd(dir)?;
+        let note =
+            "scripted PD controller (point-goal's documented expert; nothing trained)".to_string();
+        return Ok((Expert::load(dir)?, note));
+    }
+    Err(Error::Config(format!(
+        "{} needs a trained SAC expert: about 20-60 minutes per family on 2 cores, and SMILe \
+         about an hour more. Run the steps yourself (see README, 'Other families'): \
+         `smile expert --env {0} -o runs/{0}-expert`, then `smile quickstart` is point-goal only.",
+        args.env
+    )))
+}
+
+fn demos(
+    expert: &Expert,
+    args: &QuickstartConfig,
+    split: Split,
+    per_task: usize,
+    path: &Path,
+) -> Result<DemoDataset> {
+    let seed = args.seed * 1_000_000 + if split == Split::Train { 0 } else { 500_000 };
+    let spec = DemoSpec {
+        tasks: args.env.tasks(split),
+        split,
+        per_task,
+        subsample: args.subsample,
+        seed,
+        env: EnvConfig::default(),
+    };
+    let ds = record(expert, &spec)?;
+    ds.write(path)
+        .map_err(|e| Error::Sim(format!("writing {}: {e}", path.display())))?;
+    eprintln!(
+        "  {} tasks x {per_task} demos -> {}",
+        ds.tasks.len(),
+        path.display()
+    );
+    Ok(ds)
+}
+
+fn train_smile(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Result<MetaPolicy> {
+    let mut cfg = SmileConfig {
+        env: args.env.name().into(),
+        seed: args.seed,
+        ..SmileConfig::default()
+    };
+    match args.budget {
+        Budget::Tiny => {
+            cfg.total_updates = 200;
+            cfg.updates_per_iter = 50;
+            cfg.sac.hidden = vec![32, 32];
+            cfg.disc_hidden = vec![32, 32];
+            cfg.eval_every = 100;
+            cfg.checkpoint_every = 100;
+        }
+        Budget::Short => {}
+        Budget::Long => cfg.total_updates *= 2,
+    }
+    let data = MetaData::from_dataset(train, args.env, cfg.holdout_every)?;
+    let mut run = Smile::new(cfg.clone(), data)?;
+    write(
+        &dir.join("config.toml"),
+        toml::to_string(&cfg).map_err(|e| Error::Config(e.to_string()))?,
+    )?;
+    let pb = bar(cfg.total_updates, args.quiet, "update pairs");
+    smile::train(&mut run, dir, &mut |e| match e {
+        smile::Event::Updates(u) => pb.set_position(u),
+        smile::Event::Eval(_, m, best) => {
+            pb.set_message(format!("held-out train tasks {m:.3} (best {best:.3})"))
+        }
+        smile::Event::Checkpoint(_) => {}
+    })?;
+    pb.finish();
+    MetaPolicy::load(dir)
+}
+
+fn train_meta_bc(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Result<MetaPolicy> {
+    let mut cfg = MetaBcConfig {
+        env: args.env.name().into(),
+        seed: args.seed,
+        ..MetaBcConfig::default()
+    };
+    if args.budget == Budget::Tiny {
+        cfg.total_steps = 200;
+        cfg.policy_hidden = vec![32, 32];
+        cfg.eval_every = 100;
+    }
+    let data = MetaData::from_dataset(train, args.env, cfg.holdout_every)?;
+    let mut run = MetaBc::new(cfg.clone(), data, None)?;
+    write(
+        &dir.join("config.toml"),
+        toml::to_string(&cfg).map_err(|e| Error::Config(e.to_string()))?,
+    )?;
+    let pb = bar(cfg.total_steps, args.quiet, "steps");
+    meta_bc::train(&mut run, dir, &mut |e| match e {
+        meta_bc::Event::Steps(s) => pb.set_position(s),
+        meta_bc::Event::Eval(_, r) => pb.set_message(format!("val mse {:.4}", r.val_mse)),
+        meta_bc::Event::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
+    })?;
+    pb.finish();
+    MetaPolicy::load(dir)
+}
+
+fn protocol(args: &QuickstartConfig) -> Protocol {
+    let mut p = Protocol::for_family(args.env);
+    if args.budget == Budget::Tiny {
+        p.draws = 1;
+        p.rollouts = 1;
+    }
+    p
+}
+
+fn evaluate(
+    args: &QuickstartConfig,
+    actor: &mut dyn eval::ConditionedActor,
+    name: &str,
+    test: &DemoDataset,
+) -> Result<MethodResult> {
+    let n = args.env.test_tasks().len() as u64;
+    let pb = bar(n, args.quiet, "test tasks");
+    pb.set_message(name.to_string());
+    let r = eval::evaluate(
+        actor,
+        name,
+        args.env,
+        Split::Test,
+        test,
+        &protocol(args),
+        &mut |i, _| pb.set_position(i as u64),
+    )?;
+    pb.finish_and_clear();
+    eprintln!(
+        "  {name}: {} {:.4} +- {:.4} over test tasks",
+        eval::metric_name(args.env.metric_kind()),
+        r.mean,
+        r.std_over_tasks
+    );
+    Ok(r)
+}
+
+/// Runs the blob on the simulated device, taught the first demo of test task `index`.
+fn device_run(
+    args: &QuickstartConfig,
+    blob: &[u8],
+    test: &DemoDataset,
+    dir: &Path,
+) -> Result<firmware_sim::RunReport> {
+    let task = args.env.test_tasks()[3 % args.env.test_tasks().len()];
+    let demo = eval::contexts_for(test, args.env, &[task])?[0].trajectories[0].clone();
+    let config = DeviceConfig::default();
+    let mut device = Device::new(config);
+    let mut link = SimLink::new(LinkConfig {
+        corrupt_probability: 0.01,
+        seed: args.seed,
+        ..LinkConfig::default()
+    });
+    host::upload_blob(&mut link, &mut device, blob).map_err(device_err)?;
+    let model =
+        infer_core::Model::from_bytes(device.blob().map_err(device_err)?).map_err(device_err)?;
+    let mut controller = Controller::new(&model, config).map_err(device_err)?;
+    host::teach(
+        &mut link,
+        &mut controller,
+        &[&demo],
+        test.obs_dim,
+        test.act_dim,
+    )
+    .map_err(device_err)?;
+    let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
+    let mut plant =
+        sim::make_env(args.env, EnvConfig::default()).map_err(|e| Error::Sim(e.to_string()))?;
+    let loop_config = LoopConfig {
+        seed: args.seed,
+        noise_std: 0.005,
+        adc_bits: Some(12),
+        adc_range: 4.0,
+        ..LoopConfig::default()
+    };
+    let report = firmware_sim::run(&mut controller, plant.as_mut(), &task, &loop_config)
+        .map_err(device_err)?;
+    std::fs::create_dir_all(dir).map_err(io(dir))?;
+    let csv = dir.join("trace.csv");
+    trace::write_csv(&csv, &report, &z).map_err(io(&csv))?;
+    trace::write_plot(&dir.join("plot.svg"), &report).map_err(device_err)?;
+    let summary = trace::summary(
+        &report,
+        blob.len(),
+        config.flash_bytes,
+        ram_needed(),
+        config.ram_bytes,
+    );
+    write(&dir.join("summary.txt"), format!("{summary}\n"))?;
+    eprintln!(
+        "{}",
+        summary
+            .lines()
+            .map(|l| format!("  {l}"))
+            .collect::<Vec<_>>()
+            .join("\n")
+    );
+    Ok(report)
+}
+
+/// Runs the whole pipeline; returns what it measured (also in `out/summary.json`).
+pub fn run(args: &QuickstartConfig) -> Result<Summary> {
+    let start = Instant::now();
+    let out = &args.out;
+    std::fs::create_dir_all(out).map_err(io(out))?;
+    write(
+        &out.join("quickstart.toml"),
+        toml::to_string(args).map_err(|e| Error::Config(e.to_string()))?,
+    )?;
+    eprintln!(
+        "smile quickstart: {} ({:?} budget, seed {}) -> {}",
+        args.env,
+        args.budget,
+        args.seed,
+        out.display()
+    );
+    if args.budget == Budget::Short && args.env == Family::PointGoal {
+        eprintln!("expected time on 2 cores: about 10 minutes");
+    }
+
+    stage(1, "expert");
+    let (expert, expert_note) = train_expert(args, &out.join("expert"))?;
+    eprintln!("  {expert_note} -> {}", out.join("expert").display());
+
+    stage(2, "demos (meta-train and meta-test splits)");
+    let train = demos(
+        &expert,
+        args,
+        Split::Train,
+        args.demos_per_task,
+        &out.join("demos-train.safetensors"),
+    )?;
+    // Three single-trajectory contexts per test task, as the evaluation protocol draws.
+    let test = demos(
+        &expert,
+        args,
+        Split::Test,
+        3,
+        &out.join("demos-test.safetensors"),
+    )?;
+
+    stage(3, "SMILe (state-action) on the meta-train demos");
+    let smile_dir = out.join("smile");
+    std::fs::create_dir_all(&smile_dir).map_err(io(&smile_dir))?;
+    let mut smile_policy = train_smile(args, &train, &smile_dir)?;
+
+    stage(
+        4,
+        "Meta-BC on the same demos (early-stopped on held-out train tasks)",
+    );
+    let bc_dir = out.join("meta-bc");
+    std::fs::create_dir_all(&bc_dir).map_err(io(&bc_dir))?;
+    let mut bc_policy = train_meta_bc(args, &train, &bc_dir)?;
+
+    stage(5, "evaluation on the held-out meta-test tasks");
+    let smile_result = evaluate(args, &mut smile_policy, "SMILe", &test)?;
+    let bc_result = evaluate(args, &mut bc_policy, "Meta-BC", &test)?;
+
+    stage(
+        6,
+        "export a w8a8 blob and check it against the float policy",
+    );
+    let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, &train)?;
+    write(&out.join("policy.blob"), &blob)?;
+    let mut actor = BlobActor::new(&blob)?;
+    let parity = export::parity(&smile_policy, &mut actor, &test)?;
+    eprintln!(
+        "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
+        blob.len(),
+        parity.action_max_abs_diff,
+        parity.action_mean_abs_diff,
+        parity.actions
+    );
+    let blob_result = evaluate(args, &mut actor, "SMILe w8a8 blob", &test)?;
+    let report = EvalReport {
+        env: args.env.name().into(),
+        split: Split::Test.to_string(),
+        metric: eval::metric_name(args.env.metric_kind()).into(),
+        lower_is_better: args.env.metric_kind() != sim::MetricKind::Return,
+        protocol: protocol(args),
+        methods: vec![smile_result.clone(), bc_result.clone(), blob_result.clone()],
+    };
+    write(&out.join("eval.json"), json(&report)?)?;
+    write(&out.join("eval.md"), report.markdown())?;
+    report.plot_svg(&out.join("eval.svg"))?;
+
+    stage(
+        7,
+        "firmware-sim: the blob on a simulated device, taught one test demo",
+    );
+    let device = device_run(args, &blob, &test, &out.join("device"))?;
+
+    let (_, median, p99, _) = device.compute_percentiles();
+    let summary = Summary {
+        env: args.env.name().into(),
+        budget: format!("{:?}", args.budget).to_lowercase(),
+        seed: args.seed,
+        expert: expert_note,
+        eval: report
+            .methods
+            .iter()
+            .map(|m| (m.name.clone(), m.mean, m.std_over_tasks))
+            .collect(),
+        blob_bytes: blob.len(),
+        blob_quant: "w8a8".into(),
+        parity,
+        blob_metric: blob_result.mean,
+        float_metric: smile_result.mean,
+        device_task: device.task.label(),
+        device_metric: device.metric,
+        device_ticks: device.records.len(),
+        device_faults: device.faults,
+        device_overruns: device.overruns,
+        device_median_us: median as f64 / 1e3,
+        device_p99_us: p99 as f64 / 1e3,
+        seconds: start.elapsed().as_secs_f64(),
+    };
+    write(&out.join("summary.json"), json(&summary)?)?;
+    let md = report_markdown(&summary, &report);
+    write(&out.join("report.md"), &md)?;
+    if !args.quiet {
+        println!("\n{md}");
+    }
+    eprintln!(
+        "done in {:.0} s; everything is in {}",
+        summary.seconds,
+        out.display()
+    );
+    Ok(summary)
+}
+
+fn report_markdown(s: &Summary, report: &EvalReport) -> String {
+    let mut md = String::new();
+    let better = if report.lower_is_better {
+        "lower is better"
+    } else {
+        "higher is better"
+    };
+    let _ = writeln!(md, "# SMILe quickstart: {}\n", s.env);
+    let _ = writeln!(
+        md,
+        "Budget `{}`, seed {}, {:.0} s. Expert: {}.\n",
+        s.budget, s.seed, s.seconds, s.expert
+    );
+    let _ = writeln!(
+        md,
+        "## Held-out meta-test tasks ({}, {better})\n",
+        report.metric
+    );
+    let _ = writeln!(
+        md,
+        "| method | mean over test tasks | std over tasks |\n|---|---|---|"
+    );
+    for (name, mean, std) in &s.eval {
+        let _ = writeln!(md, "| {name} | {mean:.4} | {std:.4} |");
+    }
+    let _ = writeln!(
+        md,
+        "\nPer task: `eval.md`, `eval.json`; plot: `eval.svg`.\n"
+    );
+    let _ = writeln!(md, "## Blob ({}, {} bytes)\n", s.blob_quant, s.blob_bytes);
+    let _ = writeln!(md, "| check | value |\n|---|---|");
+    let _ = writeln!(
+        md,
+        "| action max abs diff vs float | {:.5} |",
+        s.parity.action_max_abs_diff
+    );
+    let _ = writeln!(
+        md,
+        "| action mean abs diff vs float | {:.6} |",
+        s.parity.action_mean_abs_diff
+    );
+    let _ = writeln!(
+        md,
+        "| z max abs diff vs float | {:.5} |",
+        s.parity.z_max_abs_diff
+    );
+    let _ = writeln!(md, "| metric, float policy | {:.4} |", s.float_metric);
+    let _ = writeln!(md, "| metric, blob policy | {:.4} |", s.blob_metric);
+    let _ = writeln!(md, "\n## Device (firmware-sim)\n");
+    let _ = writeln!(
+        md,
+        "| task | metric | ticks | faults | overruns | compute median | compute p99 |\n|---|---|---|---|---|---|---|"
+    );
+    let _ = writeln!(
+        md,
+        "| {} | {:.4} | {} | {} | {} | {:.2} us | {:.2} us |",
+        s.device_task,
+        s.device_metric,
+        s.device_ticks,
+        s.device_faults,
+        s.device_overruns,
+        s.device_median_us,
+        s.device_p99_us
+    );
+    let _ = writeln!(md, "\nTrace: `device/trace.csv`; plot: `device/plot.svg`.");
+    md
+}
