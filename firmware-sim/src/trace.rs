@@ -80,14 +80,16 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
                 .map(|r| (r.plant_obs[0], r.plant_obs[1]));
             chart
                 .draw_series(LineSeries::new(path_xy, BLUE.stroke_width(2)))?
-                .label("device path");
+                .label("device path")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE.stroke_width(2)));
             chart
                 .draw_series(std::iter::once(Circle::new(
                     (goal[0], goal[1]),
                     6,
                     RED.filled(),
                 )))?
-                .label("goal");
+                .label("goal")
+                .legend(|(x, y)| Circle::new((x + 10, y), 5, RED.filled()));
             chart
                 .configure_series_labels()
                 .background_style(WHITE)
@@ -121,11 +123,13 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
             let v = report.records.iter().map(|r| (r.time, r.forward_velocity));
             chart
                 .draw_series(LineSeries::new(v, BLUE.stroke_width(2)))?
-                .label("velocity");
+                .label("velocity")
+                .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], BLUE.stroke_width(2)));
             if target.is_finite() {
                 chart
                     .draw_series(LineSeries::new([(0.0, target), (t_max, target)], RED))?
-                    .label("target");
+                    .label("target")
+                    .legend(|(x, y)| PathElement::new([(x, y), (x + 20, y)], RED));
             }
             chart
                 .configure_series_labels()
