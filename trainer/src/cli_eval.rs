@@ -8,7 +8,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 use trainer::context::MetaPolicy;
 use trainer::eval::{self, EvalReport, Protocol};
-use trainer::export::{self, BlobActor};
+use trainer::export;
 
 /// Arguments of `smile eval`.
 #[derive(Args, Debug)]
@@ -124,14 +124,7 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
         }
         methods.push(r);
     }
-    let report = EvalReport {
-        env: family.name().into(),
-        split: a.split.to_string(),
-        metric: eval::metric_name(family.metric_kind()).into(),
-        lower_is_better: family.metric_kind() != sim::MetricKind::Return,
-        protocol,
-        methods,
-    };
+    let report = EvalReport::new(family, a.split, protocol, methods);
     std::fs::write(
         a.out.join("eval.json"),
         serde_json::to_string_pretty(&report)?,
@@ -173,7 +166,7 @@ pub struct ExportArgs {
 /// Run `smile export`.
 pub fn run_export(a: ExportArgs) -> Result<()> {
     let quant = export::parse_quant(&a.quant)?;
-    let mut mp =
+    let mp =
         MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
     let family = mp.family;
     let demos =
@@ -198,64 +191,26 @@ pub fn run_export(a: ExportArgs) -> Result<()> {
         blob.len(),
         a.quant
     );
-    let mut actor = BlobActor::new(&blob)?;
-    let parity = export::parity(&mp, &mut actor, &ctx)?;
-    eprintln!(
-        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}",
-        parity.contexts,
-        parity.actions,
-        parity.action_max_abs_diff,
-        parity.action_mean_abs_diff,
-        parity.z_max_abs_diff
-    );
     let mut protocol = Protocol::for_family(family);
     if let Some(r) = a.rollouts {
         protocol.rollouts = r;
     }
     protocol.horizon = a.horizon;
-    let blob_m = eval::evaluate(
-        &mut actor,
-        &format!("blob {}", a.quant),
-        family,
-        ctx.split,
-        &ctx,
-        &protocol,
-        &mut |_, _| {},
-    )?;
-    let float_m = eval::evaluate(
-        &mut mp,
-        "candle f32",
-        family,
-        ctx.split,
-        &ctx,
-        &protocol,
-        &mut |_, _| {},
-    )?;
-    let rel = (blob_m.mean - float_m.mean) / float_m.mean.abs().max(1e-9);
+    let report = export::verify(&mp, &blob, &a.quant, &ctx, &protocol)?;
+    let p = &report.parity;
+    eprintln!(
+        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}",
+        p.contexts, p.actions, p.action_max_abs_diff, p.action_mean_abs_diff, p.z_max_abs_diff
+    );
     eprintln!(
         "{} on {} {} tasks: blob {:.4}, candle {:.4} (relative difference {:+.2}%)",
-        eval::metric_name(family.metric_kind()),
+        report.metric,
         family,
-        ctx.split,
-        blob_m.mean,
-        float_m.mean,
-        100.0 * rel
+        report.split,
+        report.metric_blob,
+        report.metric_candle,
+        100.0 * report.metric_relative_difference
     );
-    let report = serde_json::json!({
-        "blob": a.out,
-        "bytes": blob.len(),
-        "quant": a.quant,
-        "algo": mp.algo,
-        "env": family.name(),
-        "parity": parity,
-        "metric": eval::metric_name(family.metric_kind()),
-        "split": ctx.split.to_string(),
-        "metric_blob": blob_m.mean,
-        "metric_candle": float_m.mean,
-        "metric_relative_difference": rel,
-        "per_task_blob": blob_m.tasks,
-        "per_task_candle": float_m.tasks,
-    });
     let json = a.out.with_extension(format!(
         "{}.json",
         a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")

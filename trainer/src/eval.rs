@@ -257,6 +257,23 @@ pub fn evaluate(
 }
 
 impl EvalReport {
+    /// A report of `methods` evaluated on `family`'s `split` with `protocol`.
+    pub fn new(
+        family: Family,
+        split: Split,
+        protocol: Protocol,
+        methods: Vec<MethodResult>,
+    ) -> Self {
+        Self {
+            env: family.name().into(),
+            split: split.to_string(),
+            metric: metric_name(family.metric_kind()).into(),
+            lower_is_better: family.metric_kind() != MetricKind::Return,
+            protocol,
+            methods,
+        }
+    }
+
     /// The report as a markdown table: one row per task, one column per method, then the
     /// means (and per-context-size means when there are several sizes).
     pub fn markdown(&self) -> String {

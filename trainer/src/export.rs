@@ -198,3 +198,80 @@ pub fn parity(mp: &MetaPolicy, blob: &mut BlobActor<'_>, contexts: &DemoDataset)
         action_mean_abs_diff: (asum / n.max(1) as f64) as f32,
     })
 }
+
+/// What [`verify`] measured: blob size, parity with the candle policy and the family's metric
+/// with both (serialised next to the blob by `smile export`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExportReport {
+    /// Blob size in bytes.
+    pub bytes: usize,
+    /// `f32`, `w8a32` or `w8a8`.
+    pub quant: String,
+    /// Algorithm of the exported policy.
+    pub algo: String,
+    /// Family name.
+    pub env: String,
+    /// z / action differences on held-out contexts.
+    pub parity: Parity,
+    /// Metric name.
+    pub metric: String,
+    /// Split of the contexts the metric ran on.
+    pub split: String,
+    /// The metric with the blob policy (mean over tasks).
+    pub metric_blob: f32,
+    /// The metric with the candle policy (mean over tasks).
+    pub metric_candle: f32,
+    /// `(blob - candle) / |candle|`.
+    pub metric_relative_difference: f32,
+    /// Per-task blob results.
+    pub per_task_blob: Vec<crate::eval::TaskResult>,
+    /// Per-task candle results.
+    pub per_task_candle: Vec<crate::eval::TaskResult>,
+}
+
+/// Loads `blob` with infer-core, measures [`parity`] on `contexts` and runs the family's
+/// metric (`protocol`) on the contexts' split with the blob and with the candle policy.
+pub fn verify(
+    mp: &MetaPolicy,
+    blob: &[u8],
+    quant: &str,
+    contexts: &DemoDataset,
+    protocol: &crate::eval::Protocol,
+) -> Result<ExportReport> {
+    let mut actor = BlobActor::new(blob)?;
+    let parity = parity(mp, &mut actor, contexts)?;
+    let (family, split) = (mp.family, contexts.split);
+    let blob_m = crate::eval::evaluate(
+        &mut actor,
+        "blob",
+        family,
+        split,
+        contexts,
+        protocol,
+        &mut |_, _| {},
+    )?;
+    let mut float_policy = mp.clone();
+    let float_m = crate::eval::evaluate(
+        &mut float_policy,
+        "candle",
+        family,
+        split,
+        contexts,
+        protocol,
+        &mut |_, _| {},
+    )?;
+    Ok(ExportReport {
+        bytes: blob.len(),
+        quant: quant.into(),
+        algo: mp.algo.clone(),
+        env: family.name().into(),
+        parity,
+        metric: crate::eval::metric_name(family.metric_kind()).into(),
+        split: split.to_string(),
+        metric_blob: blob_m.mean,
+        metric_candle: float_m.mean,
+        metric_relative_difference: (blob_m.mean - float_m.mean) / float_m.mean.abs().max(1e-9),
+        per_task_blob: blob_m.tasks,
+        per_task_candle: float_m.tasks,
+    })
+}

@@ -133,22 +133,12 @@ fn eval_report_and_blob_parity() {
             "{q}: {p:?}"
         );
         if q == "w8a8" {
-            let b = eval::evaluate(
-                &mut actor,
-                "blob",
-                fam,
-                Split::Test,
-                &test,
-                &proto,
-                &mut |_, _| {},
-            )
-            .unwrap();
-            assert!(
-                (b.mean - r.mean).abs() < 0.25 * r.mean.max(0.1),
-                "blob {} vs {}",
-                b.mean,
-                r.mean
-            );
+            let rep = export::verify(&mp, &blob, q, &test, &proto).unwrap();
+            assert_eq!(rep.parity, p);
+            assert_eq!(rep.bytes, blob.len());
+            assert!((rep.metric_candle - r.mean).abs() < 1e-6);
+            let (b, c) = (rep.metric_blob, rep.metric_candle);
+            assert!((b - c).abs() < 0.25 * c.max(0.1), "blob {b} vs candle {c}");
         }
     }
     assert!(export::parse_quant("w4").is_err());
