@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand};
-use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, run, trace};
-use infer_core::Model;
-use sim::{DemoDataset, EnvConfig, Family, Task, make_env};
+use firmware_sim::link::LinkConfig;
+use firmware_sim::{DeviceConfig, LoopConfig, SessionConfig, ram_needed, run_session, trace};
+use serde::Serialize;
+use sim::{DemoDataset, EnvConfig, Family, Task, TaskDemos};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -29,6 +29,12 @@ enum Cmd {
         --task N picks test task N; --task param=VALUE names a task by its parameter (goal angle in rad,\n\
         target velocity in m/s, dynamics seed), which must have a demo in the --context file.")]
     Run(RunArgs),
+    /// Run the tasks of a `smile export` report on the device and compare the metric with the
+    /// float policy's on the host.
+    #[command(after_help = "Example:\n  \
+        smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob\n  \
+        firmware-sim compare --blob runs/pg-smile/policy.blob --env point-goal --contexts demos/pg-test.safetensors")]
+    Compare(CompareArgs),
 }
 
 #[derive(Args, Debug)]
@@ -112,6 +118,56 @@ fn parse_task(family: Family, spec: &str) -> Result<Task> {
     })
 }
 
+fn session_config(args: &RunArgs) -> SessionConfig {
+    SessionConfig {
+        device: DeviceConfig {
+            flash_bytes: args.flash_kib * 1024,
+            ram_bytes: args.ram_kib * 1024,
+        },
+        link: LinkConfig {
+            corrupt_probability: args.link_corrupt,
+            drop_probability: args.link_drop,
+            seed: args.seed,
+            ..LinkConfig::default()
+        },
+        control: LoopConfig {
+            rate_hz: args.rate,
+            ticks: args.ticks,
+            noise_std: args.noise,
+            adc_bits: args.adc_bits,
+            adc_range: args.adc_range,
+            latency: args.latency,
+            budget_us: args.budget_us,
+            seed: args.seed,
+            nan_ticks: Vec::new(),
+        },
+        plant: EnvConfig {
+            horizon: args.horizon,
+            ..EnvConfig::default()
+        },
+    }
+}
+
+fn demos_of<'d>(
+    demos: &'d DemoDataset,
+    path: &std::path::Path,
+    task: &Task,
+) -> Result<&'d TaskDemos> {
+    demos
+        .tasks
+        .iter()
+        .find(|t| t.task == *task && !t.trajectories.is_empty())
+        .with_context(|| {
+            let available: Vec<String> = demos.tasks.iter().map(|t| t.task.label()).collect();
+            format!(
+                "{} has no demo for {}; it has: {}",
+                path.display(),
+                task.label(),
+                available.join(", ")
+            )
+        })
+}
+
 fn run_cmd(args: RunArgs) -> Result<()> {
     let task = parse_task(args.env, &args.task)?;
     let blob =
@@ -119,96 +175,34 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     let demos = DemoDataset::read(&args.context)
         .with_context(|| format!("reading {}", args.context.display()))?;
     demos.ensure_family(args.env)?;
-    let Some(task_demos) = demos.tasks.iter().find(|t| t.task == task) else {
-        let available: Vec<String> = demos.tasks.iter().map(|t| t.task.label()).collect();
-        bail!(
-            "{} has no demo for {}; it has: {}",
-            args.context.display(),
-            task.label(),
-            available.join(", ")
-        );
-    };
-    let context: Vec<_> = task_demos
+    let context: Vec<_> = demos_of(&demos, &args.context, &task)?
         .trajectories
         .iter()
         .take(args.trajectories.max(1))
         .collect();
-
-    let config = DeviceConfig {
-        flash_bytes: args.flash_kib * 1024,
-        ram_bytes: args.ram_kib * 1024,
-    };
-    let mut device = Device::new(config);
-    let link_config = LinkConfig {
-        corrupt_probability: args.link_corrupt,
-        drop_probability: args.link_drop,
-        seed: args.seed,
-        ..LinkConfig::default()
-    };
-    let mut link = SimLink::new(link_config);
-    host::upload_blob(&mut link, &mut device, &blob).context("flashing the blob")?;
-    let model = Model::from_bytes(device.blob()?).map_err(firmware_sim::DeviceError::from)?;
-    let h = *model.header();
-    if h.obs_dim as usize != args.env.obs_dim() || h.act_dim as usize != args.env.act_dim() {
-        bail!(
-            "blob is for obs {} / act {}, but {} has obs {} / act {}",
-            h.obs_dim,
-            h.act_dim,
-            args.env,
-            args.env.obs_dim(),
-            args.env.act_dim()
-        );
-    }
-    let mut controller = Controller::new(&model, config)?;
-    host::teach(
-        &mut link,
-        &mut controller,
-        &context,
-        demos.obs_dim,
-        demos.act_dim,
-    )
-    .context("teaching the context demo")?;
-    let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
-
-    let mut plant = make_env(
-        args.env,
-        EnvConfig {
-            horizon: args.horizon,
-            ..EnvConfig::default()
-        },
-    )?;
-    let loop_config = LoopConfig {
-        rate_hz: args.rate,
-        ticks: args.ticks,
-        noise_std: args.noise,
-        adc_bits: args.adc_bits,
-        adc_range: args.adc_range,
-        latency: args.latency,
-        budget_us: args.budget_us,
-        seed: args.seed,
-        nan_ticks: Vec::new(),
-    };
-    let report = run(&mut controller, plant.as_mut(), &task, &loop_config)?;
+    let config = session_config(&args);
+    let session = run_session(&blob, &task, &context, &config)?;
+    let report = &session.report;
 
     std::fs::create_dir_all(&args.out)
         .with_context(|| format!("creating {}", args.out.display()))?;
-    trace::write_csv(&args.out.join("trace.csv"), &report, &z)?;
-    trace::write_plot(&args.out.join("plot.svg"), &report)
+    trace::write_csv(&args.out.join("trace.csv"), report, &session.z)?;
+    trace::write_plot(&args.out.join("plot.svg"), report)
         .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     let summary = format!(
         "{}\nlink            {} frames, {} corrupted, {} dropped, {} retries\nz               {:?}\n",
         trace::summary(
-            &report,
+            report,
             blob.len(),
-            config.flash_bytes,
+            config.device.flash_bytes,
             ram_needed(),
-            config.ram_bytes
+            config.device.ram_bytes
         ),
-        link.stats.frames,
-        link.stats.corrupted,
-        link.stats.dropped,
-        link.stats.retries,
-        z,
+        session.link.frames,
+        session.link.corrupted,
+        session.link.dropped,
+        session.link.retries,
+        session.z,
     );
     firmware_sim::write_atomic(&args.out.join("summary.txt"), summary.as_bytes())?;
     print!("{summary}");
@@ -219,8 +213,151 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
+#[derive(Args, Debug)]
+struct CompareArgs {
+    /// The policy blob (from `smile export`).
+    #[arg(long)]
+    blob: PathBuf,
+    /// The export's report with the float policy's per-task metric (`smile export` writes
+    /// `<blob>.json`; default: that file).
+    #[arg(long)]
+    reference: Option<PathBuf>,
+    /// Task family.
+    #[arg(long)]
+    env: Family,
+    /// Demos of the reference's tasks (the `--contexts` file given to `smile export`).
+    #[arg(long)]
+    contexts: PathBuf,
+    /// Device episodes per task (context trajectory i % n, reset seed i).
+    #[arg(long, default_value_t = 10)]
+    episodes: usize,
+    /// Output directory for compare.json and compare.md.
+    #[arg(long, short, default_value = "runs/firmware-compare")]
+    out: PathBuf,
+}
+
+#[derive(Debug, Serialize)]
+struct CompareRow {
+    task: String,
+    value: f64,
+    host_float: f32,
+    device_blob: f32,
+    difference: f32,
+}
+
+#[derive(Debug, Serialize)]
+struct CompareReport {
+    env: String,
+    metric: String,
+    episodes_per_task: usize,
+    host_mean: f32,
+    device_mean: f32,
+    mean_abs_difference: f32,
+    relative_difference_of_means: f32,
+    tasks: Vec<CompareRow>,
+}
+
+fn compare_cmd(args: CompareArgs) -> Result<()> {
+    let reference_path = args.reference.clone().unwrap_or_else(|| {
+        let mut p = args.blob.clone().into_os_string();
+        p.push(".json");
+        PathBuf::from(p)
+    });
+    let reference: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(&reference_path)
+            .with_context(|| format!("reading {}", reference_path.display()))?,
+    )
+    .with_context(|| format!("parsing {}", reference_path.display()))?;
+    let host_tasks = reference["per_task_candle"].as_array().with_context(|| {
+        format!(
+            "{} has no per_task_candle list (not a `smile export` report?)",
+            reference_path.display()
+        )
+    })?;
+    let blob =
+        std::fs::read(&args.blob).with_context(|| format!("reading {}", args.blob.display()))?;
+    let demos = DemoDataset::read(&args.contexts)
+        .with_context(|| format!("reading {}", args.contexts.display()))?;
+    demos.ensure_family(args.env)?;
+    let config = SessionConfig::default();
+    let mut rows = Vec::new();
+    for entry in host_tasks {
+        let (Some(value), Some(host)) = (entry["value"].as_f64(), entry["metric"].as_f64()) else {
+            bail!(
+                "{}: a per_task_candle entry lacks value or metric",
+                reference_path.display()
+            );
+        };
+        let task = args.env.task_from_value(value)?;
+        let trajectories = &demos_of(&demos, &args.contexts, &task)?.trajectories;
+        let mut metrics = Vec::with_capacity(args.episodes);
+        for i in 0..args.episodes.max(1) {
+            let context = [&trajectories[i % trajectories.len()]];
+            let control = LoopConfig {
+                seed: 7_000_000 + i as u64,
+                ..LoopConfig::default()
+            };
+            let session = run_session(
+                &blob,
+                &task,
+                &context,
+                &SessionConfig {
+                    control,
+                    ..config.clone()
+                },
+            )?;
+            metrics.push(session.report.metric);
+        }
+        let device = metrics.iter().sum::<f32>() / metrics.len() as f32;
+        rows.push(CompareRow {
+            task: task.label(),
+            value,
+            host_float: host as f32,
+            device_blob: device,
+            difference: device - host as f32,
+        });
+    }
+    let n = rows.len().max(1) as f32;
+    let host_mean = rows.iter().map(|r| r.host_float).sum::<f32>() / n;
+    let device_mean = rows.iter().map(|r| r.device_blob).sum::<f32>() / n;
+    let report = CompareReport {
+        env: args.env.to_string(),
+        metric: reference["metric"].as_str().unwrap_or("metric").to_string(),
+        episodes_per_task: args.episodes.max(1),
+        host_mean,
+        device_mean,
+        mean_abs_difference: rows.iter().map(|r| r.difference.abs()).sum::<f32>() / n,
+        relative_difference_of_means: (device_mean - host_mean) / host_mean.abs().max(1e-9),
+        tasks: rows,
+    };
+    let mut md = String::from("| task | host float | device blob | difference |\n|---|---|---|---|\n");
+    for r in &report.tasks {
+        md.push_str(&format!(
+            "| {} | {:.4} | {:.4} | {:+.4} |\n",
+            r.task, r.host_float, r.device_blob, r.difference
+        ));
+    }
+    md.push_str(&format!(
+        "| **mean** | **{:.4}** | **{:.4}** | mean abs {:.4}, relative {:+.1}% |\n",
+        report.host_mean,
+        report.device_mean,
+        report.mean_abs_difference,
+        100.0 * report.relative_difference_of_means
+    ));
+    std::fs::create_dir_all(&args.out)?;
+    firmware_sim::write_atomic(
+        &args.out.join("compare.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    firmware_sim::write_atomic(&args.out.join("compare.md"), md.as_bytes())?;
+    print!("{md}");
+    println!("wrote {}/{{compare.json, compare.md}}", args.out.display());
+    Ok(())
+}
+
 fn main() -> Result<()> {
     match Cli::parse().cmd {
         Cmd::Run(args) => run_cmd(args),
+        Cmd::Compare(args) => compare_cmd(args),
     }
 }

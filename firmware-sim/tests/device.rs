@@ -321,3 +321,49 @@ fn same_seed_blob_and_context_give_a_bit_identical_trace() {
         "another seed must change the sensor noise"
     );
 }
+
+#[test]
+fn a_session_runs_end_to_end_and_refuses_a_blob_for_another_plant() {
+    let task = Family::PointGoal.test_tasks()[5];
+    let d = demo(&task, 8);
+    let session = firmware_sim::run_session(
+        &blob(Quant::W8A8, &d),
+        &task,
+        &[&d],
+        &firmware_sim::SessionConfig::default(),
+    )
+    .unwrap();
+    assert!(session.report.metric < 0.15, "{}", session.report.metric);
+    assert_eq!(session.z.len(), 2);
+    // A cheetah-sized blob on the point-goal plant: refused before the loop, with the dims.
+    let cheetah = FloatModel::random(
+        ModelKind::StateAction,
+        infer_core::Dims {
+            obs: 17,
+            act: 6,
+            r: 8,
+            z: 4,
+            hidden: 16,
+        },
+        2,
+    );
+    let bytes = write_blob(&cheetah, Quant::F32, &Calibration::default()).unwrap();
+    let err = firmware_sim::run_session(
+        &bytes,
+        &task,
+        &[&d],
+        &firmware_sim::SessionConfig::default(),
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            err,
+            firmware_sim::SessionError::Dims {
+                blob_obs: 17,
+                plant_obs: 4,
+                ..
+            }
+        ),
+        "{err}"
+    );
+}
