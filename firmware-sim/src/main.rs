@@ -330,7 +330,8 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
         relative_difference_of_means: (device_mean - host_mean) / host_mean.abs().max(1e-9),
         tasks: rows,
     };
-    let mut md = String::from("| task | host float | device blob | difference |\n|---|---|---|---|\n");
+    let mut md =
+        String::from("| task | host float | device blob | difference |\n|---|---|---|---|\n");
     for r in &report.tasks {
         md.push_str(&format!(
             "| {} | {:.4} | {:.4} | {:+.4} |\n",
