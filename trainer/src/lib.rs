@@ -34,6 +34,7 @@ pub mod meta_data;
 pub mod metrics;
 pub mod nn;
 pub mod policy;
+pub mod progress;
 pub mod quickstart;
 pub mod replay;
 pub mod sac;

@@ -11,7 +11,6 @@ use std::time::Instant;
 use clap::ValueEnum;
 use firmware_sim::link::{LinkConfig, SimLink};
 use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, trace};
-use indicatif::{ProgressBar, ProgressStyle};
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
@@ -22,6 +21,7 @@ use crate::expert::{self, Expert};
 use crate::export::{self, BlobActor, Parity};
 use crate::meta_bc::{self, MetaBc, MetaBcConfig};
 use crate::meta_data::MetaData;
+use crate::progress::bar;
 use crate::smile::{self, Smile, SmileConfig};
 use crate::{Error, Result};
 
@@ -103,21 +103,6 @@ impl Default for QuickstartConfig {
             quiet: false,
         }
     }
-}
-
-fn bar(total: u64, quiet: bool, what: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(total);
-    pb.set_style(
-        ProgressStyle::with_template(&format!(
-            "  {{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what} {{per_sec}} ETA {{eta}} {{msg}}"
-        ))
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    pb
 }
 
 fn stage(n: usize, what: &str) {
