@@ -367,3 +367,39 @@ fn a_session_runs_end_to_end_and_refuses_a_blob_for_another_plant() {
         "{err}"
     );
 }
+
+#[test]
+fn re_teaching_mid_run_switches_the_task() {
+    let tasks = Family::PointGoal.test_tasks();
+    let (a, b) = (tasks[1], tasks[9]);
+    let (demo_a, demo_b) = (demo(&a, 1), demo(&b, 2));
+    let bytes = blob(Quant::W8A8, &demo_a);
+    let (device, mut link) = flashed(&bytes, LinkConfig::default());
+    let model = Model::from_bytes(device.blob().unwrap()).unwrap();
+
+    let mut fresh = Controller::new(&model, device.config()).unwrap();
+    host::teach(&mut link, &mut fresh, &[&demo_b], 4, 2).unwrap();
+    let z_b = fresh.z().unwrap().to_vec();
+
+    let mut controller = Controller::new(&model, device.config()).unwrap();
+    host::teach(&mut link, &mut controller, &[&demo_a], 4, 2).unwrap();
+    let z_a = controller.z().unwrap().to_vec();
+    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let first = run(
+        &mut controller,
+        plant.as_mut(),
+        &a,
+        &LoopConfig {
+            ticks: Some(30),
+            ..LoopConfig::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(first.records.len(), 30);
+    // A new demo arrives while the device is running: the old context is forgotten.
+    host::teach(&mut link, &mut controller, &[&demo_b], 4, 2).unwrap();
+    assert_eq!(controller.z().unwrap(), &z_b[..]);
+    assert_ne!(z_a, z_b);
+    let second = run(&mut controller, plant.as_mut(), &b, &LoopConfig::default()).unwrap();
+    assert!(second.metric < 0.15, "after re-teaching: {}", second.metric);
+}
