@@ -41,8 +41,9 @@ pub struct TrainArgs {
     /// TOML file with a SmileConfig or MetaBcConfig (flags given here override it).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Continue the run in `--out` from its checkpoint.
-    #[arg(long)]
+    /// Continue the run in `--out` from its checkpoint (with its saved config.toml; flags
+    /// given here still override it).
+    #[arg(long, conflicts_with = "config")]
     resume: bool,
     /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger).
     #[arg(long)]
@@ -70,8 +71,16 @@ pub struct TrainArgs {
     quiet: bool,
 }
 
-fn read_toml<T: serde::de::DeserializeOwned + Default>(p: &Option<PathBuf>) -> Result<T> {
-    match p {
+/// The base configuration: the run's saved `config.toml` when resuming, else `--config`, else
+/// the defaults.
+fn read_toml<T: serde::de::DeserializeOwned + Default>(a: &TrainArgs) -> Result<T> {
+    let saved = a.out.join("config.toml");
+    let p = if a.resume {
+        Some(saved)
+    } else {
+        a.config.clone()
+    };
+    match &p {
         Some(p) => toml::from_str(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
         )
@@ -108,7 +117,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
 }
 
 fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
-    let mut cfg: SmileConfig = read_toml(&a.config)?;
+    let mut cfg: SmileConfig = read_toml(&a)?;
     cfg.env = family.name().into();
     cfg.context.state_only = a.algo == Algo::SmileStateOnly;
     if let Some(v) = a.updates {
@@ -168,7 +177,7 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
 }
 
 fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
-    let mut cfg: MetaBcConfig = read_toml(&a.config)?;
+    let mut cfg: MetaBcConfig = read_toml(&a)?;
     cfg.env = family.name().into();
     cfg.dagger = a.algo == Algo::MetaDagger;
     if let Some(v) = a.updates {

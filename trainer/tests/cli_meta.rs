@@ -1,0 +1,241 @@
+//! `smile train | eval | export` end to end on tiny budgets, and the held-out rule: the train
+//! command refuses meta-test demos.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+use trainer::meta_bc::MetaBcConfig;
+use trainer::sac::SacConfig;
+use trainer::smile::SmileConfig;
+
+fn smile(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(args)
+        .output()
+        .expect("run smile")
+}
+
+fn ok(out: &std::process::Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "stdout: {}\nstderr: {err}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    err
+}
+
+fn demos(split: Split, tasks: Vec<sim::Task>, path: &std::path::Path) {
+    let fam = Family::PointGoal;
+    let mut ds = DemoDataset::new(fam, split, "scripted-pd");
+    let mut env = sim::make_env(
+        fam,
+        EnvConfig {
+            horizon: Some(20),
+            ..EnvConfig::default()
+        },
+    )
+    .unwrap();
+    let pd = sim::PointGoalPdExpert::default();
+    for task in tasks {
+        let trajectories = (0..2)
+            .map(|j| {
+                sim::record_trajectory(env.as_mut(), &task, j, |o, a| pd.act(o, a).unwrap())
+                    .unwrap()
+            })
+            .collect();
+        ds.tasks.push(TaskDemos { task, trajectories });
+    }
+    ds.write(path).unwrap();
+}
+
+#[test]
+fn train_eval_export_and_refuse_meta_test_data() {
+    let dir: PathBuf = std::env::temp_dir().join(format!("smile-cli-meta-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let fam = Family::PointGoal;
+    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
+    demos(Split::Train, fam.train_tasks()[..8].to_vec(), &train);
+    demos(Split::Test, fam.test_tasks(), &test);
+    let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+
+    // Held-out honesty: a meta-test file is refused by every algorithm, before any training.
+    for algo in ["smile", "smile-state-only", "meta-bc", "meta-dagger"] {
+        let out_dir = dir.join(format!("refused-{algo}"));
+        let out = smile(&[
+            "train",
+            "--algo",
+            algo,
+            "--demos",
+            &s(&test),
+            "-o",
+            &s(&out_dir),
+            "--quiet",
+        ]);
+        assert!(!out.status.success(), "{algo} trained on meta-test demos");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("meta-test"), "{algo}: {err}");
+        assert!(
+            !out_dir.join("metrics.jsonl").exists()
+                && !out_dir.join("checkpoint.safetensors").exists()
+        );
+    }
+
+    // Tiny SMILe and Meta-BC runs from TOML configs.
+    let mut sc = SmileConfig {
+        disc_hidden: vec![16, 16],
+        sac: SacConfig {
+            hidden: vec![16, 16],
+            reward_scale: 8.0,
+            ..SacConfig::default()
+        },
+        tasks_per_batch: 4,
+        disc_per_task: 16,
+        sac_per_task: 16,
+        rollouts_per_iter: 1,
+        updates_per_iter: 10,
+        total_updates: 20,
+        holdout_every: 4,
+        eval_every: 10,
+        eval_episodes: 1,
+        horizon: Some(20),
+        ..SmileConfig::default()
+    };
+    sc.context.enc_hidden = vec![8];
+    sc.context.r_dim = 4;
+    sc.context.z_dim = 2;
+    std::fs::write(dir.join("smile.toml"), toml::to_string(&sc).unwrap()).unwrap();
+    let mut bc = MetaBcConfig {
+        policy_hidden: vec![16, 16],
+        tasks_per_batch: 4,
+        per_task: 16,
+        total_steps: 60,
+        holdout_every: 4,
+        eval_every: 30,
+        eval_episodes: 1,
+        horizon: Some(20),
+        ..MetaBcConfig::default()
+    };
+    bc.context = sc.context.clone();
+    std::fs::write(dir.join("bc.toml"), toml::to_string(&bc).unwrap()).unwrap();
+    let (run_s, run_b) = (dir.join("smile"), dir.join("bc"));
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "smile",
+        "--demos",
+        &s(&train),
+        "-o",
+        &s(&run_s),
+        "--config",
+        &s(&dir.join("smile.toml")),
+        "--quiet",
+    ]));
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        &s(&train),
+        "-o",
+        &s(&run_b),
+        "--config",
+        &s(&dir.join("bc.toml")),
+        "--quiet",
+    ]));
+    // Resume extends the run.
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "smile",
+        "--demos",
+        &s(&train),
+        "-o",
+        &s(&run_s),
+        "--resume",
+        "--updates",
+        "30",
+        "--quiet",
+    ]));
+    let ck: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run_s.join("checkpoint.json")).unwrap())
+            .unwrap();
+    assert_eq!(ck["updates"], 30);
+
+    // Eval: JSON, markdown and SVG, one method per policy.
+    let ev = dir.join("eval");
+    ok(&smile(&[
+        "eval",
+        "--policy",
+        &s(&run_s),
+        &s(&run_b),
+        "--contexts",
+        &s(&test),
+        "--rollouts",
+        "1",
+        "--horizon",
+        "20",
+        "-o",
+        &s(&ev),
+        "--render",
+        "--quiet",
+    ]));
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ev.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(rep["methods"].as_array().unwrap().len(), 2);
+    assert_eq!(rep["methods"][0]["tasks"].as_array().unwrap().len(), 16);
+    let md = std::fs::read_to_string(ev.join("eval.md")).unwrap();
+    let mean = rep["methods"][1]["mean"].as_f64().unwrap();
+    assert!(md.contains(&format!("{mean:.3}")), "{md}");
+    assert!(
+        std::fs::read_to_string(ev.join("eval.svg"))
+            .unwrap()
+            .contains("<svg")
+    );
+    assert!(ev.join("episode-0-smile.svg").exists());
+    // Eval refuses contexts of the wrong split.
+    assert!(
+        !smile(&[
+            "eval",
+            "--policy",
+            &s(&run_s),
+            "--contexts",
+            &s(&train),
+            "-o",
+            &s(&ev)
+        ])
+        .status
+        .success()
+    );
+
+    // Export with verification report.
+    let blob = dir.join("policy.blob");
+    ok(&smile(&[
+        "export",
+        "--policy",
+        &s(&run_s),
+        "--quant",
+        "w8a8",
+        "--demos",
+        &s(&train),
+        "--contexts",
+        &s(&test),
+        "--rollouts",
+        "1",
+        "--horizon",
+        "20",
+        "-o",
+        &s(&blob),
+    ]));
+    let bytes = std::fs::read(&blob).unwrap();
+    infer_core::Model::from_bytes(&bytes).unwrap();
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("policy.blob.json")).unwrap())
+            .unwrap();
+    assert_eq!(rep["bytes"].as_u64().unwrap() as usize, bytes.len());
+    assert_eq!(rep["parity"]["contexts"], 16);
+    assert!(rep["metric_blob"].as_f64().unwrap().is_finite());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
