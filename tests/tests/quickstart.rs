@@ -55,6 +55,16 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
         summary.parity
     );
 
+    // The export report beside the blob, as `smile export` writes it (read by `firmware-sim compare`).
+    let export: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("policy.blob.json")).unwrap())
+            .unwrap();
+    assert_eq!(
+        export["per_task_candle"].as_array().unwrap().len(),
+        Family::PointGoal.test_tasks().len()
+    );
+    assert_eq!(export["bytes"].as_u64().unwrap() as usize, blob.len());
+
     // summary.json is the returned summary; eval.json holds the same means.
     let on_disk: Summary =
         serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();

@@ -429,14 +429,30 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         parity.actions
     );
     let blob_result = evaluate(args, &mut actor, "SMILe w8a8 blob", &test)?;
-    let report = EvalReport {
+    // The same report `smile export` writes next to a blob, so that
+    // `firmware-sim compare --blob policy.blob` works on the quickstart's blob as it is.
+    let export_report = export::ExportReport {
+        bytes: blob.len(),
+        quant: "w8a8".into(),
+        algo: smile_policy.algo.clone(),
         env: args.env.name().into(),
-        split: Split::Test.to_string(),
+        parity: parity.clone(),
         metric: eval::metric_name(args.env.metric_kind()).into(),
-        lower_is_better: args.env.metric_kind() != sim::MetricKind::Return,
-        protocol: protocol(args),
-        methods: vec![smile_result.clone(), bc_result.clone(), blob_result.clone()],
+        split: Split::Test.to_string(),
+        metric_blob: blob_result.mean,
+        metric_candle: smile_result.mean,
+        metric_relative_difference: (blob_result.mean - smile_result.mean)
+            / smile_result.mean.abs().max(1e-9),
+        per_task_blob: blob_result.tasks.clone(),
+        per_task_candle: smile_result.tasks.clone(),
     };
+    write(&out.join("policy.blob.json"), json(&export_report)?)?;
+    let report = EvalReport::new(
+        args.env,
+        Split::Test,
+        protocol(args),
+        vec![smile_result.clone(), bc_result.clone(), blob_result.clone()],
+    );
     write(&out.join("eval.json"), json(&report)?)?;
     write(&out.join("eval.md"), report.markdown())?;
     report.plot_svg(&out.join("eval.svg"))?;
