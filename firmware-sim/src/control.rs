@@ -120,6 +120,9 @@ pub enum LoopError {
     /// The plant refused something (a bug if it happens: actions are always finite).
     #[error("plant: {0}")]
     Plant(#[from] sim::SimError),
+    /// The sensor noise std is negative or not finite.
+    #[error("sensor noise std must be finite and >= 0, got {0}")]
+    Noise(f32),
     /// The requested rate is not a divisor of the plant's rate.
     #[error("control rate {rate} Hz must divide the plant rate {plant} Hz")]
     Rate {
@@ -157,10 +160,11 @@ pub fn run(
         .ticks
         .unwrap_or(plant.horizon().div_ceil(steps_per_tick));
     let mut noise_rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45);
-    let noise = Normal::new(0.0f32, config.noise_std.max(0.0)).map_err(|_| LoopError::Rate {
-        rate,
-        plant: plant_rate,
-    })?;
+    if !(config.noise_std.is_finite() && config.noise_std >= 0.0) {
+        return Err(LoopError::Noise(config.noise_std));
+    }
+    let noise =
+        Normal::new(0.0f32, config.noise_std).map_err(|_| LoopError::Noise(config.noise_std))?;
     let act_dim = plant.act_dim();
     let mut metric = EpisodeMetric::new(task.family());
     let mut safe = vec![0.0; act_dim];
