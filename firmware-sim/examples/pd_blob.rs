@@ -8,8 +8,8 @@
 
 use std::path::PathBuf;
 
-use firmware_sim::reference::pd_point_goal_model;
-use infer_core::{Calibration, Quant, write_blob};
+use firmware_sim::reference::pd_point_goal_blob;
+use infer_core::Quant;
 use sim::{
     DemoDataset, EnvConfig, Family, PointGoalPdExpert, Split, TaskDemos, make_env,
     record_trajectory,
@@ -21,24 +21,17 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut env = make_env(Family::PointGoal, EnvConfig::default())?;
     let expert = PointGoalPdExpert::default();
     let mut demos = DemoDataset::new(Family::PointGoal, Split::Test, "scripted-pd");
-    let mut calibration = Calibration::default();
     for (i, task) in Family::PointGoal.test_tasks().iter().enumerate() {
         let demo = record_trajectory(env.as_mut(), task, 1000 + i as u64, |o, a| {
             expert.act(o, a).expect("oracle obs has the right length")
         })?;
-        let rows = (0..demo.len())
-            .filter_map(|k| demo.transition(k, 4, 2))
-            .map(|t| [t.obs, t.action, t.next_obs].concat());
-        calibration.contexts.push(vec![rows.collect()]);
-        calibration
-            .observations
-            .extend(demo.obs.chunks(4).map(<[f32]>::to_vec));
         demos.tasks.push(TaskDemos {
             task: *task,
             trajectories: vec![demo],
         });
     }
-    let blob = write_blob(&pd_point_goal_model(), Quant::W8A8, &calibration)?;
+    let recorded: Vec<_> = demos.tasks.iter().map(|t| &t.trajectories[0]).collect();
+    let blob = pd_point_goal_blob(Quant::W8A8, &recorded)?;
     std::fs::write(dir.join("pd.blob"), &blob)?;
     demos.write(dir.join("demos.safetensors"))?;
     println!(

@@ -45,3 +45,31 @@ pub fn pd_point_goal_model() -> FloatModel {
         policy: vec![policy],
     }
 }
+
+/// w8a8 calibration data from point-goal demos: each demo is one single-trajectory context
+/// of raw `[s, a, s']` rows, and its states are the observations.
+pub fn point_goal_calibration(demos: &[&sim::Trajectory]) -> infer_core::Calibration {
+    let mut calibration = infer_core::Calibration::default();
+    for demo in demos {
+        let rows = (0..demo.len())
+            .filter_map(|i| demo.transition(i, 4, 2))
+            .map(|t| [t.obs, t.action, t.next_obs].concat());
+        calibration.contexts.push(vec![rows.collect()]);
+        calibration
+            .observations
+            .extend(demo.obs.chunks(4).map(<[f32]>::to_vec));
+    }
+    calibration
+}
+
+/// The reference policy as blob bytes, calibrated on `demos`.
+pub fn pd_point_goal_blob(
+    quant: infer_core::Quant,
+    demos: &[&sim::Trajectory],
+) -> Result<Vec<u8>, infer_core::WriteError> {
+    infer_core::write_blob(
+        &pd_point_goal_model(),
+        quant,
+        &point_goal_calibration(demos),
+    )
+}

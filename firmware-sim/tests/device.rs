@@ -17,15 +17,7 @@ fn demo(task: &Task, seed: u64) -> Trajectory {
 }
 
 fn blob(quant: Quant, demo: &Trajectory) -> Vec<u8> {
-    let rows: Vec<Vec<f32>> = (0..demo.len())
-        .filter_map(|i| demo.transition(i, 4, 2))
-        .map(|t| [t.obs, t.action, t.next_obs].concat())
-        .collect();
-    let calib = Calibration {
-        contexts: vec![vec![rows]],
-        observations: demo.obs.chunks(4).map(<[f32]>::to_vec).collect(),
-    };
-    write_blob(&reference::pd_point_goal_model(), quant, &calib).unwrap()
+    reference::pd_point_goal_blob(quant, &[demo]).unwrap()
 }
 
 fn flashed(blob: &[u8], link: LinkConfig) -> (Device, SimLink) {

@@ -4,7 +4,7 @@
 
 use firmware_sim::link::{LinkConfig, SimLink};
 use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, reference, run};
-use infer_core::{Calibration, Model, Quant, write_blob};
+use infer_core::{Model, Quant};
 use sim::{DemoDataset, EnvConfig, Family, Split, make_env};
 use trainer::demos::{DemoSpec, record};
 use trainer::expert::{Expert, export_scripted_pd};
@@ -33,18 +33,8 @@ fn demos_from_the_trainer_teach_a_device_through_a_file() {
     assert_eq!(demos.tasks.len(), tasks.len());
 
     // Calibrate the w8a8 blob on the recorded demos, as the exporter does.
-    let mut calibration = Calibration::default();
-    for t in &demos.tasks {
-        let d = &t.trajectories[0];
-        let rows = (0..d.len())
-            .filter_map(|i| d.transition(i, 4, 2))
-            .map(|t| [t.obs, t.action, t.next_obs].concat());
-        calibration.contexts.push(vec![rows.collect()]);
-        calibration
-            .observations
-            .extend(d.obs.chunks(4).map(<[f32]>::to_vec));
-    }
-    let blob = write_blob(&reference::pd_point_goal_model(), Quant::W8A8, &calibration).unwrap();
+    let recorded: Vec<_> = demos.tasks.iter().map(|t| &t.trajectories[0]).collect();
+    let blob = reference::pd_point_goal_blob(Quant::W8A8, &recorded).unwrap();
 
     for task_demos in &demos.tasks {
         let mut device = Device::new(DeviceConfig::default());
