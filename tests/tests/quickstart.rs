@@ -107,3 +107,50 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
         );
     }
 }
+
+#[test]
+fn a_slow_family_is_refused_at_the_short_budget_and_runs_tiny() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("cv");
+    let short = QuickstartConfig {
+        env: Family::CheetahVel,
+        out: out.clone(),
+        quiet: true,
+        ..QuickstartConfig::default()
+    };
+    let err = run(&short).unwrap_err().to_string();
+    assert!(
+        err.contains("--budget long") && err.contains("hours"),
+        "{err}"
+    );
+    assert!(
+        !out.exists(),
+        "a refused run must not leave a directory behind"
+    );
+
+    // The tiny budget trains a (useless) SAC expert and runs every stage on cheetah-vel.
+    let tiny = QuickstartConfig {
+        budget: Budget::Tiny,
+        ..short
+    };
+    let summary = run(&tiny).unwrap();
+    assert_eq!(summary.env, "cheetah-vel");
+    assert!(
+        summary.expert.starts_with("SAC expert"),
+        "{}",
+        summary.expert
+    );
+    assert_eq!(
+        summary.device_ticks, 200,
+        "cheetah-vel runs 200-step episodes in the quickstart"
+    );
+    let blob = std::fs::read(out.join("policy.blob")).unwrap();
+    assert_eq!(
+        infer_core::Model::from_bytes(&blob)
+            .unwrap()
+            .header()
+            .obs_dim as usize,
+        Family::CheetahVel.obs_dim()
+    );
+    assert!(Expert::load(&out.join("expert")).is_ok());
+}
