@@ -171,6 +171,7 @@ pub fn run(
     controller.safe_action(&mut safe);
     let mut last_applied = safe.clone();
     let mut pending = safe.clone();
+    let mut applied = safe.clone();
     let mut sensed = plant.reset(task, config.seed)?.to_vec();
     let (mut records, mut compute_ns) = (Vec::with_capacity(ticks), Vec::with_capacity(ticks));
     let (mut overruns, mut faults) = (0, 0);
@@ -204,17 +205,15 @@ pub fn run(
         faults += fault as usize;
         let overrun = ns as f64 > config.budget_us * 1e3;
         overruns += overrun as usize;
-        let fresh = if overrun {
-            last_applied.clone()
+        // Actuators. A late action is dropped (hold the last one); with latency the bus
+        // delivers the previous tick's action. Fixed buffers: no allocation per tick here.
+        let fresh = if overrun { &last_applied } else { &computed };
+        if config.latency {
+            applied.copy_from_slice(&pending);
+            pending.copy_from_slice(fresh);
         } else {
-            computed.clone()
-        };
-        // Actuators.
-        let applied = if config.latency {
-            std::mem::replace(&mut pending, fresh)
-        } else {
-            fresh
-        };
+            applied.copy_from_slice(fresh);
+        }
         let mut reward = 0.0;
         let mut info = sim::StepInfo::default();
         for _ in 0..steps_per_tick {
@@ -227,6 +226,7 @@ pub fn run(
                 break;
             }
         }
+        // The trace is the host's view of the run, not part of the device.
         records.push(TickRecord {
             tick,
             time: tick as f32 / rate,
@@ -240,7 +240,7 @@ pub fn run(
             fault,
             overrun,
         });
-        last_applied = applied;
+        last_applied.copy_from_slice(&applied);
     }
     Ok(RunReport {
         records,
