@@ -419,7 +419,6 @@ impl Smile {
         let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
         let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(t);
         let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
-        let mut pol = BatchVecs::default();
         for &ti in &tasks {
             let demos = &self.data.train[ti];
             specs.push(sample_context(demos, cfg.max_context, &mut self.rng));
@@ -446,7 +445,7 @@ impl Smile {
                     x_exp.extend_from_slice(a);
                 }
             }
-            pol = BatchVecs::default();
+            let mut pol = BatchVecs::default();
             self.replay
                 .task(ti)
                 .sample_into(n, &mut self.rng, &mut pol)?;
@@ -464,7 +463,6 @@ impl Smile {
                 }
             }
         }
-        drop(pol);
         let dev = &Device::Cpu;
         let xd = self.x_dim();
         let b = self.encoder.batch(&self.data.norm, &specs)?;
