@@ -13,9 +13,15 @@
 //!   meta-test data), context sampling, rollouts.
 //! * [`smile`]: SMILe (state-action and state-only): discriminator, encoder, SAC on its reward.
 //! * [`meta_bc`]: Meta-BC and Meta-DAgger (validation-based early stopping).
+//! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot).
+//! * [`export`]: infer-core blob export with parity and metric verification.
+//! * [`quickstart`]: the whole pipeline in one call (`smile quickstart`).
+//! * [`progress`]: the shared progress-bar style.
 //! * [`checkpoint`]: atomic safetensors checkpoints with JSON metadata.
 //! * [`demos`]: deterministic expert demonstrations in sim's dataset format.
-//! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert.
+//! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert;
+//!   [`expert_eval`]: their evaluation on a split.
+//! * [`bench`]: timing of the learner's update steps (`smile bench`).
 //! * [`metrics`]: the JSON-lines metrics log.
 //! * [`threads`]: the compute thread layout (candle's matmul thread count).
 #![warn(missing_docs)]
