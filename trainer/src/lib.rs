@@ -21,7 +21,7 @@
 //! * [`demos`]: deterministic expert demonstrations in sim's dataset format.
 //! * [`expert`]: oracle SAC experts (training loop, export, loading) and the scripted PD expert;
 //!   [`expert_eval`]: their evaluation on a split.
-//! * [`bench`]: timing of the learner's update steps (`smile bench`).
+//! * [`bench`](mod@bench): timing of the learner's update steps (`smile bench`).
 //! * [`metrics`]: the JSON-lines metrics log.
 //! * [`threads`]: the compute thread layout (candle's matmul thread count).
 #![warn(missing_docs)]
