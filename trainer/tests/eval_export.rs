@@ -1,34 +1,14 @@
 //! Evaluation outputs and blob export parity on a tiny Meta-BC policy.
 
-use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+mod common;
+
+use sim::{Family, Split};
 use trainer::eval::{self, EvalReport, Protocol};
 use trainer::export::{self, BlobActor};
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 use trainer::meta_data::MetaData;
 
-fn demos(split: Split, tasks: Vec<sim::Task>, per_task: usize, horizon: usize) -> DemoDataset {
-    let fam = Family::PointGoal;
-    let mut ds = DemoDataset::new(fam, split, "scripted-pd");
-    let mut env = sim::make_env(
-        fam,
-        EnvConfig {
-            horizon: Some(horizon),
-            ..EnvConfig::default()
-        },
-    )
-    .unwrap();
-    let pd = sim::PointGoalPdExpert::default();
-    for task in tasks {
-        let trajectories = (0..per_task)
-            .map(|j| {
-                sim::record_trajectory(env.as_mut(), &task, j as u64, |o, a| pd.act(o, a).unwrap())
-                    .unwrap()
-            })
-            .collect();
-        ds.tasks.push(TaskDemos { task, trajectories });
-    }
-    ds
-}
+use common::pd_demos as demos;
 
 #[test]
 fn eval_report_and_blob_parity() {

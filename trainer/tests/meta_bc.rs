@@ -1,33 +1,15 @@
 //! Meta-BC and Meta-DAgger on tiny networks.
 
-use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+mod common;
+
+use sim::{DemoDataset, Family};
 use trainer::context::MetaPolicy;
 use trainer::expert::Expert;
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 use trainer::meta_data::MetaData;
 
 fn demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
-    let fam = Family::PointGoal;
-    let mut ds = DemoDataset::new(fam, Split::Train, "scripted-pd");
-    let mut env = sim::make_env(
-        fam,
-        EnvConfig {
-            horizon: Some(horizon),
-            ..EnvConfig::default()
-        },
-    )
-    .unwrap();
-    let pd = sim::PointGoalPdExpert::default();
-    for task in fam.train_tasks().into_iter().take(tasks) {
-        let trajectories = (0..per_task)
-            .map(|j| {
-                sim::record_trajectory(env.as_mut(), &task, j as u64, |o, a| pd.act(o, a).unwrap())
-                    .unwrap()
-            })
-            .collect();
-        ds.tasks.push(TaskDemos { task, trajectories });
-    }
-    ds
+    common::train_demos(tasks, per_task, horizon)
 }
 
 fn tiny(dagger: bool) -> MetaBcConfig {
