@@ -6,9 +6,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use sim::{DemoDataset, EnvConfig, Family, Split};
-use trainer::context::MetaPolicy;
 use trainer::eval::{self, EvalReport, Protocol};
 use trainer::export;
+use trainer::meta_policy::MetaPolicy;
 
 /// Arguments of `smile eval`.
 #[derive(Args, Debug)]

@@ -171,7 +171,7 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     res.with_context(|| format!("SMILe training in {}", a.out.display()))?;
     eprintln!(
         "wrote {}",
-        a.out.join(trainer::context::META_POLICY_FILE).display()
+        a.out.join(trainer::meta_policy::META_POLICY_FILE).display()
     );
     Ok(())
 }
@@ -240,7 +240,7 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     res.with_context(|| format!("{} training in {}", cfg.algo_name(), a.out.display()))?;
     eprintln!(
         "wrote {}",
-        a.out.join(trainer::context::META_POLICY_FILE).display()
+        a.out.join(trainer::meta_policy::META_POLICY_FILE).display()
     );
     Ok(())
 }

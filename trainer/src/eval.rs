@@ -19,8 +19,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
 
-use crate::context::MetaPolicy;
 use crate::meta_data::run_episode;
+use crate::meta_policy::MetaPolicy;
 use crate::{Error, Result};
 
 /// Something that turns a context into z and acts deterministically given z: a candle

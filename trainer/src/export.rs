@@ -10,8 +10,8 @@
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
-use crate::context::MetaPolicy;
 use crate::eval::ConditionedActor;
+use crate::meta_policy::MetaPolicy;
 use crate::{Error, Result};
 
 /// Widest layer the blob runners here accept.

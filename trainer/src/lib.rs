@@ -7,11 +7,14 @@
 //! * [`replay`]: flat preallocated ring replay buffers (one per task for meta-learning).
 //! * [`sac`]: soft actor-critic (SAC v2: twin Q, Polyak targets, learned temperature) and its
 //!   hyper-parameters.
-//! * [`context`]: the context encoder + conditioned policy every meta-learner shares, and its
+//! * [`context`]: the permutation-invariant context encoder and observation normalisation
+//!   every meta-learner shares.
+//! * [`meta_policy`]: encoder + conditioned policy, saved and loaded as one file, and its
 //!   conversion to infer-core's blob structure.
 //! * [`meta_data`]: meta-train demos split into training / held-out train tasks (refuses
 //!   meta-test data), context sampling, rollouts.
-//! * [`smile`]: SMILe (state-action and state-only): discriminator, encoder, SAC on its reward.
+//! * [`smile`]: SMILe (state-action and state-only): discriminator, encoder, SAC on its reward;
+//!   [`disc`]: its discriminator losses (BCE with logits, gradient penalty).
 //! * [`meta_bc`]: Meta-BC and Meta-DAgger (validation-based early stopping).
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot).
 //! * [`export`]: infer-core blob export with parity and metric verification.
@@ -30,6 +33,7 @@ pub mod bench;
 pub mod checkpoint;
 pub mod context;
 pub mod demos;
+pub mod disc;
 pub mod eval;
 pub mod expert;
 pub mod expert_eval;
@@ -37,6 +41,7 @@ pub mod export;
 pub mod fused;
 pub mod meta_bc;
 pub mod meta_data;
+pub mod meta_policy;
 pub mod metrics;
 pub mod nn;
 pub mod policy;

@@ -29,9 +29,10 @@ use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Environment, Family, TaskDemos};
 
 use crate::checkpoint;
-use crate::context::{ContextConfig, ContextEncoder, ContextSpec, MetaPolicy};
+use crate::context::{ContextConfig, ContextEncoder, ContextSpec};
 use crate::expert::{Expert, rng_from_state, rng_state};
 use crate::meta_data::{MetaData, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::meta_policy::MetaPolicy;
 use crate::metrics::MetricsLog;
 use crate::nn::{Adam, AdamConfig};
 use crate::policy::TanhGaussianPolicy;
@@ -576,7 +577,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
         source: e,
     })?;
     run.meta_policy().save(&last)?;
-    if !dir.join(crate::context::META_POLICY_FILE).exists() {
+    if !dir.join(crate::meta_policy::META_POLICY_FILE).exists() {
         run.meta_policy().save(dir)?;
     }
     Ok(())

@@ -12,7 +12,8 @@ use sim::{
     Trajectory,
 };
 
-use crate::context::{ContextSpec, MetaPolicy, ObsNorm};
+use crate::context::{ContextSpec, ObsNorm};
+use crate::meta_policy::MetaPolicy;
 use crate::{Error, Result};
 
 /// Meta-train demos, split into training tasks and held-out train tasks.

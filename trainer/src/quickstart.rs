@@ -14,13 +14,13 @@ use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_neede
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
-use crate::context::MetaPolicy;
 use crate::demos::{DemoSpec, record};
 use crate::eval::{self, EvalReport, MethodResult, Protocol};
 use crate::expert::{self, Expert};
 use crate::export::{self, BlobActor, Parity};
 use crate::meta_bc::{self, MetaBc, MetaBcConfig};
 use crate::meta_data::MetaData;
+use crate::meta_policy::MetaPolicy;
 use crate::progress::bar;
 use crate::smile::{self, Smile, SmileConfig};
 use crate::{Error, Result};

@@ -34,197 +34,22 @@ use std::path::Path;
 use candle_core::{DType, Device, Tensor};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
-use sim::{EnvConfig, Environment, Family};
+use sim::Environment;
 
-use crate::checkpoint;
-use crate::context::{ContextConfig, ContextEncoder, ContextSpec, MetaPolicy, policy_input};
-use crate::expert::{rng_from_state, rng_state};
+mod config;
+mod persist;
+
+pub use config::SmileConfig;
+
+use crate::context::{ContextEncoder, ContextSpec, policy_input};
+use crate::disc::{DiscStats, bce_with_logits, gradient_penalty};
 use crate::meta_data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::meta_policy::MetaPolicy;
 use crate::metrics::MetricsLog;
 use crate::nn::{Adam, AdamConfig, Mlp};
 use crate::replay::{BatchVecs, TaskReplay};
-use crate::sac::{Sac, SacConfig, SacCounters};
+use crate::sac::Sac;
 use crate::{Error, Result};
-
-/// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
-/// CPU: encoder 64 -> r 32 -> z 16, discriminator and SAC 2 x 128, reward scale 8, gradient
-/// penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes 64 (reference 128).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct SmileConfig {
-    /// Task family. Default `point-goal`.
-    pub env: String,
-    /// Encoder and latent (its `state_only` selects the state-only variant everywhere).
-    pub context: ContextConfig,
-    /// SAC on `[norm(s), z]`. Default: hidden [128, 128], reward scale 8, learned alpha.
-    pub sac: SacConfig,
-    /// Discriminator hidden widths. Default [128, 128] (§7; the paper 3 x 512).
-    pub disc_hidden: Vec<usize>,
-    /// Discriminator learning rate. Default 3e-4.
-    pub disc_lr: f32,
-    /// Encoder learning rate. Default 3e-4.
-    pub enc_lr: f32,
-    /// Gradient-penalty weight lambda_gp. Default 1 (§7: 1 beat the paper's 10 on point-goal).
-    pub gp_weight: f32,
-    /// Logit clamp. Default 10.
-    pub logit_clamp: f32,
-    /// Distinct tasks per discriminator / SAC batch. Default 8.
-    pub tasks_per_batch: usize,
-    /// Expert and policy transitions per task in a discriminator batch. Default 64 (ref 128).
-    pub disc_per_task: usize,
-    /// Replay transitions per task in a SAC batch. Default 64 (ref 128).
-    pub sac_per_task: usize,
-    /// Most context trajectories (contexts use k in 1..=this). Default 4.
-    pub max_context: usize,
-    /// Rollouts per iteration. Default 5 (ref).
-    pub rollouts_per_iter: usize,
-    /// Update pairs per iteration. Default 100 (ref).
-    pub updates_per_iter: usize,
-    /// Total update pairs. Default 15 000 (§7: 12k-22k reached <= 0.15 on point-goal).
-    pub total_updates: u64,
-    /// Replay capacity per task. Default 20 000.
-    pub replay_per_task: usize,
-    /// Hold out every n-th meta-train task for validation (0: none). Default 8.
-    pub holdout_every: usize,
-    /// Evaluate on the held-out train tasks every this many updates (0: never). Default 1000.
-    pub eval_every: u64,
-    /// Deterministic episodes per held-out task and context in that evaluation. Default 2.
-    pub eval_episodes: usize,
-    /// Checkpoint every this many updates (at iteration ends). Default 2000.
-    pub checkpoint_every: u64,
-    /// Episode length override. Default None.
-    pub horizon: Option<usize>,
-    /// Seed of everything. Default 0.
-    pub seed: u64,
-}
-
-impl Default for SmileConfig {
-    fn default() -> Self {
-        Self {
-            env: "point-goal".into(),
-            context: ContextConfig::default(),
-            sac: SacConfig {
-                hidden: vec![128, 128],
-                reward_scale: 8.0,
-                ..SacConfig::default()
-            },
-            disc_hidden: vec![128, 128],
-            disc_lr: 3e-4,
-            enc_lr: 3e-4,
-            gp_weight: 1.0,
-            logit_clamp: 10.0,
-            tasks_per_batch: 8,
-            disc_per_task: 64,
-            sac_per_task: 64,
-            max_context: 4,
-            rollouts_per_iter: 5,
-            updates_per_iter: 100,
-            total_updates: 15_000,
-            replay_per_task: 20_000,
-            holdout_every: 8,
-            eval_every: 1000,
-            eval_episodes: 2,
-            checkpoint_every: 2000,
-            horizon: None,
-            seed: 0,
-        }
-    }
-}
-
-impl SmileConfig {
-    /// The family named by `env`.
-    pub fn family(&self) -> Result<Family> {
-        self.env
-            .parse::<Family>()
-            .map_err(|e| Error::Config(e.to_string()))
-    }
-
-    /// Episode options.
-    pub fn env_config(&self) -> EnvConfig {
-        EnvConfig {
-            horizon: self.horizon,
-            ..EnvConfig::default()
-        }
-    }
-
-    /// Reject values that cannot train.
-    pub fn validate(&self) -> Result<()> {
-        self.family()?;
-        self.sac.validate()?;
-        if self.tasks_per_batch == 0
-            || self.disc_per_task == 0
-            || self.sac_per_task == 0
-            || self.max_context == 0
-            || self.updates_per_iter == 0
-        {
-            return Err(Error::Config(
-                "smile batch sizes and counts must be positive".into(),
-            ));
-        }
-        if self.gp_weight < 0.0 || self.logit_clamp <= 0.0 {
-            return Err(Error::Config(
-                "gp_weight must be >= 0 and logit_clamp > 0".into(),
-            ));
-        }
-        Ok(())
-    }
-
-    /// Algorithm name as used on the command line.
-    pub fn algo_name(&self) -> &'static str {
-        if self.context.state_only {
-            "smile-state-only"
-        } else {
-            "smile"
-        }
-    }
-}
-
-/// `dD/dx` of a ReLU MLP with a scalar output, per row, as a differentiable function of the
-/// weights (for the gradient penalty; candle has no double backward through our fused
-/// layers). With row-vector layers `h_{l+1} = relu(h_l W_l + b_l)`:
-/// `g = (((1 W_L^T) . m_{L-1}) W_{L-1}^T . ... . m_0) W_0^T`, where `m_l = 1[pre-activation > 0]`
-/// (constants: ReLU's second derivative is zero almost everywhere, so this equals PyTorch's
-/// `create_graph=True` gradient).
-pub fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
-    let vars = net.vars();
-    let n = vars.len() / 2;
-    let mut masks = Vec::with_capacity(n - 1);
-    let mut h = x.detach();
-    for l in 0..n - 1 {
-        let pre = h
-            .matmul(&vars[2 * l].as_tensor().detach())?
-            .broadcast_add(&vars[2 * l + 1].as_tensor().detach())?;
-        masks.push(pre.gt(0.0)?.to_dtype(DType::F32)?);
-        h = pre.relu()?;
-    }
-    let rows = x.dim(0)?;
-    let w_last = vars[2 * (n - 1)].as_tensor(); // (h, 1)
-    let mut g = Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?.matmul(&w_last.t()?)?;
-    for l in (0..n - 1).rev() {
-        g = (g * &masks[l])?.matmul(&vars[2 * l].as_tensor().t()?)?;
-    }
-    Ok(g)
-}
-
-/// BCE with logits, `mean[max(l, 0) - l y + ln(1 + e^{-|l|})]`.
-pub fn bce_with_logits(logits: &Tensor, labels: &Tensor) -> Result<Tensor> {
-    let softplus = (logits.relu()? + logits.abs()?.neg()?.exp()?.affine(1.0, 1.0)?.log()?)?;
-    Ok((softplus - (logits * labels)?)?.mean_all()?)
-}
-
-/// Scalars of one discriminator step.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct DiscStats {
-    /// `losses/disc_bce`.
-    pub bce: f32,
-    /// `losses/disc_gp`.
-    pub gp: f32,
-    /// `charts/disc_acc_expert`: fraction of expert rows with logit > 0.
-    pub acc_expert: f32,
-    /// `charts/disc_acc_policy`: fraction of policy rows with logit < 0.
-    pub acc_policy: f32,
-}
 
 /// Events reported to the caller of [`train`].
 #[derive(Debug, Clone, Copy)]
@@ -500,11 +325,7 @@ impl Smile {
         if cfg.gp_weight > 0.0 {
             let u: Vec<f32> = (0..t * n).map(|_| self.rng.random::<f32>()).collect();
             let u = Tensor::from_vec(u, (t * n, 1), dev)?;
-            let x_mix = (xe.broadcast_mul(&u)? + xp.broadcast_mul(&u.affine(-1.0, 1.0)?)?)?;
-            let mix = Tensor::cat(&[&x_mix, &z_rows.detach()], 1)?;
-            let g = input_gradient(&self.disc, &mix)?.narrow(1, 0, xd)?;
-            let norm = (g.sqr()?.sum_keepdim(1)? + 1e-12)?.sqrt()?;
-            let gp = (norm - 1.0)?.sqr()?.mean_all()?;
+            let gp = gradient_penalty(&self.disc, &xe, &xp, &z_rows, &u)?;
             gp_v = scalar(&gp)?;
             loss = (loss + (gp * cfg.gp_weight as f64)?)?;
         }
@@ -600,113 +421,6 @@ impl Smile {
             self.cfg.env_config(),
         )
     }
-
-    /// Writes the checkpoint (every tensor, the RNG, the counters and the config) to `dir`.
-    pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
-        let mut ts: Vec<(String, Tensor)> = Vec::new();
-        let mut put = |p: &str, m: &Mlp| {
-            for (i, v) in m.vars().iter().enumerate() {
-                ts.push((format!("{p}.{i}"), v.as_tensor().detach()));
-            }
-        };
-        put("phi", &self.encoder.phi);
-        put("head", &self.encoder.head);
-        put("disc", &self.disc);
-        let (sac_ts, sac_counters) = self.sac.state_tensors()?;
-        ts.extend(sac_ts.into_iter().map(|(k, v)| (format!("sac.{k}"), v)));
-        let mut steps = [0u64; 2];
-        for (k, (name, opt)) in [("disc_opt", &self.disc_opt), ("enc_opt", &self.enc_opt)]
-            .into_iter()
-            .enumerate()
-        {
-            let (m, v, s) = opt.state()?;
-            for (i, t) in m.into_iter().enumerate() {
-                ts.push((format!("{name}.m.{i}"), t));
-            }
-            for (i, t) in v.into_iter().enumerate() {
-                ts.push((format!("{name}.v.{i}"), t));
-            }
-            steps[k] = s;
-        }
-        ts.extend(self.replay.to_tensors("replay")?);
-        let meta = serde_json::json!({
-            "kind": "smile-run",
-            "config": self.cfg,
-            "norm": self.data.norm,
-            "sac_counters": sac_counters,
-            "adam_steps": steps,
-            "updates": self.updates,
-            "env_steps": self.env_steps,
-            "episodes": self.episodes,
-            "best": if self.best.is_nan() { serde_json::Value::Null } else { self.best.into() },
-            "rng": rng_state(&self.rng),
-        });
-        checkpoint::save(dir, &ts, &meta)?;
-        Ok(())
-    }
-
-    /// Resumes the run checkpointed in `dir` on the same `data`; `total_updates` overrides the
-    /// saved target.
-    pub fn resume(dir: &Path, data: MetaData, total_updates: Option<u64>) -> Result<Self> {
-        let ck = checkpoint::load(dir)?;
-        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("smile-run") {
-            return Err(Error::Checkpoint {
-                path: ck.path().into(),
-                reason: "not a SMILe run".into(),
-            });
-        }
-        let mut cfg: SmileConfig = ck.meta_field("config")?;
-        if let Some(t) = total_updates {
-            cfg.total_updates = t;
-        }
-        let mut run = Self::new(cfg, data)?;
-        let wrap = |e: Error| Error::Checkpoint {
-            path: ck.path().to_path_buf(),
-            reason: format!("does not match this configuration or data: {e}"),
-        };
-        let get = |n: &str| ck.get(n);
-        let load = |p: &str, m: &Mlp| -> Result<()> {
-            let ts = (0..m.vars().len())
-                .map(|i| get(&format!("{p}.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            m.load_from(&ts)
-        };
-        load("phi", &run.encoder.phi).map_err(wrap)?;
-        load("head", &run.encoder.head).map_err(wrap)?;
-        load("disc", &run.disc).map_err(wrap)?;
-        let counters: SacCounters = ck.meta_field("sac_counters")?;
-        run.sac
-            .load_state(&|n| ck.get(&format!("sac.{n}")), counters)
-            .map_err(wrap)?;
-        let steps: [u64; 2] = ck.meta_field("adam_steps")?;
-        for (k, (name, opt)) in [
-            ("disc_opt", &mut run.disc_opt),
-            ("enc_opt", &mut run.enc_opt),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let n = if k == 0 {
-                run.disc.vars().len()
-            } else {
-                run.encoder.vars().len()
-            };
-            let m = (0..n)
-                .map(|i| get(&format!("{name}.m.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            let v = (0..n)
-                .map(|i| get(&format!("{name}.v.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            opt.set_state(&m, &v, steps[k]).map_err(wrap)?;
-        }
-        run.replay.load_tensors("replay", &get).map_err(wrap)?;
-        run.updates = ck.meta_field("updates")?;
-        run.env_steps = ck.meta_field("env_steps")?;
-        run.episodes = ck.meta_field("episodes")?;
-        run.best = ck.meta_field::<Option<f32>>("best")?.unwrap_or(f32::NAN);
-        run.rng = rng_from_state(&ck.meta_field("rng")?).map_err(wrap)?;
-        Ok(run)
-    }
 }
 
 /// Trains until `total_updates`, logging to `dir/metrics.jsonl`, evaluating on held-out train
@@ -794,49 +508,8 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         source: e,
     })?;
     run.meta_policy().save(&last)?;
-    if run.data.val.is_empty() || !dir.join(crate::context::META_POLICY_FILE).exists() {
+    if run.data.val.is_empty() || !dir.join(crate::meta_policy::META_POLICY_FILE).exists() {
         run.meta_policy().save(dir)?;
     }
     Ok(())
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use candle_core::Var;
-
-    #[test]
-    fn input_gradient_matches_autograd() {
-        let mut rng = ChaCha8Rng::seed_from_u64(11);
-        let net = Mlp::new(&[5, 7, 6, 1], &mut rng).unwrap();
-        let x: Vec<f32> = (0..20)
-            .map(|i| ((i * 37 % 11) as f32 - 5.0) * 0.3)
-            .collect();
-        let xv = Var::from_tensor(&Tensor::from_vec(x, (4, 5), &Device::Cpu).unwrap()).unwrap();
-        let grads = net
-            .forward(xv.as_tensor())
-            .unwrap()
-            .sum_all()
-            .unwrap()
-            .backward()
-            .unwrap();
-        let auto = grads.get(xv.as_tensor()).unwrap().to_vec2::<f32>().unwrap();
-        let ours = input_gradient(&net, xv.as_tensor())
-            .unwrap()
-            .to_vec2::<f32>()
-            .unwrap();
-        for (a, b) in auto.iter().flatten().zip(ours.iter().flatten()) {
-            assert!((a - b).abs() < 1e-5, "{a} vs {b}");
-        }
-        // And it is differentiable in the weights: the penalty has weight gradients.
-        let gp = input_gradient(&net, xv.as_tensor())
-            .unwrap()
-            .sqr()
-            .unwrap()
-            .sum_all()
-            .unwrap();
-        let g = gp.backward().unwrap();
-        assert!(g.get(net.vars()[0].as_tensor()).is_some());
-        assert!(g.get(net.vars()[4].as_tensor()).is_some());
-    }
 }

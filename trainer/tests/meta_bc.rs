@@ -3,10 +3,10 @@
 mod common;
 
 use sim::{DemoDataset, Family};
-use trainer::context::MetaPolicy;
 use trainer::expert::Expert;
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 use trainer::meta_data::MetaData;
+use trainer::meta_policy::MetaPolicy;
 
 fn demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     common::train_demos(tasks, per_task, horizon)

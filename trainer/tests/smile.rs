@@ -5,8 +5,8 @@
 mod common;
 
 use sim::{DemoDataset, Family};
-use trainer::context::MetaPolicy;
 use trainer::meta_data::MetaData;
+use trainer::meta_policy::MetaPolicy;
 use trainer::sac::SacConfig;
 use trainer::smile::{self, Smile, SmileConfig};
 

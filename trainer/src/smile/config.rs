@@ -1,0 +1,141 @@
+//! SMILe's hyper-parameters.
+
+use serde::{Deserialize, Serialize};
+use sim::{EnvConfig, Family};
+
+use crate::context::ContextConfig;
+use crate::sac::SacConfig;
+use crate::{Error, Result};
+
+/// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
+/// CPU: encoder 64 -> r 32 -> z 16, discriminator and SAC 2 x 128, reward scale 8, gradient
+/// penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes 64 (reference 128).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SmileConfig {
+    /// Task family. Default `point-goal`.
+    pub env: String,
+    /// Encoder and latent (its `state_only` selects the state-only variant everywhere).
+    pub context: ContextConfig,
+    /// SAC on `[norm(s), z]`. Default: hidden [128, 128], reward scale 8, learned alpha.
+    pub sac: SacConfig,
+    /// Discriminator hidden widths. Default [128, 128] (§7; the paper 3 x 512).
+    pub disc_hidden: Vec<usize>,
+    /// Discriminator learning rate. Default 3e-4.
+    pub disc_lr: f32,
+    /// Encoder learning rate. Default 3e-4.
+    pub enc_lr: f32,
+    /// Gradient-penalty weight lambda_gp. Default 1 (§7: 1 beat the paper's 10 on point-goal).
+    pub gp_weight: f32,
+    /// Logit clamp. Default 10.
+    pub logit_clamp: f32,
+    /// Distinct tasks per discriminator / SAC batch. Default 8.
+    pub tasks_per_batch: usize,
+    /// Expert and policy transitions per task in a discriminator batch. Default 64 (ref 128).
+    pub disc_per_task: usize,
+    /// Replay transitions per task in a SAC batch. Default 64 (ref 128).
+    pub sac_per_task: usize,
+    /// Most context trajectories (contexts use k in 1..=this). Default 4.
+    pub max_context: usize,
+    /// Rollouts per iteration. Default 5 (ref).
+    pub rollouts_per_iter: usize,
+    /// Update pairs per iteration. Default 100 (ref).
+    pub updates_per_iter: usize,
+    /// Total update pairs. Default 15 000 (§7: 12k-22k reached <= 0.15 on point-goal).
+    pub total_updates: u64,
+    /// Replay capacity per task. Default 20 000.
+    pub replay_per_task: usize,
+    /// Hold out every n-th meta-train task for validation (0: none). Default 8.
+    pub holdout_every: usize,
+    /// Evaluate on the held-out train tasks every this many updates (0: never). Default 1000.
+    pub eval_every: u64,
+    /// Deterministic episodes per held-out task and context in that evaluation. Default 2.
+    pub eval_episodes: usize,
+    /// Checkpoint every this many updates (at iteration ends). Default 2000.
+    pub checkpoint_every: u64,
+    /// Episode length override. Default None.
+    pub horizon: Option<usize>,
+    /// Seed of everything. Default 0.
+    pub seed: u64,
+}
+
+impl Default for SmileConfig {
+    fn default() -> Self {
+        Self {
+            env: "point-goal".into(),
+            context: ContextConfig::default(),
+            sac: SacConfig {
+                hidden: vec![128, 128],
+                reward_scale: 8.0,
+                ..SacConfig::default()
+            },
+            disc_hidden: vec![128, 128],
+            disc_lr: 3e-4,
+            enc_lr: 3e-4,
+            gp_weight: 1.0,
+            logit_clamp: 10.0,
+            tasks_per_batch: 8,
+            disc_per_task: 64,
+            sac_per_task: 64,
+            max_context: 4,
+            rollouts_per_iter: 5,
+            updates_per_iter: 100,
+            total_updates: 15_000,
+            replay_per_task: 20_000,
+            holdout_every: 8,
+            eval_every: 1000,
+            eval_episodes: 2,
+            checkpoint_every: 2000,
+            horizon: None,
+            seed: 0,
+        }
+    }
+}
+
+impl SmileConfig {
+    /// The family named by `env`.
+    pub fn family(&self) -> Result<Family> {
+        self.env
+            .parse::<Family>()
+            .map_err(|e| Error::Config(e.to_string()))
+    }
+
+    /// Episode options.
+    pub fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            horizon: self.horizon,
+            ..EnvConfig::default()
+        }
+    }
+
+    /// Reject values that cannot train.
+    pub fn validate(&self) -> Result<()> {
+        self.family()?;
+        self.sac.validate()?;
+        if self.tasks_per_batch == 0
+            || self.disc_per_task == 0
+            || self.sac_per_task == 0
+            || self.max_context == 0
+            || self.updates_per_iter == 0
+        {
+            return Err(Error::Config(
+                "smile batch sizes and counts must be positive".into(),
+            ));
+        }
+        if self.gp_weight < 0.0 || self.logit_clamp <= 0.0 {
+            return Err(Error::Config(
+                "gp_weight must be >= 0 and logit_clamp > 0".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Algorithm name as used on the command line.
+    pub fn algo_name(&self) -> &'static str {
+        if self.context.state_only {
+            "smile-state-only"
+        } else {
+            "smile"
+        }
+    }
+}

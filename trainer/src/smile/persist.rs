@@ -1,0 +1,123 @@
+//! Checkpoints of a SMILe run: every tensor, both optimisers, the replay buffers, the RNG and
+//! the counters, so that a resumed run continues exactly.
+
+use std::path::Path;
+
+use candle_core::Tensor;
+
+use super::{Smile, SmileConfig};
+use crate::checkpoint;
+use crate::expert::{rng_from_state, rng_state};
+use crate::meta_data::MetaData;
+use crate::nn::Mlp;
+use crate::sac::SacCounters;
+use crate::{Error, Result};
+
+impl Smile {
+    /// Writes the checkpoint (every tensor, the RNG, the counters and the config) to `dir`.
+    pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        let mut ts: Vec<(String, Tensor)> = Vec::new();
+        let mut put = |p: &str, m: &Mlp| {
+            for (i, v) in m.vars().iter().enumerate() {
+                ts.push((format!("{p}.{i}"), v.as_tensor().detach()));
+            }
+        };
+        put("phi", &self.encoder.phi);
+        put("head", &self.encoder.head);
+        put("disc", &self.disc);
+        let (sac_ts, sac_counters) = self.sac.state_tensors()?;
+        ts.extend(sac_ts.into_iter().map(|(k, v)| (format!("sac.{k}"), v)));
+        let mut steps = [0u64; 2];
+        for (k, (name, opt)) in [("disc_opt", &self.disc_opt), ("enc_opt", &self.enc_opt)]
+            .into_iter()
+            .enumerate()
+        {
+            let (m, v, s) = opt.state()?;
+            for (i, t) in m.into_iter().enumerate() {
+                ts.push((format!("{name}.m.{i}"), t));
+            }
+            for (i, t) in v.into_iter().enumerate() {
+                ts.push((format!("{name}.v.{i}"), t));
+            }
+            steps[k] = s;
+        }
+        ts.extend(self.replay.to_tensors("replay")?);
+        let meta = serde_json::json!({
+            "kind": "smile-run",
+            "config": self.cfg,
+            "norm": self.data.norm,
+            "sac_counters": sac_counters,
+            "adam_steps": steps,
+            "updates": self.updates,
+            "env_steps": self.env_steps,
+            "episodes": self.episodes,
+            "best": if self.best.is_nan() { serde_json::Value::Null } else { self.best.into() },
+            "rng": rng_state(&self.rng),
+        });
+        checkpoint::save(dir, &ts, &meta)?;
+        Ok(())
+    }
+
+    /// Resumes the run checkpointed in `dir` on the same `data`; `total_updates` overrides the
+    /// saved target.
+    pub fn resume(dir: &Path, data: MetaData, total_updates: Option<u64>) -> Result<Self> {
+        let ck = checkpoint::load(dir)?;
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("smile-run") {
+            return Err(Error::Checkpoint {
+                path: ck.path().into(),
+                reason: "not a SMILe run".into(),
+            });
+        }
+        let mut cfg: SmileConfig = ck.meta_field("config")?;
+        if let Some(t) = total_updates {
+            cfg.total_updates = t;
+        }
+        let mut run = Self::new(cfg, data)?;
+        let wrap = |e: Error| Error::Checkpoint {
+            path: ck.path().to_path_buf(),
+            reason: format!("does not match this configuration or data: {e}"),
+        };
+        let get = |n: &str| ck.get(n);
+        let load = |p: &str, m: &Mlp| -> Result<()> {
+            let ts = (0..m.vars().len())
+                .map(|i| get(&format!("{p}.{i}")))
+                .collect::<Result<Vec<_>>>()?;
+            m.load_from(&ts)
+        };
+        load("phi", &run.encoder.phi).map_err(wrap)?;
+        load("head", &run.encoder.head).map_err(wrap)?;
+        load("disc", &run.disc).map_err(wrap)?;
+        let counters: SacCounters = ck.meta_field("sac_counters")?;
+        run.sac
+            .load_state(&|n| ck.get(&format!("sac.{n}")), counters)
+            .map_err(wrap)?;
+        let steps: [u64; 2] = ck.meta_field("adam_steps")?;
+        for (k, (name, opt)) in [
+            ("disc_opt", &mut run.disc_opt),
+            ("enc_opt", &mut run.enc_opt),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let n = if k == 0 {
+                run.disc.vars().len()
+            } else {
+                run.encoder.vars().len()
+            };
+            let m = (0..n)
+                .map(|i| get(&format!("{name}.m.{i}")))
+                .collect::<Result<Vec<_>>>()?;
+            let v = (0..n)
+                .map(|i| get(&format!("{name}.v.{i}")))
+                .collect::<Result<Vec<_>>>()?;
+            opt.set_state(&m, &v, steps[k]).map_err(wrap)?;
+        }
+        run.replay.load_tensors("replay", &get).map_err(wrap)?;
+        run.updates = ck.meta_field("updates")?;
+        run.env_steps = ck.meta_field("env_steps")?;
+        run.episodes = ck.meta_field("episodes")?;
+        run.best = ck.meta_field::<Option<f32>>("best")?.unwrap_or(f32::NAN);
+        run.rng = rng_from_state(&ck.meta_field("rng")?).map_err(wrap)?;
+        Ok(run)
+    }
+}
