@@ -86,28 +86,38 @@ pub fn export_blob(
         .map_err(|e| Error::Config(format!("blob writer: {e}")))
 }
 
-/// A loaded blob as a [`ConditionedActor`].
-pub struct BlobActor<'a> {
-    model: infer_core::Model<'a>,
+/// Loads (and fully validates) `blob` with infer-core, refusing layers wider than the
+/// runners' capacity [`BLOB_CAPACITY`].
+pub fn load_blob(blob: &[u8]) -> Result<infer_core::Model<'_>> {
+    let model = infer_core::Model::from_bytes(blob)
+        .map_err(|e| Error::Config(format!("blob does not load: {e}")))?;
+    if model.max_width() > BLOB_CAPACITY {
+        return Err(Error::Shape(format!(
+            "blob layer width {} exceeds {BLOB_CAPACITY}",
+            model.max_width()
+        )));
+    }
+    Ok(model)
 }
 
-impl<'a> BlobActor<'a> {
-    /// Loads (and fully validates) `blob`.
-    pub fn new(blob: &'a [u8]) -> Result<Self> {
-        let model = infer_core::Model::from_bytes(blob)
-            .map_err(|e| Error::Config(format!("blob does not load: {e}")))?;
-        if model.max_width() > BLOB_CAPACITY {
-            return Err(Error::Shape(format!(
-                "blob layer width {} exceeds {BLOB_CAPACITY}",
-                model.max_width()
-            )));
-        }
-        Ok(Self { model })
+/// A loaded blob as a [`ConditionedActor`]: one infer-core policy runner, built once and
+/// reused for every action (as on the device).
+pub struct BlobActor<'m, 'a> {
+    model: &'m infer_core::Model<'a>,
+    policy: infer_core::Policy<'m, 'a, BLOB_CAPACITY>,
+}
+
+impl<'m, 'a> BlobActor<'m, 'a> {
+    /// An actor on `model` (from [`load_blob`]).
+    pub fn new(model: &'m infer_core::Model<'a>) -> Result<Self> {
+        let policy = infer_core::Policy::<BLOB_CAPACITY>::new(model)
+            .map_err(|e| Error::Config(e.to_string()))?;
+        Ok(Self { model, policy })
     }
 
     /// The loaded model.
     pub fn model(&self) -> &infer_core::Model<'a> {
-        &self.model
+        self.model
     }
 }
 
@@ -115,11 +125,11 @@ fn infer_err(e: infer_core::InferError) -> Error {
     Error::Config(format!("blob inference: {e}"))
 }
 
-impl ConditionedActor for BlobActor<'_> {
+impl ConditionedActor for BlobActor<'_, '_> {
     fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
         let h = *self.model.header();
         let (od, ad) = (h.obs_dim as usize, h.act_dim as usize);
-        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(&self.model)
+        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(self.model)
             .map_err(|e| Error::Config(e.to_string()))?;
         for t in context {
             for i in 0..t.len() {
@@ -138,9 +148,7 @@ impl ConditionedActor for BlobActor<'_> {
     }
 
     fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
-        let mut p = infer_core::Policy::<BLOB_CAPACITY>::new(&self.model)
-            .map_err(|e| Error::Config(e.to_string()))?;
-        p.act(obs, z, action).map_err(infer_err)
+        self.policy.act(obs, z, action).map_err(infer_err)
     }
 }
 
@@ -161,7 +169,11 @@ pub struct Parity {
 
 /// Compares the blob with the candle policy on every task of `contexts` (context = the
 /// task's first trajectory; observations = the states of all its trajectories).
-pub fn parity(mp: &MetaPolicy, blob: &mut BlobActor<'_>, contexts: &DemoDataset) -> Result<Parity> {
+pub fn parity(
+    mp: &MetaPolicy,
+    blob: &mut BlobActor<'_, '_>,
+    contexts: &DemoDataset,
+) -> Result<Parity> {
     let mut mp = mp.clone();
     let ad = contexts.act_dim;
     let (mut zmax, mut amax, mut asum, mut n, mut c) = (0.0f32, 0.0f32, 0.0f64, 0usize, 0usize);
@@ -238,7 +250,8 @@ pub fn verify(
     contexts: &DemoDataset,
     protocol: &crate::eval::Protocol,
 ) -> Result<ExportReport> {
-    let mut actor = BlobActor::new(blob)?;
+    let model = load_blob(blob)?;
+    let mut actor = BlobActor::new(&model)?;
     let parity = parity(mp, &mut actor, contexts)?;
     let (family, split) = (mp.family, contexts.split);
     let blob_m = crate::eval::evaluate(

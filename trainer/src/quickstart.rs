@@ -484,7 +484,8 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     );
     let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, &train)?;
     write(&out.join("policy.blob"), &blob)?;
-    let mut actor = BlobActor::new(&blob)?;
+    let model = export::load_blob(&blob)?;
+    let mut actor = BlobActor::new(&model)?;
     let parity = export::parity(&smile_policy, &mut actor, &test)?;
     eprintln!(
         "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
