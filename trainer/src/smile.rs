@@ -411,12 +411,12 @@ impl Smile {
         Ok((stats, reward_mean))
     }
 
-    /// Deterministic evaluation on the held-out train tasks (1 context trajectory, 2 contexts).
+    /// Deterministic evaluation on the held-out train tasks (one-trajectory contexts).
     pub fn validate(&self) -> Result<f32> {
         quick_eval(
             &self.meta_policy(),
             &self.data.val,
-            2,
+            self.cfg.eval_contexts,
             self.cfg.eval_episodes,
             self.cfg.env_config(),
         )

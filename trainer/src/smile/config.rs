@@ -49,7 +49,11 @@ pub struct SmileConfig {
     pub holdout_every: usize,
     /// Evaluate on the held-out train tasks every this many updates (0: never). Default 1000.
     pub eval_every: u64,
-    /// Deterministic episodes per held-out task and context in that evaluation. Default 2.
+    /// Context draws (one demo each, in order) per held-out task in that evaluation. Default 4
+    /// (every demo of a 4-demo task once): this evaluation picks the kept policy, and with 2
+    /// draws its noise made the pick optimistic.
+    pub eval_contexts: usize,
+    /// Deterministic episodes per held-out task and context in that evaluation. Default 3.
     pub eval_episodes: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
@@ -84,7 +88,8 @@ impl Default for SmileConfig {
             replay_per_task: 20_000,
             holdout_every: 8,
             eval_every: 1000,
-            eval_episodes: 2,
+            eval_contexts: 4,
+            eval_episodes: 3,
             checkpoint_every: 2000,
             horizon: None,
             seed: 0,
