@@ -37,7 +37,10 @@ impl WalkerDynamics {
     }
 
     /// Dynamics drawn from `seed` with ChaCha8: masses and inertias x 1.5^U(-3,3), joint
-    /// damping x 1.3^U(-3,3), friction x 1.5^U(-3,3), each factor independent.
+    /// damping x 1.3^U(-3,3), friction x 1.5^U(-3,3), each factor independent. This is the raw
+    /// draw for any seed; a walker-dyn task maps its seed through
+    /// [`crate::Task::walker_dynamics`], which gives [`Self::nominal`] for the reserved
+    /// [`crate::WALKER_NOMINAL_SEED`].
     pub fn from_seed(seed: u64) -> Self {
         let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x5741_4c4b_4552_4459); // "WALKERDY"
         let mut factor = |base: f32| base.powf(rng.random_range(-3.0f32..=3.0));

@@ -40,17 +40,19 @@ pub type CheetahVelEnv = PlanarLeggedEnv;
 pub type WalkerDynEnv = PlanarLeggedEnv;
 
 fn scaling_of(task: &Task) -> Scaling {
-    match *task {
-        Task::WalkerDyn { dynamics_seed } => {
-            let d = WalkerDynamics::from_seed(dynamics_seed);
-            Scaling {
-                mass: d.mass,
-                inertia: d.inertia,
-                friction: d.friction,
-                damping: d.damping,
-            }
-        }
-        _ => Scaling::NOMINAL,
+    match task.walker_dynamics() {
+        Some(WalkerDynamics {
+            mass,
+            inertia,
+            damping,
+            friction,
+        }) => Scaling {
+            mass,
+            inertia,
+            friction,
+            damping,
+        },
+        None => Scaling::NOMINAL,
     }
 }
 
@@ -330,6 +332,18 @@ mod tests {
             run(Family::WalkerDyn, walker, 4),
             run(Family::WalkerDyn, Task::walker_dyn(4), 4)
         );
+    }
+
+    #[test]
+    fn the_nominal_walker_task_builds_the_unmodified_robot() {
+        let s = scaling_of(&Task::walker_nominal());
+        let n = Scaling::NOMINAL;
+        assert_eq!(
+            (s.mass, s.inertia, s.friction, s.damping),
+            (n.mass, n.inertia, n.friction, n.damping)
+        );
+        let d = scaling_of(&Task::walker_dyn(crate::WALKER_TEST_SEED_BASE));
+        assert_ne!(d.mass, n.mass);
     }
 
     #[test]

@@ -43,6 +43,14 @@ pub enum MetricKind {
 pub const WALKER_TRAIN_SEED_BASE: u64 = 0;
 /// Walker dynamics seeds of the meta-test split are `WALKER_TEST_SEED_BASE + i`, i in 0..25.
 pub const WALKER_TEST_SEED_BASE: u64 = 10_000;
+/// The dynamics seed reserved for the *unmodified* walker: `Task::walker_dyn(WALKER_NOMINAL_SEED)`
+/// (also [`Task::walker_nominal`]) has every factor 1 ([`WalkerDynamics::nominal`]), so its
+/// task parameter is all zeros. It is `u32::MAX`, the largest seed
+/// [`Family::task_from_value`] accepts, far outside both splits' seed ranges; the walker-dyn
+/// normalised metric's "base" policy is trained on it (`smile expert --env walker-dyn --nominal`).
+/// A seed rather than a new [`Task`] variant, so every path that names a task by its value
+/// (CLI `--task-value`, datasets, policy files) handles it unchanged.
+pub const WALKER_NOMINAL_SEED: u64 = u32::MAX as u64;
 
 impl Family {
     /// Every family, in CLI order.
@@ -211,7 +219,8 @@ pub enum Task {
     },
     /// walker-dyn: walk under the dynamics drawn from this seed.
     WalkerDyn {
-        /// Seed of the dynamics randomisation (see [`WalkerDynamics::from_seed`]).
+        /// Seed of the dynamics randomisation (see [`WalkerDynamics::from_seed`]);
+        /// [`WALKER_NOMINAL_SEED`] means the unmodified robot.
         dynamics_seed: u64,
     },
 }
@@ -230,9 +239,28 @@ impl Task {
         Task::CheetahVel { target_velocity }
     }
 
-    /// A walker-dyn task whose dynamics are drawn from `dynamics_seed`.
+    /// A walker-dyn task whose dynamics are drawn from `dynamics_seed` (except the reserved
+    /// [`WALKER_NOMINAL_SEED`], the unmodified robot).
     pub fn walker_dyn(dynamics_seed: u64) -> Task {
         Task::WalkerDyn { dynamics_seed }
+    }
+
+    /// The walker-dyn task with the unmodified dynamics (seed [`WALKER_NOMINAL_SEED`]); in
+    /// neither split.
+    pub fn walker_nominal() -> Task {
+        Task::walker_dyn(WALKER_NOMINAL_SEED)
+    }
+
+    /// The dynamics of a walker-dyn task (`None` for other families): the one place a seed
+    /// becomes factors, so the environment and the task parameter always agree.
+    pub fn walker_dynamics(&self) -> Option<WalkerDynamics> {
+        match *self {
+            Task::WalkerDyn {
+                dynamics_seed: WALKER_NOMINAL_SEED,
+            } => Some(WalkerDynamics::nominal()),
+            Task::WalkerDyn { dynamics_seed } => Some(WalkerDynamics::from_seed(dynamics_seed)),
+            _ => None,
+        }
     }
 
     /// The family this task belongs to.
@@ -280,8 +308,11 @@ impl Task {
                 out.copy_from_slice(&self.goal().unwrap_or_default());
             }
             Task::CheetahVel { target_velocity } => out[0] = target_velocity,
-            Task::WalkerDyn { dynamics_seed } => {
-                WalkerDynamics::from_seed(dynamics_seed).write_log_factors(out)
+            Task::WalkerDyn { .. } => {
+                let dynamics = self
+                    .walker_dynamics()
+                    .unwrap_or_else(WalkerDynamics::nominal);
+                dynamics.write_log_factors(out)
             }
         }
         Ok(())
@@ -300,6 +331,9 @@ impl Task {
         match *self {
             Task::PointGoal { goal_angle } => format!("goal_angle={goal_angle:.4}"),
             Task::CheetahVel { target_velocity } => format!("target_velocity={target_velocity:.2}"),
+            Task::WalkerDyn {
+                dynamics_seed: WALKER_NOMINAL_SEED,
+            } => format!("dynamics_seed={WALKER_NOMINAL_SEED} (nominal)"),
             Task::WalkerDyn { dynamics_seed } => format!("dynamics_seed={dynamics_seed}"),
         }
     }
@@ -364,5 +398,42 @@ mod tests {
         }
         assert!(Family::WalkerDyn.task_from_value(1.5).is_err());
         assert!(Family::CheetahVel.task_from_value(f64::NAN).is_err());
+    }
+
+    #[test]
+    fn the_nominal_walker_seed_is_the_unmodified_robot_in_neither_split() {
+        let nominal = Task::walker_nominal();
+        assert_eq!(
+            Family::WalkerDyn.task_from_value(WALKER_NOMINAL_SEED as f64),
+            Ok(nominal)
+        );
+        assert_eq!(
+            Family::WalkerDyn.task_from_value(nominal.value()),
+            Ok(nominal)
+        );
+        assert_eq!(nominal.walker_dynamics(), Some(WalkerDynamics::nominal()));
+        assert_ne!(
+            WalkerDynamics::from_seed(WALKER_NOMINAL_SEED),
+            WalkerDynamics::nominal(),
+            "the raw draw of the reserved seed is not nominal: only Task maps it"
+        );
+        let parameter = nominal.parameter();
+        assert_eq!(parameter.len(), WalkerDynamics::VECTOR_DIM);
+        assert!(parameter.iter().all(|p| *p == 0.0), "{parameter:?}");
+        for split in [Split::Train, Split::Test] {
+            let tasks = Family::WalkerDyn.tasks(split);
+            assert!(
+                !tasks.contains(&nominal),
+                "nominal walker in the {split} split"
+            );
+            // Every split task really is randomised (non-zero parameter).
+            assert!(
+                tasks
+                    .iter()
+                    .all(|t| t.parameter().iter().any(|p| *p != 0.0))
+            );
+        }
+        assert!(nominal.label().contains("nominal"));
+        assert_eq!(Task::cheetah_vel(1.0).walker_dynamics(), None);
     }
 }
