@@ -61,6 +61,10 @@ pub struct ExpertArgs {
     /// or dynamics seed), e.g. a meta-test task.
     #[arg(long, allow_hyphen_values = true)]
     task_value: Option<f64>,
+    /// walker-dyn only: train on the unmodified dynamics (the task value
+    /// `sim::WALKER_NOMINAL_SEED`, in neither split): the "base" policy of `smile eval --base`.
+    #[arg(long, conflicts_with_all = ["task_index", "task_value"])]
+    nominal: bool,
     /// Checkpoint every N env steps.
     #[arg(long)]
     checkpoint_every: Option<u64>,
@@ -105,6 +109,14 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     if a.task_value.is_some() {
         cfg.task_value = a.task_value;
     }
+    if a.nominal {
+        if cfg.family()? != Family::WalkerDyn {
+            bail!("--nominal exists only for walker-dyn, not {}", cfg.env);
+        }
+        // A config file's task_index would silently win over the flag otherwise.
+        cfg.task_index = None;
+        cfg.task_value = Some(sim::WALKER_NOMINAL_SEED as f64);
+    }
     cfg.family()?;
     cfg.sac.validate()?;
     Ok(cfg)
@@ -148,10 +160,10 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
         }
         None => {
             let cfg = effective_config(&a)?;
-            let dir = a
-                .out
-                .clone()
-                .unwrap_or_else(|| PathBuf::from(format!("runs/expert-{}-s{}", cfg.env, cfg.seed)));
+            let nominal = if a.nominal { "-nominal" } else { "" };
+            let dir = a.out.clone().unwrap_or_else(|| {
+                PathBuf::from(format!("runs/expert-{}{nominal}-s{}", cfg.env, cfg.seed))
+            });
             (ExpertTrainer::new(cfg)?, dir)
         }
     };

@@ -37,7 +37,8 @@ pub struct ExpertConfig {
     /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
     pub task_index: Option<usize>,
     /// Train on this one task given by its parameter instead (goal angle in rad, target
-    /// velocity in m/s, dynamics seed), e.g. a meta-test task: per-task experts for demos.
+    /// velocity in m/s, dynamics seed), e.g. a meta-test task: per-task experts for demos;
+    /// `sim::WALKER_NOMINAL_SEED` is the unmodified walker (the normalised metric's base).
     /// Default: None.
     pub task_value: Option<f64>,
     /// Environment steps in total. Default 30 000 (point-goal; cheetah needs ~160k, ref §7).

@@ -30,7 +30,7 @@ struct Cli {
 enum Cmd {
     /// Train an oracle SAC expert on a family's meta-train tasks (or export the scripted one).
     #[command(
-        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
+        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
     )]
     Expert(cli_expert::ExpertArgs),
     /// Record deterministic expert demonstrations in sim's dataset format.
