@@ -7,6 +7,7 @@ use clap::Args;
 use indicatif::{ProgressBar, ProgressStyle};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 use trainer::eval::{self, EvalReport, Protocol};
+use trainer::eval_norm::References;
 use trainer::export;
 use trainer::meta_policy::MetaPolicy;
 
@@ -37,6 +38,14 @@ pub struct EvalArgs {
     /// Also save one animated SVG episode per method (first task, first context trajectory).
     #[arg(long)]
     render: bool,
+    /// walker-dyn normalised metric: the base policy, trained on the unmodified dynamics
+    /// (`smile expert --env walker-dyn --nominal`). Needs --expert.
+    #[arg(long, requires = "expert")]
+    base: Option<PathBuf>,
+    /// walker-dyn normalised metric: the experts, as for `smile demos --expert` (per-task
+    /// experts, comma separated, each task uses its own; or one general expert). Needs --base.
+    #[arg(long, requires = "base", num_args = 1.., value_delimiter = ',')]
+    expert: Vec<PathBuf>,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -47,6 +56,25 @@ fn env_cfg(horizon: Option<usize>) -> EnvConfig {
         horizon,
         ..EnvConfig::default()
     }
+}
+
+fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
+    let pb = if quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(tasks as u64)
+    };
+    pb.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} tasks {msg}")
+            .expect("static")
+            .progress_chars("=> "),
+    );
+    pb.set_message(message);
+    pb
+}
+
+fn mean(xs: &[f32]) -> f32 {
+    xs.iter().sum::<f32>() / xs.len().max(1) as f32
 }
 
 fn method_name(p: &std::path::Path, mp: &MetaPolicy) -> String {
@@ -74,7 +102,28 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
         protocol.rollouts = r;
     }
     protocol.horizon = a.horizon;
+    // Loaded before any rollout so a wrong base or expert fails fast.
+    let references = match &a.base {
+        Some(base) => Some(References::load(family, base, &a.expert)?),
+        None => None,
+    };
     std::fs::create_dir_all(&a.out)?;
+    let reference = match &references {
+        Some(refs) => {
+            let pb = bar(family.tasks(a.split).len(), a.quiet, "base + expert".into());
+            let r = refs.returns(a.split, &protocol, &mut |i, _| pb.set_position(i as u64))?;
+            pb.finish_and_clear();
+            eprintln!(
+                "base {}: mean return {:.4}; expert {}: mean return {:.4}",
+                r.base,
+                mean(&r.base_returns),
+                r.expert,
+                mean(&r.expert_returns)
+            );
+            Some(r)
+        }
+        None => None,
+    };
     let mut methods = Vec::new();
     for (idx, p) in a.policy.iter().enumerate() {
         let mut mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
@@ -82,18 +131,7 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
             bail!("{} was trained on {}, not {family}", p.display(), mp.family);
         }
         let name = method_name(p, &mp);
-        let n = family.tasks(a.split).len() as u64;
-        let pb = if a.quiet {
-            ProgressBar::hidden()
-        } else {
-            ProgressBar::new(n)
-        };
-        pb.set_style(
-            ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} tasks {msg}")
-                .expect("static")
-                .progress_chars("=> "),
-        );
-        pb.set_message(name.clone());
+        let pb = bar(family.tasks(a.split).len(), a.quiet, name.clone());
         let r = eval::evaluate(
             &mut mp,
             &name,
@@ -124,7 +162,20 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
         }
         methods.push(r);
     }
-    let report = EvalReport::new(family, a.split, protocol, methods);
+    let mut report = EvalReport::new(family, a.split, protocol, methods);
+    if let Some(r) = reference {
+        report = report.with_reference(r)?;
+        for m in &report.methods {
+            if let Some(n) = &m.normalised {
+                let score = n.score.map_or("none".into(), |x| format!("{x:.4}"));
+                eprintln!(
+                    "{}: normalised score {score} over {} tasks ({} skipped: expert not better \
+                     than base)",
+                    m.name, n.tasks_used, n.tasks_skipped
+                );
+            }
+        }
+    }
     std::fs::write(
         a.out.join("eval.json"),
         serde_json::to_string_pretty(&report)?,

@@ -5,11 +5,19 @@
 //! |---|---|---|---|
 //! | point-goal | 1 | 3 x 10 | min distance to the goal |
 //! | cheetah-vel | 1, 2, 3, 4 | 3 x 5 | mean over steps of abs(v - v*) |
-//! | walker-dyn | 1 | 3 x 1 | return (the custom normalised metric needs base and expert returns; not computed here) |
+//! | walker-dyn | 1 | 3 x 1 | return; with a base and expert(s) also the normalised metric |
 //!
 //! Draw `d` of size `k` for task `i` uses `k` distinct trajectories chosen by a seeded RNG
-//! (seed from `(i, k, d)`), so every method sees the same contexts. Outputs: JSON
-//! ([`EvalReport`]), a markdown table and an SVG plot (metric per task, one line per method).
+//! (seed from `(i, k, d)`), so every method sees the same contexts; rollout `r` of draw `d`
+//! resets with [`episode_seed`]`(d, r)`. Outputs: JSON ([`EvalReport`]), a markdown table and
+//! an SVG plot (metric per task, one line per method).
+//!
+//! walker-dyn's normalised metric (Table 2 left): per test task the returns R_base of a policy
+//! trained on the unmodified dynamics and R_expert of the task's expert, rolled out
+//! deterministically with the same episode seeds and horizon as the methods
+//! ([`crate::eval_norm`]); per method the mean over tasks with R_expert > R_base of
+//! (R_pi - R_base) / (R_expert - R_base) ([`normalised_score`]), the other tasks skipped and
+//! counted.
 
 use std::path::Path;
 
@@ -113,6 +121,69 @@ pub struct MethodResult {
     pub episode_std: f32,
     /// Mean over tasks per context size.
     pub by_context_size: Vec<f32>,
+    /// walker-dyn's normalised metric, when the evaluation had reference returns.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normalised: Option<NormalisedScore>,
+}
+
+/// Per-task returns of the normalised metric's reference policies, in the order of the
+/// methods' tasks, over the same episode seeds and horizon as the methods.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ReferenceReturns {
+    /// The base policy (trained on the unmodified dynamics).
+    pub base: String,
+    /// The expert(s).
+    pub expert: String,
+    /// R_base per task.
+    pub base_returns: Vec<f32>,
+    /// R_expert per task.
+    pub expert_returns: Vec<f32>,
+}
+
+/// One method's normalised score, (R_pi - R_base) / (R_expert - R_base) averaged over the tasks
+/// where R_expert > R_base.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NormalisedScore {
+    /// Mean over the tasks used; `None` when every task was skipped.
+    pub score: Option<f32>,
+    /// Per task; `None` where the task was skipped.
+    pub per_task: Vec<Option<f32>>,
+    /// Tasks with R_expert > R_base.
+    pub tasks_used: usize,
+    /// Tasks with R_expert <= R_base (or a non-finite reference return).
+    pub tasks_skipped: usize,
+}
+
+/// The normalised metric of one method from per-task returns (all three in the same task
+/// order): tasks where the expert is not better than the base are skipped, as in the paper
+/// (equal returns would divide by zero).
+pub fn normalised_score(method: &[f32], base: &[f32], expert: &[f32]) -> Result<NormalisedScore> {
+    if method.len() != base.len() || method.len() != expert.len() {
+        return Err(Error::Shape(format!(
+            "normalised metric: {} method returns, {} base returns, {} expert returns",
+            method.len(),
+            base.len(),
+            expert.len()
+        )));
+    }
+    // `>` is false for NaN, so a non-finite reference return also skips the task.
+    let per_task: Vec<Option<f32>> = (method.iter().zip(base).zip(expert))
+        .map(|((&r, &b), &e)| (e > b && e.is_finite() && b.is_finite()).then(|| (r - b) / (e - b)))
+        .collect();
+    let used: Vec<f32> = per_task.iter().flatten().copied().collect();
+    Ok(NormalisedScore {
+        score: (!used.is_empty()).then(|| mean_std(&used).0),
+        tasks_used: used.len(),
+        tasks_skipped: per_task.len() - used.len(),
+        per_task,
+    })
+}
+
+/// Reset seed of rollout `rollout` of context draw `draw` (every context size reuses them);
+/// the reference policies of the normalised metric reuse them too, so all face the same
+/// initial states.
+pub fn episode_seed(draw: usize, rollout: usize) -> u64 {
+    7_000_000 + (draw * 1000 + rollout) as u64
 }
 
 /// A whole evaluation.
@@ -130,6 +201,9 @@ pub struct EvalReport {
     pub protocol: Protocol,
     /// One entry per method.
     pub methods: Vec<MethodResult>,
+    /// The normalised metric's reference returns (walker-dyn with `--base` and `--expert`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub reference: Option<ReferenceReturns>,
 }
 
 /// Metric name of a family.
@@ -141,7 +215,7 @@ pub fn metric_name(kind: MetricKind) -> &'static str {
     }
 }
 
-fn mean_std(xs: &[f32]) -> (f32, f32) {
+pub(crate) fn mean_std(xs: &[f32]) -> (f32, f32) {
     if xs.is_empty() {
         return (f32::NAN, f32::NAN);
     }
@@ -208,7 +282,7 @@ pub fn evaluate(
                 pick.truncate(k.min(trajs.len()));
                 let z = actor.latent(&pick)?;
                 for r in 0..protocol.rollouts {
-                    let seed = 7_000_000 + (d * 1000 + r) as u64;
+                    let seed = episode_seed(d, r);
                     let ep = run_episode(
                         env.as_mut(),
                         task,
@@ -253,6 +327,7 @@ pub fn evaluate(
         episode_mean,
         episode_std,
         by_context_size,
+        normalised: None,
     })
 }
 
@@ -271,7 +346,22 @@ impl EvalReport {
             lower_is_better: family.metric_kind() != MetricKind::Return,
             protocol,
             methods,
+            reference: None,
         }
+    }
+
+    /// Adds the normalised metric: stores `reference` and scores every method against it.
+    pub fn with_reference(mut self, reference: ReferenceReturns) -> Result<Self> {
+        for m in &mut self.methods {
+            let returns: Vec<f32> = m.tasks.iter().map(|t| t.metric).collect();
+            m.normalised = Some(normalised_score(
+                &returns,
+                &reference.base_returns,
+                &reference.expert_returns,
+            )?);
+        }
+        self.reference = Some(reference);
+        Ok(self)
     }
 
     /// The report as a markdown table: one row per task, one column per method, then the
@@ -292,18 +382,35 @@ impl EvalReport {
             self.protocol.draws,
             self.protocol.rollouts
         );
+        let refs = self.reference.as_ref();
         for m in &self.methods {
             s.push_str(&format!(" {} |", m.name));
         }
+        if let Some(r) = refs {
+            s.push_str(&format!(" base: {} | expert: {} |", r.base, r.expert));
+        }
+        let columns = self.methods.len() + if refs.is_some() { 2 } else { 0 };
         s.push_str("\n|---|");
-        s.push_str(&"---|".repeat(self.methods.len()));
+        s.push_str(&"---|".repeat(columns));
         s.push('\n');
+        let reference_cells = |s: &mut String, f: &dyn Fn(&[f32]) -> String| {
+            if let Some(r) = refs {
+                s.push_str(&format!(
+                    " {} | {} |",
+                    f(&r.base_returns),
+                    f(&r.expert_returns)
+                ));
+            }
+        };
         if let Some(first) = self.methods.first() {
             for (i, t) in first.tasks.iter().enumerate() {
                 s.push_str(&format!("| {} |", t.task));
                 for m in &self.methods {
                     s.push_str(&format!(" {:.3} |", m.tasks[i].metric));
                 }
+                reference_cells(&mut s, &|r| {
+                    r.get(i).map_or("-".into(), |x| format!("{x:.3}"))
+                });
                 s.push('\n');
             }
         }
@@ -311,17 +418,38 @@ impl EvalReport {
         for m in &self.methods {
             s.push_str(&format!(" **{:.3}** +- {:.3} |", m.mean, m.std_over_tasks));
         }
+        reference_cells(&mut s, &|r| {
+            let (m, sd) = mean_std(r);
+            format!("{m:.3} +- {sd:.3}")
+        });
         s.push_str("\n| episodes pooled (+- std) |");
         for m in &self.methods {
             s.push_str(&format!(" {:.3} +- {:.3} |", m.episode_mean, m.episode_std));
         }
+        reference_cells(&mut s, &|_| "-".into());
         s.push('\n');
+        if refs.is_some() {
+            s.push_str("| **normalised (R - R_base) / (R_expert - R_base)** |");
+            for m in &self.methods {
+                s.push_str(&match &m.normalised {
+                    Some(n) => format!(
+                        " **{}** ({} tasks, {} skipped) |",
+                        n.score.map_or("-".into(), |x| format!("{x:.3}")),
+                        n.tasks_used,
+                        n.tasks_skipped
+                    ),
+                    None => " - |".into(),
+                });
+            }
+            s.push_str(" 0 | 1 |\n");
+        }
         if self.protocol.context_sizes.len() > 1 {
             for (j, k) in self.protocol.context_sizes.iter().enumerate() {
                 s.push_str(&format!("| mean, {k} context demos |"));
                 for m in &self.methods {
                     s.push_str(&format!(" {:.3} |", m.by_context_size[j]));
                 }
+                reference_cells(&mut s, &|_| "-".into());
                 s.push('\n');
             }
         }
@@ -444,3 +572,6 @@ pub fn render_episode(
     })?;
     Ok(metric.value())
 }
+
+#[cfg(test)]
+mod tests;

@@ -14,6 +14,20 @@ fn sim_err(e: impl std::fmt::Display) -> Error {
     Error::Sim(e.to_string())
 }
 
+/// The task value a per-task expert was trained on (`smile expert --task-value`, `--nominal`),
+/// `None` for a general expert; `path` is a run directory or a policy file.
+pub fn trained_task_value(path: &Path) -> Result<Option<f64>> {
+    let file = if path.is_dir() {
+        path.join(POLICY_FILE)
+    } else {
+        path.to_path_buf()
+    };
+    Ok(checkpoint::load(&file)?
+        .meta
+        .get("task_value")
+        .and_then(|v| v.as_f64()))
+}
+
 /// Several experts for one family: per-task experts (trained with one task, their policy
 /// file records its `task_value`) and at most one general expert. Demos pick, for each task,
 /// the per-task expert of that task, else the general one.
@@ -41,15 +55,7 @@ impl ExpertSet {
         for p in paths {
             let p = p.as_ref();
             let ex = Expert::load(p)?;
-            let file = if p.is_dir() {
-                p.join(POLICY_FILE)
-            } else {
-                p.to_path_buf()
-            };
-            let task_value: Option<f64> = checkpoint::load(&file)?
-                .meta
-                .get("task_value")
-                .and_then(|v| v.as_f64());
+            let task_value = trained_task_value(p)?;
             let s = set.get_or_insert_with(|| Self {
                 family: ex.family(),
                 general: None,

@@ -16,7 +16,8 @@
 //! * [`smile`]: SMILe (state-action and state-only): discriminator, encoder, SAC on its reward;
 //!   [`disc`]: its discriminator losses (BCE with logits, gradient penalty).
 //! * [`meta_bc`]: Meta-BC and Meta-DAgger (validation-based early stopping).
-//! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot).
+//! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot);
+//!   [`eval_norm`]: walker-dyn's normalised metric's base and expert returns.
 //! * [`export`]: infer-core blob export with parity and metric verification.
 //! * [`quickstart`]: the whole pipeline in one call (`smile quickstart`).
 //! * [`progress`]: the shared progress-bar style.
@@ -35,6 +36,7 @@ pub mod context;
 pub mod demos;
 pub mod disc;
 pub mod eval;
+pub mod eval_norm;
 pub mod expert;
 pub mod expert_eval;
 pub mod export;

@@ -50,7 +50,7 @@ enum Cmd {
     Train(cli_train::TrainArgs),
     /// Evaluate trained meta-policies on a split's tasks with the paper's protocol.
     #[command(
-        after_help = "Examples:\n  smile eval --policy runs/pg-smile runs/pg-bc --env point-goal --split test --contexts demos/pg-test.safetensors -o runs/pg-eval\n  smile eval --policy runs/pg-smile --contexts demos/pg-test.safetensors --render"
+        after_help = "Examples:\n  smile eval --policy runs/pg-smile runs/pg-bc --env point-goal --split test --contexts demos/pg-test.safetensors -o runs/pg-eval\n  smile eval --policy runs/pg-smile --contexts demos/pg-test.safetensors --render\n  smile eval --policy runs/wd-smile --env walker-dyn --contexts demos/wd-test.safetensors --base runs/walker-base --expert runs/walker-expert -o runs/wd-eval"
     )]
     Eval(cli_eval::EvalArgs),
     /// Export a meta-policy as an infer-core blob and verify it (parity + metric).

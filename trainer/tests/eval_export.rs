@@ -75,6 +75,7 @@ fn eval_report_and_blob_parity() {
         lower_is_better: true,
         protocol: proto.clone(),
         methods: vec![r.clone(), r2],
+        reference: None,
     };
     let md = report.markdown();
     assert!(md.contains("goal_angle=0.0982") && md.contains(&format!("{:.3}", r.mean)));

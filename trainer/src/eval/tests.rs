@@ -1,0 +1,94 @@
+//! The normalised metric (pure function and report plumbing).
+
+use super::*;
+
+#[test]
+fn normalised_score_matches_a_hand_computed_value() {
+    // Task 0: (30 - 10) / (50 - 10) = 0.5; task 1: (0 - 20) / (40 - 20) = -1;
+    // task 2: (25 - 5) / (15 - 5) = 2. Mean (0.5 - 1 + 2) / 3 = 0.5.
+    let n = normalised_score(&[30.0, 0.0, 25.0], &[10.0, 20.0, 5.0], &[50.0, 40.0, 15.0]).unwrap();
+    assert_eq!(n.per_task, vec![Some(0.5), Some(-1.0), Some(2.0)]);
+    assert_eq!((n.tasks_used, n.tasks_skipped), (3, 0));
+    assert!((n.score.unwrap() - 0.5).abs() < 1e-6, "{n:?}");
+}
+
+#[test]
+fn tasks_where_the_expert_is_not_better_than_the_base_are_skipped() {
+    // Task 1: expert < base; task 2: expert == base (would divide by zero); task 3: NaN base.
+    let n = normalised_score(
+        &[6.0, 100.0, 100.0, 100.0, 3.0],
+        &[2.0, 50.0, 7.0, f32::NAN, 1.0],
+        &[10.0, 40.0, 7.0, 9.0, 2.0],
+    )
+    .unwrap();
+    assert_eq!(n.per_task, vec![Some(0.5), None, None, None, Some(2.0)]);
+    assert_eq!((n.tasks_used, n.tasks_skipped), (2, 3));
+    assert!((n.score.unwrap() - 1.25).abs() < 1e-6);
+    // Every task skipped: no score rather than NaN (which JSON cannot hold).
+    let none = normalised_score(&[1.0], &[5.0], &[4.0]).unwrap();
+    assert_eq!(
+        (none.score, none.tasks_used, none.tasks_skipped),
+        (None, 0, 1)
+    );
+    assert!(matches!(
+        normalised_score(&[1.0, 2.0], &[0.0], &[1.0, 2.0]),
+        Err(Error::Shape(_))
+    ));
+}
+
+fn task(value: f64, metric: f32) -> TaskResult {
+    TaskResult {
+        task: format!("dynamics_seed={value}"),
+        value,
+        metric,
+        by_context_size: vec![metric],
+    }
+}
+
+#[test]
+fn reports_with_references_score_every_method_and_old_reports_still_parse() {
+    let method = MethodResult {
+        name: "m".into(),
+        tasks: vec![task(0.0, 30.0), task(1.0, 0.0)],
+        mean: 15.0,
+        std_over_tasks: 15.0,
+        episode_mean: 15.0,
+        episode_std: 15.0,
+        by_context_size: vec![15.0],
+        normalised: None,
+    };
+    let plain = EvalReport::new(
+        Family::WalkerDyn,
+        Split::Test,
+        Protocol::for_family(Family::WalkerDyn),
+        vec![method],
+    );
+    let old_json = serde_json::to_string(&plain).unwrap();
+    assert!(!old_json.contains("normalised") && !old_json.contains("reference"));
+    let reference = ReferenceReturns {
+        base: "b".into(),
+        expert: "e".into(),
+        base_returns: vec![10.0, 5.0],
+        expert_returns: vec![50.0, 1.0],
+    };
+    let report = plain.clone().with_reference(reference.clone()).unwrap();
+    let n = report.methods[0].normalised.as_ref().unwrap();
+    assert_eq!((n.score, n.tasks_used, n.tasks_skipped), (Some(0.5), 1, 1));
+    let md = report.markdown();
+    assert!(
+        md.contains("base: b") && md.contains("**0.500** (1 tasks, 1 skipped)"),
+        "{md}"
+    );
+    let back: EvalReport = serde_json::from_str(&serde_json::to_string(&report).unwrap()).unwrap();
+    assert_eq!(back, report);
+    // Files written before the metric existed parse, without it.
+    assert_eq!(
+        serde_json::from_str::<EvalReport>(&old_json).unwrap(),
+        plain
+    );
+    let short = ReferenceReturns {
+        base_returns: vec![1.0],
+        ..reference
+    };
+    assert!(plain.with_reference(short).is_err());
+}
