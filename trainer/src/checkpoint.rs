@@ -22,6 +22,29 @@ const META_KEY: &str = "smile";
 /// Format tag stored in the metadata, checked on load.
 pub const CHECKPOINT_FORMAT: &str = "smile-checkpoint-v1";
 
+/// Files whose presence means a directory already holds a run (a checkpoint, a trained
+/// meta-policy, a trained expert).
+const RUN_MARKERS: [&str; 3] = [
+    CHECKPOINT_FILE,
+    crate::meta_policy::META_POLICY_FILE,
+    crate::expert::POLICY_FILE,
+];
+
+/// Refuses to start a *fresh* run in `dir` when it already holds one: starting over would
+/// overwrite its checkpoint and trained policy. Continue it with `--resume`, or choose another
+/// directory.
+pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
+    match RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
+        Some(m) => Err(Error::Checkpoint {
+            path: dir.join(m),
+            reason: "this directory already holds a run; pass --resume to continue it, or \
+                     choose another output directory (nothing was overwritten)"
+                .into(),
+        }),
+        None => Ok(()),
+    }
+}
+
 fn ckpt_err(path: &Path, reason: impl Into<String>) -> Error {
     Error::Checkpoint {
         path: path.to_path_buf(),

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
-use indicatif::{ProgressBar, ProgressStyle};
+use indicatif::ProgressBar;
 use sim::{DemoDataset, EnvConfig, Family, Split};
 use trainer::eval::{self, EvalReport, Protocol};
 use trainer::eval_norm::References;
@@ -59,16 +59,7 @@ fn env_cfg(horizon: Option<usize>) -> EnvConfig {
 }
 
 fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
-    let pb = if quiet {
-        ProgressBar::hidden()
-    } else {
-        ProgressBar::new(tasks as u64)
-    };
-    pb.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} tasks {msg}")
-            .expect("static")
-            .progress_chars("=> "),
-    );
+    let pb = trainer::progress::bar(tasks as u64, quiet, "tasks");
     pb.set_message(message);
     pb
 }

@@ -4,7 +4,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use sim::{EnvConfig, Family, Split};
 use trainer::demos::{DemoSpec, record_with};
 use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertSet, ExpertTrainer};
@@ -122,21 +121,6 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     Ok(cfg)
 }
 
-fn progress(total: u64, quiet: bool) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(total);
-    pb.set_style(
-        ProgressStyle::with_template(
-            "{elapsed_precise} [{bar:30}] {pos}/{len} steps {per_sec} ETA {eta} {msg}",
-        )
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    pb
-}
-
 /// Run `smile expert`.
 pub fn run_expert(a: ExpertArgs) -> Result<()> {
     if a.kind == ExpertKind::ScriptedPd {
@@ -164,6 +148,7 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
             let dir = a.out.clone().unwrap_or_else(|| {
                 PathBuf::from(format!("runs/expert-{}{nominal}-s{}", cfg.env, cfg.seed))
             });
+            trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
             (ExpertTrainer::new(cfg)?, dir)
         }
     };
@@ -172,7 +157,7 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
         dir.join("config.toml"),
         toml::to_string_pretty(run.config())?,
     )?;
-    let pb = progress(run.config().total_steps, a.quiet);
+    let pb = trainer::progress::bar(run.config().total_steps, a.quiet, "steps");
     pb.set_position(run.env_steps());
     let result = expert::train(&mut run, &dir, &mut |ev| match ev {
         Event::Step(s) => pb.set_position(s),

@@ -4,7 +4,6 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use indicatif::{ProgressBar, ProgressStyle};
 use sim::{DemoDataset, Family};
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 use trainer::meta_data::MetaData;
@@ -89,26 +88,14 @@ fn read_toml<T: serde::de::DeserializeOwned + Default>(a: &TrainArgs) -> Result<
     }
 }
 
-fn bar(total: u64, quiet: bool, what: &str) -> ProgressBar {
-    if quiet {
-        return ProgressBar::hidden();
-    }
-    let pb = ProgressBar::new(total);
-    pb.set_style(
-        ProgressStyle::with_template(&format!(
-            "{{elapsed_precise}} [{{bar:30}}] {{pos}}/{{len}} {what} {{per_sec}} ETA {{eta}} {{msg}}"
-        ))
-        .expect("static template")
-        .progress_chars("=> "),
-    );
-    pb
-}
-
 /// Run `smile train`.
 pub fn run(a: TrainArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let ds = DemoDataset::read(&a.demos)
         .with_context(|| format!("reading demos {}", a.demos.display()))?;
+    if !a.resume {
+        trainer::checkpoint::ensure_fresh_run_dir(&a.out)?;
+    }
     std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
     match a.algo {
         Algo::Smile | Algo::SmileStateOnly => train_smile(a, family, &ds),
@@ -155,7 +142,7 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
         run.data().val.len(),
         cfg.total_updates
     );
-    let pb = bar(cfg.total_updates, a.quiet, "updates");
+    let pb = trainer::progress::bar(cfg.total_updates, a.quiet, "updates");
     pb.set_position(run.updates());
     let res = smile::train(&mut run, &a.out, &mut |e| match e {
         smile::Event::Updates(u) => pb.set_position(u),
@@ -216,7 +203,7 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     };
     let cfg = run.config().clone();
     std::fs::write(a.out.join("config.toml"), toml::to_string(&cfg)?)?;
-    let pb = bar(cfg.total_steps, a.quiet, "steps");
+    let pb = trainer::progress::bar(cfg.total_steps, a.quiet, "steps");
     pb.set_position(run.steps());
     let res = meta_bc::train(&mut run, &a.out, &mut |e| match e {
         meta_bc::Event::Steps(s) => pb.set_position(s),

@@ -163,6 +163,30 @@ fn train_eval_export_and_refuse_meta_test_data() {
         serde_json::from_str(&std::fs::read_to_string(run_s.join("checkpoint.json")).unwrap())
             .unwrap();
     assert_eq!(ck["updates"], 30);
+    // Starting a fresh run over an existing one is refused and overwrites nothing.
+    let before = std::fs::read(run_s.join("checkpoint.safetensors")).unwrap();
+    let out = smile(&[
+        "train",
+        "--algo",
+        "smile",
+        "--demos",
+        &s(&train),
+        "-o",
+        &s(&run_s),
+        "--config",
+        &s(&dir.join("smile.toml")),
+        "--quiet",
+    ]);
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("already holds a run") && err.contains("--resume"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(run_s.join("checkpoint.safetensors")).unwrap(),
+        before
+    );
 
     // Eval: JSON, markdown and SVG, one method per policy.
     let ev = dir.join("eval");
