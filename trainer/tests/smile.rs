@@ -41,6 +41,7 @@ fn tiny(state_only: bool) -> SmileConfig {
     cfg.context.enc_hidden = vec![16];
     cfg.context.r_dim = 8;
     cfg.context.z_dim = 4;
+    cfg.context.head_hidden = vec![16];
     cfg
 }
 
@@ -63,9 +64,9 @@ fn discriminator_separates_expert_from_random_policy() {
         }
         let first = run.disc_step().unwrap();
         let (mut acc_e, mut acc_p) = (0.0, 0.0);
-        for i in 0..300 {
+        for i in 0..400 {
             let s = run.disc_step().unwrap();
-            if i >= 280 {
+            if i >= 380 {
                 acc_e += s.acc_expert / 20.0;
                 acc_p += s.acc_policy / 20.0;
             }
