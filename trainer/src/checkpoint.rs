@@ -35,12 +35,11 @@ const RUN_MARKERS: [&str; 3] = [
 /// directory.
 pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
     match RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
-        Some(m) => Err(Error::Checkpoint {
-            path: dir.join(m),
-            reason: "this directory already holds a run; pass --resume to continue it, or \
-                     choose another output directory (nothing was overwritten)"
-                .into(),
-        }),
+        Some(m) => Err(Error::Config(format!(
+            "{} already holds a run ({m}); pass --resume to continue it, or choose another \
+             output directory (nothing was overwritten)",
+            dir.display()
+        ))),
         None => Ok(()),
     }
 }

@@ -93,7 +93,17 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
         protocol.rollouts = r;
     }
     protocol.horizon = a.horizon;
-    // Loaded before any rollout so a wrong base or expert fails fast.
+    // Everything is loaded and checked before any rollout, so a wrong policy, context file,
+    // base or expert fails fast.
+    let mut policies = Vec::with_capacity(a.policy.len());
+    for p in &a.policy {
+        let mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
+        if mp.family != family {
+            bail!("{} was trained on {}, not {family}", p.display(), mp.family);
+        }
+        policies.push((p, mp));
+    }
+    eval::contexts_for(&ctx, family, &family.tasks(a.split))?;
     let references = match &a.base {
         Some(base) => Some(References::load(family, base, &a.expert)?),
         None => None,
@@ -116,11 +126,7 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
         None => None,
     };
     let mut methods = Vec::new();
-    for (idx, p) in a.policy.iter().enumerate() {
-        let mut mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
-        if mp.family != family {
-            bail!("{} was trained on {}, not {family}", p.display(), mp.family);
-        }
+    for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
         let name = method_name(p, &mp);
         let pb = bar(family.tasks(a.split).len(), a.quiet, name.clone());
         let r = eval::evaluate(

@@ -62,7 +62,7 @@ pub struct ExpertArgs {
     task_value: Option<f64>,
     /// walker-dyn only: train on the unmodified dynamics (the task value
     /// `sim::WALKER_NOMINAL_SEED`, in neither split): the "base" policy of `smile eval --base`.
-    #[arg(long, conflicts_with_all = ["task_index", "task_value"])]
+    #[arg(long, conflicts_with_all = ["task_index", "task_value", "resume"])]
     nominal: bool,
     /// Checkpoint every N env steps.
     #[arg(long)]
@@ -132,6 +132,7 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
             .out
             .clone()
             .unwrap_or_else(|| PathBuf::from("runs/expert-point-goal-pd"));
+        trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
         std::fs::create_dir_all(&dir)?;
         expert::export_scripted_pd(&dir)?;
         return finish(&dir, a.eval_episodes, None, EnvConfig::default());

@@ -138,6 +138,9 @@ pub struct ReferenceReturns {
     pub base_returns: Vec<f32>,
     /// R_expert per task.
     pub expert_returns: Vec<f32>,
+    /// The task parameters, in the same order (checked against the methods' tasks).
+    #[serde(default)]
+    pub task_values: Vec<f64>,
 }
 
 /// One method's normalised score, (R_pi - R_base) / (R_expert - R_base) averaged over the tasks
@@ -164,6 +167,11 @@ pub fn normalised_score(method: &[f32], base: &[f32], expert: &[f32]) -> Result<
             method.len(),
             base.len(),
             expert.len()
+        )));
+    }
+    if let Some(r) = method.iter().find(|r| !r.is_finite()) {
+        return Err(Error::Config(format!(
+            "normalised metric: a method return is {r}; every episode must have a finite return"
         )));
     }
     // `>` is false for NaN, so a non-finite reference return also skips the task.
@@ -352,7 +360,20 @@ impl EvalReport {
 
     /// Adds the normalised metric: stores `reference` and scores every method against it.
     pub fn with_reference(mut self, reference: ReferenceReturns) -> Result<Self> {
+        if self.lower_is_better {
+            return Err(Error::Config(format!(
+                "the normalised metric needs returns; {} reports {}",
+                self.env, self.metric
+            )));
+        }
         for m in &mut self.methods {
+            let values: Vec<f64> = m.tasks.iter().map(|t| t.value).collect();
+            if !reference.task_values.is_empty() && reference.task_values != values {
+                return Err(Error::Shape(format!(
+                    "reference returns are for tasks {:?}, {} was evaluated on {values:?}",
+                    reference.task_values, m.name
+                )));
+            }
             let returns: Vec<f32> = m.tasks.iter().map(|t| t.metric).collect();
             m.normalised = Some(normalised_score(
                 &returns,

@@ -129,6 +129,7 @@ impl References {
             expert: self.expert_name.clone(),
             base_returns,
             expert_returns,
+            task_values: tasks.iter().map(|t| t.value()).collect(),
         })
     }
 }

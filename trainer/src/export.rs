@@ -111,7 +111,7 @@ impl<'m, 'a> BlobActor<'m, 'a> {
     /// An actor on `model` (from [`load_blob`]).
     pub fn new(model: &'m infer_core::Model<'a>) -> Result<Self> {
         let policy = infer_core::Policy::<BLOB_CAPACITY>::new(model)
-            .map_err(|e| Error::Config(e.to_string()))?;
+            .map_err(|e| Error::Shape(format!("blob does not fit the runner: {e}")))?;
         Ok(Self { model, policy })
     }
 

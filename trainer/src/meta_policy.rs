@@ -34,13 +34,15 @@ pub struct MetaPolicy {
     pub policy: TanhGaussianPolicy,
 }
 
-fn mlp_tensors(prefix: &str, m: &Mlp, out: &mut Vec<(String, Tensor)>) {
+/// Appends `m`'s tensors as `prefix.0`, `prefix.1`, ... (weights and biases in order).
+pub(crate) fn mlp_tensors(prefix: &str, m: &Mlp, out: &mut Vec<(String, Tensor)>) {
     for (i, v) in m.vars().iter().enumerate() {
         out.push((format!("{prefix}.{i}"), v.as_tensor().detach()));
     }
 }
 
-fn mlp_load(prefix: &str, m: &Mlp, get: &dyn Fn(&str) -> Result<Tensor>) -> Result<()> {
+/// Loads `m`'s tensors written by [`mlp_tensors`] under `prefix`.
+pub(crate) fn mlp_load(prefix: &str, m: &Mlp, get: &dyn Fn(&str) -> Result<Tensor>) -> Result<()> {
     let ts = (0..m.vars().len())
         .map(|i| get(&format!("{prefix}.{i}")))
         .collect::<Result<Vec<_>>>()?;

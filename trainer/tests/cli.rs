@@ -216,6 +216,23 @@ fn per_task_experts_make_demos_for_their_tasks() {
         assert_eq!(eval["tasks"].as_array().unwrap().len(), 1);
         dirs.push(run.to_str().unwrap().to_string());
     }
+    // A trained expert is never overwritten by a fresh run (SAC or scripted) into its directory.
+    let policy = std::fs::read(d.join("task0.3").join("policy.safetensors")).unwrap();
+    for extra in [&["--env", "point-goal"][..], &["--kind", "scripted-pd"][..]] {
+        let mut args = vec!["expert", "-o", &dirs[0], "--quiet"];
+        args.extend_from_slice(extra);
+        let out = smile(&args);
+        assert!(
+            !out.status.success(),
+            "{extra:?} overwrote a trained expert"
+        );
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("already holds a run"), "{err}");
+    }
+    assert_eq!(
+        std::fs::read(d.join("task0.3").join("policy.safetensors")).unwrap(),
+        policy
+    );
     let experts = dirs.join(",");
     let demos = d.join("demos.safetensors");
     ok(&smile(&[

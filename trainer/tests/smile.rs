@@ -64,6 +64,8 @@ fn discriminator_separates_expert_from_random_policy() {
         }
         let first = run.disc_step().unwrap();
         let (mut acc_e, mut acc_p) = (0.0, 0.0);
+        // Measured at 400 steps (seeded, one thread): state-action acc 0.90 / 0.97, bce
+        // 0.71 -> 0.31; state-only 0.93 / 1.00, 0.71 -> 0.19.
         for i in 0..400 {
             let s = run.disc_step().unwrap();
             if i >= 380 {

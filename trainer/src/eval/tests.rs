@@ -70,6 +70,7 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
         expert: "e".into(),
         base_returns: vec![10.0, 5.0],
         expert_returns: vec![50.0, 1.0],
+        task_values: vec![0.0, 1.0],
     };
     let report = plain.clone().with_reference(reference.clone()).unwrap();
     let n = report.methods[0].normalised.as_ref().unwrap();
@@ -88,7 +89,13 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
     );
     let short = ReferenceReturns {
         base_returns: vec![1.0],
+        ..reference.clone()
+    };
+    assert!(plain.clone().with_reference(short).is_err());
+    // References of other tasks are refused.
+    let other = ReferenceReturns {
+        task_values: vec![0.0, 2.0],
         ..reference
     };
-    assert!(plain.with_reference(short).is_err());
+    assert!(plain.with_reference(other).is_err());
 }

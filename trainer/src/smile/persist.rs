@@ -9,7 +9,7 @@ use super::{Smile, SmileConfig};
 use crate::checkpoint;
 use crate::expert::{rng_from_state, rng_state};
 use crate::meta_data::MetaData;
-use crate::nn::Mlp;
+use crate::meta_policy::{mlp_load, mlp_tensors};
 use crate::sac::SacCounters;
 use crate::{Error, Result};
 
@@ -17,14 +17,9 @@ impl Smile {
     /// Writes the checkpoint (every tensor, the RNG, the counters and the config) to `dir`.
     pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
         let mut ts: Vec<(String, Tensor)> = Vec::new();
-        let mut put = |p: &str, m: &Mlp| {
-            for (i, v) in m.vars().iter().enumerate() {
-                ts.push((format!("{p}.{i}"), v.as_tensor().detach()));
-            }
-        };
-        put("phi", &self.encoder.phi);
-        put("head", &self.encoder.head);
-        put("disc", &self.disc);
+        mlp_tensors("phi", &self.encoder.phi, &mut ts);
+        mlp_tensors("head", &self.encoder.head, &mut ts);
+        mlp_tensors("disc", &self.disc, &mut ts);
         let (sac_ts, sac_counters) = self.sac.state_tensors()?;
         ts.extend(sac_ts.into_iter().map(|(k, v)| (format!("sac.{k}"), v)));
         let mut steps = [0u64; 2];
@@ -78,15 +73,9 @@ impl Smile {
             reason: format!("does not match this configuration or data: {e}"),
         };
         let get = |n: &str| ck.get(n);
-        let load = |p: &str, m: &Mlp| -> Result<()> {
-            let ts = (0..m.vars().len())
-                .map(|i| get(&format!("{p}.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            m.load_from(&ts)
-        };
-        load("phi", &run.encoder.phi).map_err(wrap)?;
-        load("head", &run.encoder.head).map_err(wrap)?;
-        load("disc", &run.disc).map_err(wrap)?;
+        mlp_load("phi", &run.encoder.phi, &get).map_err(wrap)?;
+        mlp_load("head", &run.encoder.head, &get).map_err(wrap)?;
+        mlp_load("disc", &run.disc, &get).map_err(wrap)?;
         let counters: SacCounters = ck.meta_field("sac_counters")?;
         run.sac
             .load_state(&|n| ck.get(&format!("sac.{n}")), counters)
