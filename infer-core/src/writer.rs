@@ -414,8 +414,8 @@ impl Dims {
 
 impl FloatModel {
     /// A randomly initialised model (uniform fan-in init, seeded, deterministic): encoder and
-    /// policy with two hidden ReLU layers, a linear r -> z head (the project's default
-    /// architecture), identity normalisation and unit action scale. For tests,
+    /// policy with two hidden ReLU layers, a linear r -> z head (the smallest blob; the
+    /// trainer's default head is a 64 x 64 MLP), identity normalisation and unit action scale. For tests,
     /// benchmarks and footprint measurements; trained models come from the trainer's export.
     pub fn random(kind: ModelKind, dims: Dims, seed: u64) -> Self {
         let mut state = seed;
