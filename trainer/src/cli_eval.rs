@@ -64,17 +64,6 @@ fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
     pb
 }
 
-fn mean(xs: &[f32]) -> f32 {
-    xs.iter().sum::<f32>() / xs.len().max(1) as f32
-}
-
-fn method_name(p: &std::path::Path, mp: &MetaPolicy) -> String {
-    let dir = p
-        .file_name()
-        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    format!("{} ({dir})", mp.algo)
-}
-
 /// Run `smile eval`.
 pub fn run_eval(a: EvalArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -117,9 +106,9 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
             eprintln!(
                 "base {}: mean return {:.4}; expert {}: mean return {:.4}",
                 r.base,
-                mean(&r.base_returns),
+                r.base_mean(),
                 r.expert,
-                mean(&r.expert_returns)
+                r.expert_mean()
             );
             Some(r)
         }
@@ -127,7 +116,7 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
     };
     let mut methods = Vec::new();
     for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
-        let name = method_name(p, &mp);
+        let name = eval::display_name(&mp.algo, p);
         let pb = bar(family.tasks(a.split).len(), a.quiet, name.clone());
         let r = eval::evaluate(
             &mut mp,

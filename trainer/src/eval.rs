@@ -143,6 +143,18 @@ pub struct ReferenceReturns {
     pub task_values: Vec<f64>,
 }
 
+impl ReferenceReturns {
+    /// Mean R_base over the tasks.
+    pub fn base_mean(&self) -> f32 {
+        mean_std(&self.base_returns).0
+    }
+
+    /// Mean R_expert over the tasks.
+    pub fn expert_mean(&self) -> f32 {
+        mean_std(&self.expert_returns).0
+    }
+}
+
 /// One method's normalised score, (R_pi - R_base) / (R_expert - R_base) averaged over the tasks
 /// where R_expert > R_base.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -221,6 +233,14 @@ pub fn metric_name(kind: MetricKind) -> &'static str {
         MetricKind::MeanVelocityError => "mean |v - v*|",
         MetricKind::Return => "return",
     }
+}
+
+/// How a run is named in reports: `label (run directory name)`, e.g. `smile (smile-s0)`.
+pub fn display_name(label: &str, path: &Path) -> String {
+    let dir = path
+        .file_name()
+        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
+    format!("{label} ({dir})")
 }
 
 pub(crate) fn mean_std(xs: &[f32]) -> (f32, f32) {

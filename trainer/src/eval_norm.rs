@@ -33,13 +33,6 @@ pub struct References {
     expert_name: String,
 }
 
-fn run_name(name: &str, path: &Path) -> String {
-    let dir = path
-        .file_name()
-        .map_or_else(String::new, |s| s.to_string_lossy().into_owned());
-    format!("{name} ({dir})")
-}
-
 impl References {
     /// Loads the base (a run directory or policy file of `smile expert --nominal`) and the
     /// experts (as `smile demos --expert`). Errors: a family without the metric (only
@@ -82,13 +75,13 @@ impl References {
             return Err(wrong_family(first, set.family()));
         }
         let expert_name = match experts {
-            [one] => run_name(&set.name(), one.as_ref()),
+            [one] => eval::display_name(&set.name(), one.as_ref()),
             many => format!("{} ({} runs)", set.name(), many.len()),
         };
         Ok(Self {
             family,
             nominal,
-            base_name: run_name(base_expert.name(), base),
+            base_name: eval::display_name(base_expert.name(), base),
             base: base_expert,
             experts: set,
             expert_name,
