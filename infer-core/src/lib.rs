@@ -3,6 +3,8 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
+#[cfg(feature = "alloc")]
+mod equalise;
 mod error;
 pub mod format;
 mod kernels;

@@ -126,7 +126,7 @@ fn run(layers: &[FloatLayer], x: &[f32], mut tap: impl FnMut(usize, &[f32])) -> 
 }
 
 impl FloatModel {
-    fn normalise(&self, x: &[f32]) -> Vec<f32> {
+    pub(crate) fn normalise(&self, x: &[f32]) -> Vec<f32> {
         x.iter()
             .zip(&self.obs_mean)
             .zip(&self.obs_std)
@@ -330,6 +330,15 @@ pub fn write_blob(
     calibration: &Calibration,
 ) -> Result<Vec<u8>, WriteError> {
     model.check()?;
+    // w8a8 quantizes each layer's input with one scale: equalise the observation ranges first
+    // (float-equivalent; see `equalise`).
+    let equalised;
+    let model = if quant == Quant::W8A8 && !calibration.contexts.is_empty() {
+        equalised = crate::equalise::equalised(model, calibration);
+        &equalised
+    } else {
+        model
+    };
     let ranges = if quant == Quant::W8A8 {
         if calibration.contexts.is_empty() || calibration.observations.is_empty() {
             return Err(WriteError::MissingCalibration);
