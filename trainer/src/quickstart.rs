@@ -396,7 +396,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     if args.budget == Budget::Short && args.env == Family::PointGoal {
-        eprintln!("expected time on 2 cores: 3-10 minutes");
+        eprintln!("expected time on 2 cores: 5-12 minutes");
     } else if args.budget == Budget::Long && args.env != Family::PointGoal {
         eprintln!(
             "expected time on 2 cores: 2-4 hours (SAC expert, then SMILe); checkpoints are in the run directory"
