@@ -8,8 +8,9 @@ use crate::sac::SacConfig;
 use crate::{Error, Result};
 
 /// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
-/// CPU: encoder 64 -> r 32 -> z 16, discriminator and SAC 2 x 128, reward scale 8, gradient
-/// penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes 64 (reference 128).
+/// CPU: encoder 64 -> r 32 -> 64 x 64 head -> z 16, discriminator and SAC 2 x 128, reward
+/// scale 8, gradient penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes
+/// 64 (reference 128).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SmileConfig {
