@@ -1,30 +1,16 @@
 //! The `smile` binary end to end on tiny budgets: expert (TOML config) -> resume -> demos,
 //! corrupt checkpoint and bad config errors.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
+use common::{ok, smile};
 
-fn smile(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_smile"))
-        .args(args)
-        .output()
-        .expect("run smile")
-}
+use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("smile-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-fn ok(out: &std::process::Output) {
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
 }
 
 fn last_metrics(dir: &Path) -> serde_json::Value {

@@ -1,53 +1,18 @@
 //! `smile train | eval | export` end to end on tiny budgets, and the held-out rule: the train
 //! command refuses meta-test demos.
 
-use std::path::PathBuf;
-use std::process::Command;
+mod common;
+use common::{ok, smile};
 
-use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+use std::path::PathBuf;
+
+use sim::{Family, Split};
 use trainer::meta_bc::MetaBcConfig;
 use trainer::sac::SacConfig;
 use trainer::smile::SmileConfig;
 
-fn smile(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_smile"))
-        .args(args)
-        .output()
-        .expect("run smile")
-}
-
-fn ok(out: &std::process::Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
-}
-
 fn demos(split: Split, tasks: Vec<sim::Task>, path: &std::path::Path) {
-    let fam = Family::PointGoal;
-    let mut ds = DemoDataset::new(fam, split, "scripted-pd");
-    let mut env = sim::make_env(
-        fam,
-        EnvConfig {
-            horizon: Some(20),
-            ..EnvConfig::default()
-        },
-    )
-    .unwrap();
-    let pd = sim::PointGoalPdExpert::default();
-    for task in tasks {
-        let trajectories = (0..2)
-            .map(|j| {
-                sim::record_trajectory(env.as_mut(), &task, j, |o, a| pd.act(o, a).unwrap())
-                    .unwrap()
-            })
-            .collect();
-        ds.tasks.push(TaskDemos { task, trajectories });
-    }
-    ds.write(path).unwrap();
+    common::pd_demos(split, tasks, 2, 20).write(path).unwrap();
 }
 
 #[test]

@@ -3,29 +3,14 @@
 //! then `smile eval --base --expert`; the score in eval.json must follow from the returns in
 //! it, and the reference returns from independent rollouts.
 
+mod common;
+use common::{ok, smile};
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use sim::{EnvConfig, Family, Task};
 use trainer::expert::Expert;
 use trainer::meta_bc::MetaBcConfig;
-
-fn smile(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_smile"))
-        .args(args)
-        .output()
-        .expect("run smile")
-}
-
-fn ok(out: &std::process::Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
-}
 
 fn fails_with(out: &std::process::Output, needle: &str) {
     let err = String::from_utf8_lossy(&out.stderr);

@@ -1,7 +1,28 @@
 //! Shared by the trainer's integration tests.
 #![allow(dead_code)]
 
+use std::process::{Command, Output};
+
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
+
+/// Runs the `smile` binary built for these tests.
+pub fn smile(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(args)
+        .output()
+        .expect("run smile")
+}
+
+/// Asserts that a `smile` run succeeded (printing its output if not); returns its stderr.
+pub fn ok(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "stdout: {}\nstderr: {err}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    err
+}
 
 /// `per_task` scripted-PD point-goal demos of `horizon` steps for each of `tasks` (reset seeds
 /// 0, 1, ...), labelled `split`.
