@@ -31,12 +31,25 @@ use sim::{EnvConfig, Environment, Family, TaskDemos};
 use crate::checkpoint;
 use crate::context::{ContextConfig, ContextEncoder, ContextSpec};
 use crate::expert::{Expert, rng_from_state, rng_state};
-use crate::meta_data::{MetaData, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::meta_data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
 use crate::meta_policy::MetaPolicy;
 use crate::metrics::MetricsLog;
 use crate::nn::{Adam, AdamConfig};
 use crate::policy::TanhGaussianPolicy;
 use crate::{Error, Result};
+
+/// The validation signal that keeps the best policy and stops training, both measured on the
+/// held-out *train* tasks (never the meta-test tasks).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Selection {
+    /// Action MSE on the held-out tasks' demos (the supervised loss; cheap).
+    #[default]
+    Mse,
+    /// The family's metric of deterministic rollouts on the held-out tasks (reference §7:
+    /// on cheetah, validation MSE did not predict rollout quality).
+    Rollouts,
+}
 
 /// Meta-BC / Meta-DAgger hyper-parameters.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -62,8 +75,9 @@ pub struct MetaBcConfig {
     pub holdout_every: usize,
     /// Validate every this many steps. Default 250.
     pub eval_every: u64,
-    /// Stop after this many validations without a lower validation MSE (0: never stop).
-    /// Default 8.
+    /// What picks the kept policy and drives early stopping. Default `mse`.
+    pub select_by: Selection,
+    /// Stop after this many validations without improvement (0: never stop). Default 8.
     pub patience: u32,
     /// Deterministic rollouts per held-out task and context when validating. Default 2.
     pub eval_episodes: usize,
@@ -94,6 +108,7 @@ impl Default for MetaBcConfig {
             total_steps: 20_000,
             holdout_every: 8,
             eval_every: 250,
+            select_by: Selection::Mse,
             patience: 8,
             eval_episodes: 2,
             dagger: false,
@@ -116,7 +131,8 @@ impl MetaBcConfig {
         }
     }
 
-    fn env_config(&self) -> EnvConfig {
+    /// Episode options (the horizon override).
+    pub fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
             ..EnvConfig::default()
@@ -167,6 +183,7 @@ pub struct MetaBc {
     steps: u64,
     episodes: u64,
     best_mse: f32,
+    best_metric: f32,
     bad_evals: u32,
     stopped: bool,
 }
@@ -234,6 +251,7 @@ impl MetaBc {
             steps: 0,
             episodes: 0,
             best_mse: f32::INFINITY,
+            best_metric: f32::NAN,
             bad_evals: 0,
             stopped: false,
         })
@@ -414,6 +432,7 @@ impl MetaBc {
             "steps": self.steps,
             "episodes": self.episodes,
             "best_mse": if self.best_mse.is_finite() { serde_json::Value::from(self.best_mse) } else { serde_json::Value::Null },
+            "best_metric": if self.best_metric.is_finite() { serde_json::Value::from(self.best_metric) } else { serde_json::Value::Null },
             "bad_evals": self.bad_evals,
             "stopped": self.stopped,
             "rng": rng_state(&self.rng),
@@ -473,6 +492,12 @@ impl MetaBc {
         run.best_mse = ck
             .meta_field::<Option<f32>>("best_mse")?
             .unwrap_or(f32::INFINITY);
+        // Absent from checkpoints written before rollout selection existed.
+        run.best_metric = ck
+            .meta
+            .get("best_metric")
+            .and_then(|v| v.as_f64())
+            .map_or(f32::NAN, |v| v as f32);
         run.bad_evals = ck.meta_field("bad_evals")?;
         run.stopped = ck.meta_field("stopped")?;
         run.rng = rng_from_state(&ck.meta_field("rng")?)?;
@@ -507,11 +532,12 @@ fn val_mse_on(run: &MetaBc, tasks: &[TaskDemos]) -> Result<f32> {
 }
 
 /// Trains until `total_steps` or the stopping rule; logs `losses/bc_mse`, `eval/val_mse`,
-/// `eval/val_metric`; keeps the lowest-validation-MSE weights in `dir/meta_policy.safetensors`
-/// and the final ones in `dir/last/`.
+/// `eval/val_metric`; keeps the best weights by `select_by` (lowest validation MSE, or best
+/// held-out rollout metric) in `dir/meta_policy.safetensors` and the final ones in `dir/last/`.
 pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
     let mut log = MetricsLog::open(dir)?;
     let cfg = run.cfg.clone();
+    let kind = run.data.family.metric_kind();
     let t0 = std::time::Instant::now();
     let s0 = run.steps;
     let every = cfg.checkpoint_every.max(1);
@@ -546,8 +572,12 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                 val_mse,
                 val_metric,
             };
-            if val_mse < run.best_mse || (run.data.val.is_empty() && at_end) {
-                run.best_mse = val_mse;
+            let improved = match cfg.select_by {
+                Selection::Mse => val_mse < run.best_mse,
+                Selection::Rollouts => better(kind, val_metric, run.best_metric),
+            };
+            if improved || (run.data.val.is_empty() && at_end) {
+                (run.best_mse, run.best_metric) = (val_mse, val_metric);
                 run.bad_evals = 0;
                 run.meta_policy().save(dir)?;
             } else {
@@ -563,6 +593,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                     ("eval/val_mse", val_mse as f64),
                     ("eval/val_metric", val_metric as f64),
                     ("eval/val_best_mse", run.best_mse as f64),
+                    ("eval/val_best_metric", run.best_metric as f64),
                 ],
             )?;
             on(Event::Eval(run.steps, rep));

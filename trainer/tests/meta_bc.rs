@@ -95,3 +95,31 @@ fn early_stopping_and_dagger_relabelling() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn rollout_selection_keeps_the_best_held_out_rollouts() {
+    trainer::threads::set_compute_threads(1);
+    let dir = std::env::temp_dir().join(format!("smile-bc-rollouts-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let cfg = MetaBcConfig {
+        select_by: meta_bc::Selection::Rollouts,
+        ..tiny(false)
+    };
+    let env_cfg = cfg.env_config();
+    let mut run = MetaBc::new(cfg, run_data(), None).unwrap();
+    let mut metrics = Vec::new();
+    meta_bc::train(&mut run, &dir, &mut |e| {
+        if let meta_bc::Event::Eval(_, r) = e {
+            metrics.push(r.val_metric);
+        }
+    })
+    .unwrap();
+    // Min distance: lower is better. The kept policy reproduces the best held-out value.
+    let best = metrics.iter().cloned().fold(f32::INFINITY, f32::min);
+    let kept = MetaPolicy::load(&dir).unwrap();
+    let again = trainer::meta_data::quick_eval(&kept, &run_data().val, 2, 1, env_cfg).unwrap();
+    assert_eq!(again, best, "kept {again}, evaluations {metrics:?}");
+    // It is not simply the last evaluation (otherwise the test proves nothing).
+    assert_ne!(best, *metrics.last().unwrap(), "{metrics:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
