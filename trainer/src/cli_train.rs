@@ -205,6 +205,7 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     std::fs::write(a.out.join("config.toml"), toml::to_string(&cfg)?)?;
     let pb = trainer::progress::bar(cfg.total_steps, a.quiet, "steps");
     pb.set_position(run.steps());
+    let select_by = cfg.select_by;
     let res = meta_bc::train(&mut run, &a.out, &mut |e| match e {
         meta_bc::Event::Steps(s) => pb.set_position(s),
         meta_bc::Event::Eval(s, r) => {
@@ -219,9 +220,13 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
                 );
             }
         }
-        meta_bc::Event::Stopped(s) => {
-            eprintln!("early stop at step {s} (validation MSE stopped improving)")
-        }
+        meta_bc::Event::Stopped(s) => eprintln!(
+            "early stop at step {s} (held-out {} stopped improving)",
+            match select_by {
+                meta_bc::Selection::Mse => "action MSE",
+                meta_bc::Selection::Rollouts => "rollout metric",
+            }
+        ),
     });
     pb.finish();
     res.with_context(|| format!("{} training in {}", cfg.algo_name(), a.out.display()))?;
