@@ -1,0 +1,24 @@
+//! The configuration files that docs/RESULTS.md trains with still parse and validate.
+
+use trainer::meta_bc::{MetaBcConfig, Selection};
+use trainer::smile::SmileConfig;
+
+fn read(name: &str) -> String {
+    let path = format!("{}/../docs/configs/{name}", env!("CARGO_MANIFEST_DIR"));
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+#[test]
+fn results_configs_parse_and_validate() {
+    let smile: SmileConfig = toml::from_str(&read("cv-smile.toml")).unwrap();
+    smile.validate().unwrap();
+    assert_eq!((smile.total_updates, smile.horizon), (60_000, Some(200)));
+    for (name, select_by) in [
+        ("cv-bc.toml", Selection::Mse),
+        ("cv-bc-roll.toml", Selection::Rollouts),
+    ] {
+        let bc: MetaBcConfig = toml::from_str(&read(name)).unwrap();
+        assert_eq!((bc.select_by, bc.horizon), (select_by, Some(200)), "{name}");
+        assert_eq!(bc.context.enc_hidden, vec![128, 128], "{name}");
+    }
+}
