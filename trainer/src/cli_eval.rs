@@ -32,6 +32,9 @@ pub struct EvalArgs {
     /// Override the protocol's rollouts per context draw.
     #[arg(long)]
     rollouts: Option<usize>,
+    /// Override the protocol's context sizes (demos per context), e.g. `1,2,4`.
+    #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
+    context_sizes: Vec<u32>,
     /// Episode length override.
     #[arg(long)]
     horizon: Option<usize>,
@@ -80,6 +83,9 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
     let mut protocol = Protocol::for_family(family);
     if let Some(r) = a.rollouts {
         protocol.rollouts = r;
+    }
+    if !a.context_sizes.is_empty() {
+        protocol.context_sizes = a.context_sizes.iter().map(|&k| k as usize).collect();
     }
     protocol.horizon = a.horizon;
     // Everything is loaded and checked before any rollout, so a wrong policy, context file,

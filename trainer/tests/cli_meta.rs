@@ -164,6 +164,8 @@ fn train_eval_export_and_refuse_meta_test_data() {
         &s(&test),
         "--rollouts",
         "1",
+        "--context-sizes",
+        "1,2",
         "--horizon",
         "20",
         "-o",
@@ -175,6 +177,15 @@ fn train_eval_export_and_refuse_meta_test_data() {
         serde_json::from_str(&std::fs::read_to_string(ev.join("eval.json")).unwrap()).unwrap();
     assert_eq!(rep["methods"].as_array().unwrap().len(), 2);
     assert_eq!(rep["methods"][0]["tasks"].as_array().unwrap().len(), 16);
+    // --context-sizes replaces point-goal's protocol (1-demo contexts only).
+    assert_eq!(rep["protocol"]["context_sizes"], serde_json::json!([1, 2]));
+    assert_eq!(
+        rep["methods"][0]["by_context_size"]
+            .as_array()
+            .unwrap()
+            .len(),
+        2
+    );
     let md = std::fs::read_to_string(ev.join("eval.md")).unwrap();
     let mean = rep["methods"][1]["mean"].as_f64().unwrap();
     assert!(md.contains(&format!("{mean:.3}")), "{md}");
