@@ -263,12 +263,7 @@ impl Smile {
                     &tr.actions[k * ad..(k + 1) * ad],
                     &tr.next_obs[k * od..(k + 1) * od],
                 );
-                self.data.norm.push(s, &mut x_exp);
-                if cfg.context.state_only {
-                    self.data.norm.push(s2, &mut x_exp);
-                } else {
-                    x_exp.extend_from_slice(a);
-                }
+                self.push_x(s, a, s2, &mut x_exp);
             }
             let mut pol = BatchVecs::default();
             self.replay
@@ -280,12 +275,7 @@ impl Smile {
                     &pol.act[r * ad..(r + 1) * ad],
                     &pol.next_obs[r * od..(r + 1) * od],
                 );
-                self.data.norm.push(s, &mut x_pol);
-                if cfg.context.state_only {
-                    self.data.norm.push(s2, &mut x_pol);
-                } else {
-                    x_pol.extend_from_slice(a);
-                }
+                self.push_x(s, a, s2, &mut x_pol);
             }
         }
         let dev = &Device::Cpu;
