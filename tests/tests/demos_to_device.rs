@@ -6,8 +6,8 @@ use firmware_sim::link::{LinkConfig, SimLink};
 use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, reference, run};
 use infer_core::{Model, Quant};
 use sim::{DemoDataset, EnvConfig, Family, Split, make_env};
-use trainer::demos::{DemoSpec, record};
 use trainer::expert::{Expert, export_scripted_pd};
+use trainer::{DemoSpec, record_demos as record};
 
 #[test]
 fn demos_from_the_trainer_teach_a_device_through_a_file() {

@@ -2,8 +2,8 @@
 //! user is promised exists, parses, and agrees with the others.
 
 use sim::{DemoDataset, Family, Split};
+use trainer::MetaPolicy;
 use trainer::expert::Expert;
-use trainer::meta_policy::MetaPolicy;
 use trainer::quickstart::{Budget, QuickstartConfig, Summary, run};
 
 #[test]

@@ -10,8 +10,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
 use crate::Result;
-use crate::replay::BatchVecs;
-use crate::sac::{Sac, SacConfig};
+use crate::algo::sac::{Sac, SacConfig};
+use crate::data::BatchVecs;
 
 /// Shape of the benchmarked SAC update.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -94,7 +94,7 @@ pub fn time_it(warmup: usize, iters: usize, mut f: impl FnMut() -> Result<()>) -
 pub fn sac_fixture(
     shape: SacBenchShape,
     seed: u64,
-) -> Result<(Sac, crate::replay::Batch, ChaCha8Rng)> {
+) -> Result<(Sac, crate::data::Batch, ChaCha8Rng)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let d_in = shape.obs_dim + shape.z_dim;
     let cfg = SacConfig {

@@ -13,15 +13,15 @@ use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_neede
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
-use crate::demos::{DemoSpec, record};
+use crate::algo::expert::{self, Expert};
+use crate::algo::meta_bc::{self, MetaBc, MetaBcConfig};
+use crate::algo::smile::{self, Smile, SmileConfig};
+use crate::data::MetaData;
+use crate::data::{DemoSpec, record};
 use crate::eval::{self, EvalReport, MethodResult, Protocol};
-use crate::expert::{self, Expert};
-use crate::export::{self, BlobActor};
-use crate::meta_bc::{self, MetaBc, MetaBcConfig};
-use crate::meta_data::MetaData;
-use crate::meta_policy::MetaPolicy;
-use crate::progress::bar;
-use crate::smile::{self, Smile, SmileConfig};
+use crate::io::bar;
+use crate::io::export::{self, BlobActor};
+use crate::model::MetaPolicy;
 use crate::{Error, Result};
 
 mod report;
@@ -45,7 +45,10 @@ fn write(path: &Path, bytes: impl AsRef<[u8]>) -> Result<()> {
 }
 
 fn json<T: Serialize>(value: &T) -> Result<String> {
-    serde_json::to_string_pretty(value).map_err(|e| Error::Config(format!("json: {e}")))
+    serde_json::to_string_pretty(value).map_err(|e| Error::Serialise {
+        what: "JSON report",
+        reason: e.to_string(),
+    })
 }
 
 /// How much compute the quickstart spends.
@@ -195,8 +198,7 @@ fn demos(
         env: env_config(args.env),
     };
     let ds = record(expert, &spec)?;
-    ds.write(path)
-        .map_err(|e| Error::Sim(format!("writing {}: {e}", path.display())))?;
+    ds.write(path)?;
     eprintln!(
         "  {} tasks x {per_task} demos -> {}",
         ds.tasks.len(),
@@ -236,14 +238,17 @@ fn train_smile(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Resu
     let mut run = Smile::new(cfg.clone(), data)?;
     write(
         &dir.join("config.toml"),
-        toml::to_string(&cfg).map_err(|e| Error::Config(e.to_string()))?,
+        toml::to_string(&cfg).map_err(|e| Error::Serialise {
+            what: "config.toml",
+            reason: e.to_string(),
+        })?,
     )?;
     let pb = bar(cfg.total_updates, args.quiet, "update pairs");
     smile::train(&mut run, dir, &mut |e| match e {
         smile::Event::Updates(u) => pb.set_position(u),
-        smile::Event::Eval(_, m, best) => {
-            pb.set_message(format!("held-out train tasks {m:.3} (best {best:.3})"))
-        }
+        smile::Event::Eval {
+            metric: m, best, ..
+        } => pb.set_message(format!("held-out train tasks {m:.3} (best {best:.3})")),
         smile::Event::Checkpoint(_) => {}
     })?;
     pb.finish();
@@ -265,7 +270,10 @@ fn train_meta_bc(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Re
     let mut run = MetaBc::new(cfg.clone(), data, None)?;
     write(
         &dir.join("config.toml"),
-        toml::to_string(&cfg).map_err(|e| Error::Config(e.to_string()))?,
+        toml::to_string(&cfg).map_err(|e| Error::Serialise {
+            what: "config.toml",
+            reason: e.to_string(),
+        })?,
     )?;
     let pb = bar(cfg.total_steps, args.quiet, "steps");
     meta_bc::train(&mut run, dir, &mut |e| match e {
@@ -344,8 +352,7 @@ fn device_run(
     )
     .map_err(device_err)?;
     let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
-    let mut plant =
-        sim::make_env(args.env, env_config(args.env)).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut plant = sim::make_env(args.env, env_config(args.env))?;
     let loop_config = LoopConfig {
         seed: args.seed,
         noise_std: 0.005,
@@ -386,7 +393,10 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     std::fs::create_dir_all(out).map_err(io(out))?;
     write(
         &out.join("quickstart.toml"),
-        toml::to_string(args).map_err(|e| Error::Config(e.to_string()))?,
+        toml::to_string(args).map_err(|e| Error::Serialise {
+            what: "quickstart.toml",
+            reason: e.to_string(),
+        })?,
     )?;
     eprintln!(
         "smile quickstart: {} ({:?} budget, seed {}) -> {}",

@@ -3,10 +3,10 @@
 mod common;
 
 use sim::{Family, Split};
+use trainer::MetaData;
 use trainer::eval::{self, EvalReport, Protocol};
 use trainer::export::{self, BlobActor};
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
-use trainer::meta_data::MetaData;
 
 use common::pd_demos as demos;
 
@@ -34,7 +34,7 @@ fn eval_report_and_blob_parity() {
     cfg.context.r_dim = 8;
     let mut run = MetaBc::new(cfg, MetaData::from_dataset(&train, fam, 4).unwrap(), None).unwrap();
     meta_bc::train(&mut run, &dir, &mut |_| {}).unwrap();
-    let mut mp = trainer::meta_policy::MetaPolicy::load(&dir).unwrap();
+    let mut mp = trainer::MetaPolicy::load(&dir).unwrap();
 
     // Evaluation protocol, report files.
     let proto = Protocol {

@@ -4,9 +4,9 @@ use std::path::PathBuf;
 
 use sim::{EnvConfig, Family, Split};
 use trainer::checkpoint;
-use trainer::demos::{DemoSpec, record};
 use trainer::expert::{self, Expert, ExpertConfig, ExpertTrainer};
 use trainer::sac::SacConfig;
+use trainer::{DemoSpec, record_demos as record};
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("smile-test-{name}-{}", std::process::id()));
@@ -115,7 +115,7 @@ fn non_finite_loss_names_the_update() {
         ..Default::default()
     };
     let mut sac = trainer::sac::Sac::new(3, 1, cfg, &mut rng).unwrap();
-    let mut rb = trainer::replay::ReplayBuffer::new(3, 1, 10).unwrap();
+    let mut rb = trainer::ReplayBuffer::new(3, 1, 10).unwrap();
     rb.push(&[0.0; 3], &[0.0], f32::NAN, &[0.0; 3], false)
         .unwrap();
     let b = rb.sample(4, &mut rng).unwrap();

@@ -2,7 +2,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use trainer::replay::ReplayBuffer;
+use trainer::ReplayBuffer;
 use trainer::sac::{Sac, SacConfig};
 
 fn small_cfg() -> SacConfig {

@@ -5,8 +5,8 @@
 mod common;
 
 use sim::{DemoDataset, Family};
-use trainer::meta_data::MetaData;
-use trainer::meta_policy::MetaPolicy;
+use trainer::MetaData;
+use trainer::MetaPolicy;
 use trainer::sac::SacConfig;
 use trainer::smile::{self, Smile, SmileConfig};
 
@@ -54,7 +54,7 @@ fn discriminator_separates_expert_from_random_policy() {
         let mut run = Smile::new(tiny(state_only), data).unwrap();
         // State-only: the discriminator reads [norm(s), norm(s'), z] = 4 + 4 + 4.
         let want = if state_only { 12 } else { 10 };
-        assert_eq!(run.disc.widths()[0], want);
+        assert_eq!(run.disc.net().widths()[0], want);
         assert_eq!(run.encoder.input_dim(), if state_only { 8 } else { 10 });
         run.warm_start().unwrap();
         for _ in 0..2 {
@@ -93,7 +93,7 @@ fn short_run_checkpoints_resumes_and_exports() {
     let mut run = Smile::new(tiny(false), data.clone()).unwrap();
     let mut evals = 0;
     smile::train(&mut run, &dir, &mut |e| {
-        if let smile::Event::Eval(..) = e {
+        if let smile::Event::Eval { .. } = e {
             evals += 1;
         }
     })

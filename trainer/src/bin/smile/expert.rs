@@ -1,12 +1,11 @@
-//! `smile expert` and `smile demos`.
+//! `smile expert`: an oracle SAC expert (or the scripted PD expert) for a family.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use sim::{EnvConfig, Family, Split};
-use trainer::demos::{DemoSpec, record_with};
-use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertSet, ExpertTrainer};
+use sim::{EnvConfig, Family};
+use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertTrainer};
 
 /// Which expert `smile expert` produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -122,7 +121,7 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
 }
 
 /// Run `smile expert`.
-pub fn run_expert(a: ExpertArgs) -> Result<()> {
+pub fn run(a: ExpertArgs) -> Result<()> {
     if a.kind == ExpertKind::ScriptedPd {
         let env = a.env.as_deref().unwrap_or("point-goal");
         if env != Family::PointGoal.name() {
@@ -158,7 +157,7 @@ pub fn run_expert(a: ExpertArgs) -> Result<()> {
         dir.join("config.toml"),
         toml::to_string_pretty(run.config())?,
     )?;
-    let pb = trainer::progress::bar(run.config().total_steps, a.quiet, "steps");
+    let pb = trainer::progress_bar(run.config().total_steps, a.quiet, "steps");
     pb.set_position(run.env_steps());
     let result = expert::train(&mut run, &dir, &mut |ev| match ev {
         Event::Step(s) => pb.set_position(s),
@@ -226,83 +225,5 @@ fn finish(
         dir.join("eval.json"),
         serde_json::to_string_pretty(&json)? + "\n",
     )?;
-    Ok(())
-}
-
-/// Arguments of `smile demos`.
-#[derive(Args, Debug)]
-pub struct DemosArgs {
-    /// Task family.
-    #[arg(long)]
-    env: String,
-    /// Which task list to record (also the split label stored in the file).
-    #[arg(long, default_value = "train")]
-    split: String,
-    /// Explicit task parameters instead of the split's tasks: goal angles (rad), target
-    /// velocities (m/s) or dynamics seeds, comma separated.
-    #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
-    task_params: Option<Vec<f64>>,
-    /// Trajectories per task.
-    #[arg(long, default_value_t = 4)]
-    per_task: usize,
-    /// Subsampling factor k (keep step t when t mod k equals a per-trajectory random offset).
-    #[arg(long, default_value_t = 1)]
-    subsample: usize,
-    /// Expert: a run directory of `smile expert` or its policy.safetensors. Repeat (or give
-    /// several, comma separated) for per-task experts: each task uses the expert trained on it
-    /// (`smile expert --task-value`), else the one general expert.
-    #[arg(long, required = true, num_args = 1.., value_delimiter = ',')]
-    expert: Vec<PathBuf>,
-    /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
-    /// Episode length override.
-    #[arg(long)]
-    horizon: Option<usize>,
-    /// Output dataset file.
-    #[arg(short, long)]
-    out: PathBuf,
-}
-
-/// Run `smile demos`.
-pub fn run_demos(a: DemosArgs) -> Result<()> {
-    let family: Family = a.env.parse()?;
-    let split: Split = a.split.parse().map_err(anyhow::Error::msg)?;
-    let ex = ExpertSet::load(&a.expert)?;
-    if ex.family() != family {
-        bail!("the expert is for {}, not {}", ex.family(), family);
-    }
-    let tasks = match &a.task_params {
-        Some(vs) => vs
-            .iter()
-            .map(|v| family.task_from_value(*v))
-            .collect::<Result<Vec<_>, _>>()?,
-        None => family.tasks(split),
-    };
-    let spec = DemoSpec {
-        tasks,
-        split,
-        per_task: a.per_task,
-        subsample: a.subsample,
-        seed: a.seed,
-        env: EnvConfig {
-            horizon: a.horizon,
-            ..EnvConfig::default()
-        },
-    };
-    let ds = record_with(&ex, &spec)?;
-    if let Some(parent) = a.out.parent() {
-        std::fs::create_dir_all(parent).ok();
-    }
-    ds.write(&a.out)?;
-    println!(
-        "wrote {}: {} tasks x {} trajectories, {} transitions (subsample {}), expert {}",
-        a.out.display(),
-        ds.tasks.len(),
-        a.per_task,
-        ds.transition_count(),
-        ds.subsample_factor,
-        ds.expert
-    );
     Ok(())
 }

@@ -15,7 +15,7 @@
 //!   ```
 //!   Both aggregations are one matrix product `s = A R` with `A[task, row] = m_j / T_j`.
 //!
-//! [`crate::meta_policy::MetaPolicy`] composes this encoder with the conditioned policy.
+//! [`crate::model::MetaPolicy`] composes this encoder with the conditioned policy.
 
 use candle_core::{Device, Tensor, Var};
 use rand::Rng;
@@ -23,7 +23,7 @@ use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
-use crate::nn::Mlp;
+use crate::model::Mlp;
 use crate::{Error, Result};
 
 /// Encoder and latent sizes (shared by all algorithms).
@@ -96,7 +96,7 @@ impl ObsNorm {
             }
         }
         if n == 0 {
-            return Err(Error::Config("demo dataset holds no transitions".into()));
+            return Err(Error::Data("demo dataset holds no transitions".into()));
         }
         let mean: Vec<f32> = sum.iter().map(|s| (s / n as f64) as f32).collect();
         let std = sq
@@ -253,7 +253,7 @@ impl ContextEncoder {
         }
         let (n_rows, n_ctx, d) = (owner.len(), contexts.len(), self.input_dim());
         if n_ctx == 0 {
-            return Err(Error::Config("no contexts to encode".into()));
+            return Err(Error::Data("no contexts to encode".into()));
         }
         let mut agg = vec![0.0f32; n_ctx * n_rows.max(1)];
         for (r, (c, w)) in owner.iter().enumerate() {

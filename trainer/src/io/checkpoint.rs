@@ -11,6 +11,8 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use candle_core::{DType, Device, Tensor};
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 
 use crate::{Error, Result};
@@ -26,8 +28,8 @@ pub const CHECKPOINT_FORMAT: &str = "smile-checkpoint-v1";
 /// meta-policy, a trained expert).
 const RUN_MARKERS: [&str; 3] = [
     CHECKPOINT_FILE,
-    crate::meta_policy::META_POLICY_FILE,
-    crate::expert::POLICY_FILE,
+    crate::model::META_POLICY_FILE,
+    crate::algo::expert::POLICY_FILE,
 ];
 
 /// Refuses to start a *fresh* run in `dir` when it already holds one: starting over would
@@ -35,11 +37,13 @@ const RUN_MARKERS: [&str; 3] = [
 /// directory.
 pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
     match RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
-        Some(m) => Err(Error::Config(format!(
-            "{} already holds a run ({m}); pass --resume to continue it, or choose another \
-             output directory (nothing was overwritten)",
-            dir.display()
-        ))),
+        Some(m) => Err(Error::Checkpoint {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "already holds a run ({m}); pass --resume to continue it, or choose another \
+                 output directory (nothing was overwritten)"
+            ),
+        }),
         None => Ok(()),
     }
 }
@@ -136,14 +140,30 @@ impl Loaded {
         &self.path
     }
 
+    /// A random generator saved with [`rng_state`] under metadata field `key`.
+    pub fn meta_rng(&self, key: &str) -> Result<ChaCha8Rng> {
+        rng_from_state(&self.meta_field::<serde_json::Value>(key)?).ok_or_else(|| {
+            Error::CheckpointState {
+                path: self.path.clone(),
+                reason: format!("metadata field `{key}` is not a ChaCha8 state"),
+            }
+        })
+    }
+
     /// A metadata field deserialised, or an error naming the field.
     pub fn meta_field<T: serde::de::DeserializeOwned>(&self, key: &str) -> Result<T> {
         let v = self
             .meta
             .get(key)
             .cloned()
-            .ok_or_else(|| ckpt_err(&self.path, format!("metadata has no field `{key}`")))?;
-        serde_json::from_value(v).map_err(|e| ckpt_err(&self.path, format!("field `{key}`: {e}")))
+            .ok_or_else(|| Error::CheckpointState {
+                path: self.path.clone(),
+                reason: format!("metadata has no field `{key}`"),
+            })?;
+        serde_json::from_value(v).map_err(|e| Error::CheckpointState {
+            path: self.path.clone(),
+            reason: format!("metadata field `{key}`: {e}"),
+        })
     }
 }
 
@@ -209,6 +229,34 @@ pub fn load(dir: &Path) -> Result<Loaded> {
         tensors,
         meta,
     })
+}
+
+/// ChaCha8 state as JSON: seed (hex), stream and word position (decimal strings).
+pub fn rng_state(rng: &ChaCha8Rng) -> serde_json::Value {
+    let seed: String = rng.get_seed().iter().map(|b| format!("{b:02x}")).collect();
+    serde_json::json!({
+        "seed": seed,
+        "stream": rng.get_stream().to_string(),
+        "word_pos": rng.get_word_pos().to_string(),
+    })
+}
+
+/// Inverse of [`rng_state`]; `None` if `v` is not such a state.
+fn rng_from_state(v: &serde_json::Value) -> Option<ChaCha8Rng> {
+    let hex = v["seed"].as_str()?;
+    if hex.len() != 64 {
+        return None;
+    }
+    let mut seed = [0u8; 32];
+    for (i, b) in seed.iter_mut().enumerate() {
+        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).ok()?;
+    }
+    let stream: u64 = v["stream"].as_str()?.parse().ok()?;
+    let word_pos: u128 = v["word_pos"].as_str()?.parse().ok()?;
+    let mut rng = ChaCha8Rng::from_seed(seed);
+    rng.set_stream(stream);
+    rng.set_word_pos(word_pos);
+    Some(rng)
 }
 
 #[cfg(test)]

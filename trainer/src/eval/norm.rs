@@ -16,10 +16,10 @@ use std::path::Path;
 
 use sim::{EnvConfig, Environment, Family, Split, Task};
 
+use crate::algo::expert::{Expert, ExpertSet};
+use crate::data::run_episode;
+use crate::eval::expert::trained_task_value;
 use crate::eval::{self, Protocol, ReferenceReturns};
-use crate::expert::{Expert, ExpertSet};
-use crate::expert_eval::trained_task_value;
-use crate::meta_data::run_episode;
 use crate::{Error, Result};
 
 /// The base policy and the experts of the normalised metric, checked against the family.
@@ -42,14 +42,14 @@ impl References {
         let nominal = match family {
             Family::WalkerDyn => Task::walker_nominal(),
             other => {
-                return Err(Error::Config(format!(
+                return Err(Error::Data(format!(
                     "the normalised metric (--base, --expert) is defined for walker-dyn only, \
                      not {other}"
                 )));
             }
         };
         let wrong_family = |path: &Path, found: Family| {
-            Error::Config(format!(
+            Error::Data(format!(
                 "{} is a {found} policy, not {family}",
                 path.display()
             ))
@@ -62,7 +62,7 @@ impl References {
             Some(v) if Ok(nominal) == family.task_from_value(v) => {}
             trained => {
                 let on = trained.map_or("all meta-train tasks".into(), |v| format!("task {v}"));
-                return Err(Error::Config(format!(
+                return Err(Error::Data(format!(
                     "the base {} was trained on {on}, not the unmodified dynamics; train it \
                      with `smile expert --env {family} --nominal`",
                     base.display()
@@ -106,7 +106,7 @@ impl References {
             horizon: protocol.horizon,
             ..EnvConfig::default()
         };
-        let mut env = sim::make_env(self.family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
+        let mut env = sim::make_env(self.family, env_cfg)?;
         let nominal = self.nominal.parameter();
         let (mut base_returns, mut expert_returns) = (Vec::new(), Vec::new());
         for (i, (task, expert)) in tasks.iter().zip(experts).enumerate() {
@@ -158,8 +158,8 @@ fn mean_return(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::expert::{ExpertConfig, ExpertTrainer};
-    use crate::sac::SacConfig;
+    use crate::algo::expert::{ExpertConfig, ExpertTrainer};
+    use crate::algo::sac::SacConfig;
 
     fn tmp(name: &str) -> std::path::PathBuf {
         let d = std::env::temp_dir().join(format!("smile-evalnorm-{name}-{}", std::process::id()));
@@ -194,8 +194,8 @@ mod tests {
         let refs = References::load(Family::WalkerDyn, &base, &[&general]).unwrap();
         assert!(refs.base_name.contains("base") && refs.expert_name.contains("general"));
         let config_err = |r: Result<References>, needle: &str| match r {
-            Err(Error::Config(m)) => assert!(m.contains(needle), "{m}"),
-            other => panic!("expected a config error with {needle:?}, got {other:?}"),
+            Err(Error::Data(m)) => assert!(m.contains(needle), "{m}"),
+            other => panic!("expected a data error with {needle:?}, got {other:?}"),
         };
         // Only walker-dyn has the metric.
         config_err(
@@ -216,7 +216,7 @@ mod tests {
         // Another family's policy, as base or as expert.
         let pd = d.join("pd");
         std::fs::create_dir_all(&pd).unwrap();
-        crate::expert::export_scripted_pd(&pd).unwrap();
+        crate::algo::expert::export_scripted_pd(&pd).unwrap();
         config_err(
             References::load(Family::WalkerDyn, &pd, &[&general]),
             "point-goal policy",
@@ -232,8 +232,8 @@ mod tests {
             "widths": [5, 8, 6], "log_std_bounds": [-20.0, 2.0],
             "task_value": sim::WALKER_NOMINAL_SEED as f64,
         });
-        crate::checkpoint::save(&narrow, &[], &meta).unwrap();
-        let narrow_file = narrow.join(crate::checkpoint::CHECKPOINT_FILE);
+        crate::io::checkpoint::save(&narrow, &[], &meta).unwrap();
+        let narrow_file = narrow.join(crate::io::checkpoint::CHECKPOINT_FILE);
         assert!(matches!(
             References::load(Family::WalkerDyn, &narrow_file, &[&general]),
             Err(Error::Checkpoint { .. })
@@ -243,7 +243,7 @@ mod tests {
         let protocol = Protocol::for_family(Family::WalkerDyn);
         assert!(matches!(
             only_one.returns(Split::Test, &protocol, &mut |_, _| {}),
-            Err(Error::Config(m)) if m.contains("no expert for task")
+            Err(Error::Data(m)) if m.contains("no expert for task")
         ));
         std::fs::remove_dir_all(&d).ok();
     }

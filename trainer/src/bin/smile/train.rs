@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use sim::{DemoDataset, Family};
+use trainer::MetaData;
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
-use trainer::meta_data::MetaData;
 use trainer::smile::{self, Smile, SmileConfig};
 
 /// Which meta-learner to train.
@@ -142,11 +142,15 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
         run.data().val.len(),
         cfg.total_updates
     );
-    let pb = trainer::progress::bar(cfg.total_updates, a.quiet, "updates");
+    let pb = trainer::progress_bar(cfg.total_updates, a.quiet, "updates");
     pb.set_position(run.updates());
     let res = smile::train(&mut run, &a.out, &mut |e| match e {
         smile::Event::Updates(u) => pb.set_position(u),
-        smile::Event::Eval(u, m, best) => {
+        smile::Event::Eval {
+            updates: u,
+            metric: m,
+            best,
+        } => {
             pb.set_message(format!("val {m:.3} (best {best:.3})"));
             if a.quiet {
                 eprintln!("update {u}: held-out train-task metric {m:.4} (best {best:.4})");
@@ -156,10 +160,7 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     });
     pb.finish();
     res.with_context(|| format!("SMILe training in {}", a.out.display()))?;
-    eprintln!(
-        "wrote {}",
-        a.out.join(trainer::meta_policy::META_POLICY_FILE).display()
-    );
+    eprintln!("wrote {}", a.out.join(trainer::META_POLICY_FILE).display());
     Ok(())
 }
 
@@ -203,7 +204,7 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     };
     let cfg = run.config().clone();
     std::fs::write(a.out.join("config.toml"), toml::to_string(&cfg)?)?;
-    let pb = trainer::progress::bar(cfg.total_steps, a.quiet, "steps");
+    let pb = trainer::progress_bar(cfg.total_steps, a.quiet, "steps");
     pb.set_position(run.steps());
     let select_by = cfg.select_by;
     let res = meta_bc::train(&mut run, &a.out, &mut |e| match e {
@@ -230,9 +231,6 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     });
     pb.finish();
     res.with_context(|| format!("{} training in {}", cfg.algo_name(), a.out.display()))?;
-    eprintln!(
-        "wrote {}",
-        a.out.join(trainer::meta_policy::META_POLICY_FILE).display()
-    );
+    eprintln!("wrote {}", a.out.join(trainer::META_POLICY_FILE).display());
     Ok(())
 }

@@ -1,4 +1,4 @@
-//! `smile eval` and `smile export`.
+//! `smile eval`: meta-policies on a split's tasks with the paper's protocol.
 
 use std::path::PathBuf;
 
@@ -6,10 +6,9 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::ProgressBar;
 use sim::{DemoDataset, EnvConfig, Family, Split};
+use trainer::MetaPolicy;
+use trainer::eval::norm::References;
 use trainer::eval::{self, EvalReport, Protocol};
-use trainer::eval_norm::References;
-use trainer::export;
-use trainer::meta_policy::MetaPolicy;
 
 /// Arguments of `smile eval`.
 #[derive(Args, Debug)]
@@ -62,13 +61,13 @@ fn env_cfg(horizon: Option<usize>) -> EnvConfig {
 }
 
 fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
-    let pb = trainer::progress::bar(tasks as u64, quiet, "tasks");
+    let pb = trainer::progress_bar(tasks as u64, quiet, "tasks");
     pb.set_message(message);
     pb
 }
 
 /// Run `smile eval`.
-pub fn run_eval(a: EvalArgs) -> Result<()> {
+pub fn run(a: EvalArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let ctx = DemoDataset::read(&a.contexts)
         .with_context(|| format!("reading {}", a.contexts.display()))?;
@@ -177,88 +176,5 @@ pub fn run_eval(a: EvalArgs) -> Result<()> {
     report.plot_svg(&a.out.join("eval.svg"))?;
     println!("{md}");
     eprintln!("wrote {}/eval.json, eval.md, eval.svg", a.out.display());
-    Ok(())
-}
-
-/// Arguments of `smile export`.
-#[derive(Args, Debug)]
-pub struct ExportArgs {
-    /// Trained run directory (or meta_policy.safetensors).
-    #[arg(long)]
-    policy: PathBuf,
-    /// Quantization: f32, w8a32 or w8a8.
-    #[arg(long, default_value = "w8a8")]
-    quant: String,
-    /// Output blob file; a JSON report is written next to it (`<blob>.json`).
-    #[arg(short, long)]
-    out: PathBuf,
-    /// Meta-train demos: calibration inputs for w8a8.
-    #[arg(long)]
-    demos: PathBuf,
-    /// Held-out contexts (e.g. the meta-test demos) for the parity check and the metric.
-    #[arg(long)]
-    contexts: PathBuf,
-    /// Override the protocol's rollouts per context draw in the metric check.
-    #[arg(long)]
-    rollouts: Option<usize>,
-    /// Episode length override.
-    #[arg(long)]
-    horizon: Option<usize>,
-}
-
-/// Run `smile export`.
-pub fn run_export(a: ExportArgs) -> Result<()> {
-    let quant = export::parse_quant(&a.quant)?;
-    let mp =
-        MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
-    let family = mp.family;
-    let demos =
-        DemoDataset::read(&a.demos).with_context(|| format!("reading {}", a.demos.display()))?;
-    if demos.split != Split::Train {
-        bail!(
-            "--demos must be meta-train demos (calibration); {} is {}",
-            a.demos.display(),
-            demos.split
-        );
-    }
-    let ctx = DemoDataset::read(&a.contexts)
-        .with_context(|| format!("reading {}", a.contexts.display()))?;
-    let blob = export::export_blob(&mp, quant, &demos)?;
-    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
-    }
-    trainer::checkpoint::write_atomic(&a.out, &blob)?;
-    eprintln!(
-        "wrote {} ({} bytes, {})",
-        a.out.display(),
-        blob.len(),
-        a.quant
-    );
-    let mut protocol = Protocol::for_family(family);
-    if let Some(r) = a.rollouts {
-        protocol.rollouts = r;
-    }
-    protocol.horizon = a.horizon;
-    let report = export::verify(&mp, &blob, &a.quant, &ctx, &protocol)?;
-    let p = &report.parity;
-    eprintln!(
-        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}",
-        p.contexts, p.actions, p.action_max_abs_diff, p.action_mean_abs_diff, p.z_max_abs_diff
-    );
-    eprintln!(
-        "{} on {} {} tasks: blob {:.4}, candle {:.4} (relative difference {:+.2}%)",
-        report.metric,
-        family,
-        report.split,
-        report.metric_blob,
-        report.metric_candle,
-        100.0 * report.metric_relative_difference
-    );
-    let json = a.out.with_extension(format!(
-        "{}.json",
-        a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")
-    ));
-    std::fs::write(&json, serde_json::to_string_pretty(&report)?)?;
-    eprintln!("wrote {}", json.display());
     Ok(())
 }

@@ -3,8 +3,8 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
-use crate::context::ContextConfig;
-use crate::sac::SacConfig;
+use crate::algo::sac::SacConfig;
+use crate::model::ContextConfig;
 use crate::{Error, Result};
 
 /// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a

@@ -41,14 +41,18 @@ mod persist;
 
 pub use config::SmileConfig;
 
-use crate::context::{ContextEncoder, ContextSpec, policy_input};
-use crate::disc::{DiscStats, bce_with_logits, gradient_penalty};
-use crate::meta_data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
-use crate::meta_policy::MetaPolicy;
-use crate::metrics::MetricsLog;
-use crate::nn::{Adam, AdamConfig, Mlp};
-use crate::replay::{BatchVecs, TaskReplay};
-use crate::sac::Sac;
+use crate::algo::sac::{Sac, SacStats};
+use crate::data::{
+    Batch, BatchVecs, MetaData, TaskReplay, better, distinct_tasks, quick_eval, run_episode,
+    sample_context,
+};
+use crate::io::MetricsLog;
+use crate::model::scalar;
+use crate::model::{
+    ContextBatch, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, MetaPolicy,
+    bce_with_logits, policy_input,
+};
+use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
 
 /// Events reported to the caller of [`train`].
@@ -56,8 +60,15 @@ use crate::{Error, Result};
 pub enum Event {
     /// Update pairs done so far.
     Updates(u64),
-    /// A held-out-train-task evaluation: (updates, metric, best so far).
-    Eval(u64, f32, f32),
+    /// A held-out-train-task evaluation.
+    Eval {
+        /// Update pairs done.
+        updates: u64,
+        /// The held-out metric now.
+        metric: f32,
+        /// The best held-out metric so far (the kept policy's).
+        best: f32,
+    },
     /// A checkpoint was written at this update count.
     Checkpoint(u64),
 }
@@ -70,7 +81,7 @@ pub struct Smile {
     /// The context encoder (trained by the discriminator loss only).
     pub encoder: ContextEncoder,
     /// The discriminator on `[x, z]`.
-    pub disc: Mlp,
+    pub disc: Discriminator,
     /// The SAC agent on `[norm(s), z]`.
     pub sac: Sac,
     disc_opt: Adam,
@@ -83,12 +94,27 @@ pub struct Smile {
     best: f32,
 }
 
-fn sim_err(e: impl std::fmt::Display) -> Error {
-    Error::Sim(e.to_string())
+/// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
+/// `per_task` policy rows of `x` (row `r` belongs to task `r / per_task`).
+struct DiscBatch {
+    context: ContextBatch,
+    x_expert: Tensor,
+    x_policy: Tensor,
+    tasks: usize,
+    per_task: usize,
 }
 
-fn scalar(t: &Tensor) -> Result<f32> {
-    Ok(t.flatten_all()?.to_vec1::<f32>()?[0])
+impl DiscBatch {
+    /// Each task's `z` (rows of `z`, shape `(tasks, z)`) repeated for its rows, through a
+    /// one-hot matrix so that gradients flow back into `z`.
+    fn z_rows(&self, z: &Tensor) -> Result<Tensor> {
+        let (t, n) = (self.tasks, self.per_task);
+        let mut onehot = vec![0.0f32; t * n * t];
+        for r in 0..t * n {
+            onehot[r * t + r / n] = 1.0;
+        }
+        Ok(Tensor::from_vec(onehot, (t * n, t), &Device::Cpu)?.matmul(z)?)
+    }
 }
 
 impl Smile {
@@ -97,24 +123,29 @@ impl Smile {
         cfg.validate()?;
         let family = cfg.family()?;
         if data.family != family {
-            return Err(Error::Config(format!(
+            return Err(Error::Data(format!(
                 "demos are {}, config says {family}",
                 data.family
             )));
         }
-        let env = sim::make_env(family, cfg.env_config()).map_err(sim_err)?;
+        let env = sim::make_env(family, cfg.env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.obs_dim(), family.act_dim());
         let encoder = ContextEncoder::new(od, ad, cfg.context.clone(), &mut rng)?;
-        let x_dim = if cfg.context.state_only {
-            2 * od
+        let input = if cfg.context.state_only {
+            DiscInput::StateOnly
         } else {
-            od + ad
+            DiscInput::StateAction
         };
-        let mut dw = vec![x_dim + cfg.context.z_dim];
-        dw.extend_from_slice(&cfg.disc_hidden);
-        dw.push(1);
-        let disc = Mlp::new(&dw, &mut rng)?;
+        let disc = Discriminator::new(
+            od,
+            ad,
+            cfg.context.z_dim,
+            &cfg.disc_hidden,
+            input,
+            cfg.logit_clamp,
+            &mut rng,
+        )?;
         let sac = Sac::new(od + cfg.context.z_dim, ad, cfg.sac.clone(), &mut rng)?;
         let disc_opt = Adam::new(
             disc.vars().to_vec(),
@@ -174,25 +205,6 @@ impl Smile {
         }
     }
 
-    fn x_dim(&self) -> usize {
-        let od = self.data.family.obs_dim();
-        if self.cfg.context.state_only {
-            2 * od
-        } else {
-            od + self.data.family.act_dim()
-        }
-    }
-
-    /// Appends the discriminator's `x` of one transition: `[norm(s), a]` or `[norm(s), norm(s')]`.
-    fn push_x(&self, s: &[f32], a: &[f32], s2: &[f32], out: &mut Vec<f32>) {
-        self.data.norm.push(s, out);
-        if self.cfg.context.state_only {
-            self.data.norm.push(s2, out);
-        } else {
-            out.extend_from_slice(a);
-        }
-    }
-
     /// One rollout in training task `ti` with a sampled context and z; stored in its replay.
     pub fn rollout(&mut self, ti: usize) -> Result<()> {
         let spec = sample_context(&self.data.train[ti], self.cfg.max_context, &mut self.rng);
@@ -236,13 +248,16 @@ impl Smile {
         Ok(())
     }
 
-    /// One discriminator + encoder step (see the module doc for the loss).
-    pub fn disc_step(&mut self) -> Result<DiscStats> {
+    /// Samples the discriminator's batch: `tasks_per_batch` distinct tasks, each with a fresh
+    /// context and `disc_per_task` expert rows (uniform over its demo transitions) and as many
+    /// policy rows (its replay).
+    fn sample_disc_batch(&mut self) -> Result<DiscBatch> {
         let cfg = &self.cfg;
         let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
-        let (t, n) = (tasks.len(), cfg.disc_per_task);
+        let per_task = cfg.disc_per_task;
         let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
-        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(t);
+        let norm = &self.data.norm;
+        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(tasks.len());
         let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
         for &ti in &tasks {
             let demos = &self.data.train[ti];
@@ -250,7 +265,7 @@ impl Smile {
             // Expert rows: uniform over the task's demo transitions.
             let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
             let total: usize = lens.iter().sum();
-            for _ in 0..n {
+            for _ in 0..per_task {
                 let mut k = self.rng.random_range(0..total);
                 let mut j = 0;
                 while k >= lens[j] {
@@ -258,52 +273,57 @@ impl Smile {
                     j += 1;
                 }
                 let tr = &demos.trajectories[j];
-                let (s, a, s2) = (
+                self.disc.push_x(
+                    norm,
                     &tr.obs[k * od..(k + 1) * od],
                     &tr.actions[k * ad..(k + 1) * ad],
                     &tr.next_obs[k * od..(k + 1) * od],
+                    &mut x_exp,
                 );
-                self.push_x(s, a, s2, &mut x_exp);
             }
             let mut pol = BatchVecs::default();
             self.replay
                 .task(ti)
-                .sample_into(n, &mut self.rng, &mut pol)?;
-            for r in 0..n {
-                let (s, a, s2) = (
+                .sample_into(per_task, &mut self.rng, &mut pol)?;
+            for r in 0..per_task {
+                self.disc.push_x(
+                    norm,
                     &pol.obs[r * od..(r + 1) * od],
                     &pol.act[r * ad..(r + 1) * ad],
                     &pol.next_obs[r * od..(r + 1) * od],
+                    &mut x_pol,
                 );
-                self.push_x(s, a, s2, &mut x_pol);
             }
         }
-        let dev = &Device::Cpu;
-        let xd = self.x_dim();
-        let b = self.encoder.batch(&self.data.norm, &specs)?;
-        let z = self.encoder.z(&b, true, &mut self.rng)?; // (t, z), gradient into the encoder
-        // Row r of each half belongs to task r / n: broadcast z with a one-hot matrix.
-        let mut onehot = vec![0.0f32; t * n * t];
-        for r in 0..t * n {
-            onehot[r * t + r / n] = 1.0;
-        }
-        let onehot = Tensor::from_vec(onehot, (t * n, t), dev)?;
-        let z_rows = onehot.matmul(&z)?; // (t n, z)
-        let xe = Tensor::from_vec(x_exp, (t * n, xd), dev)?;
-        let xp = Tensor::from_vec(x_pol, (t * n, xd), dev)?;
+        let rows = (tasks.len() * per_task, self.disc.x_dim());
+        Ok(DiscBatch {
+            context: self.encoder.batch(norm, &specs)?,
+            x_expert: Tensor::from_vec(x_exp, rows, &Device::Cpu)?,
+            x_policy: Tensor::from_vec(x_pol, rows, &Device::Cpu)?,
+            tasks: tasks.len(),
+            per_task,
+        })
+    }
+
+    /// One discriminator + encoder step (Algorithm 1's inner loop, first half; the losses are
+    /// in the module doc and in [`crate::model::Discriminator`]).
+    pub fn disc_step(&mut self) -> Result<DiscStats> {
+        let batch = self.sample_disc_batch()?;
+        let rows = batch.tasks * batch.per_task;
+        let z = self.encoder.z(&batch.context, true, &mut self.rng)?; // (t, z), gradient into the encoder
+        let z_rows = batch.z_rows(&z)?; // (t n, z)
         let inp = Tensor::cat(
             &[
-                &Tensor::cat(&[&xe, &z_rows], 1)?,
-                &Tensor::cat(&[&xp, &z_rows], 1)?,
+                &Tensor::cat(&[&batch.x_expert, &z_rows], 1)?,
+                &Tensor::cat(&[&batch.x_policy, &z_rows], 1)?,
             ],
             0,
         )?;
-        let c = cfg.logit_clamp as f64;
-        let logits = self.disc.forward(&inp)?.clamp(-c, c)?; // (2 t n, 1)
+        let logits = self.disc.logits(&inp)?; // (2 t n, 1): expert rows, then policy rows
         let labels = Tensor::cat(
             &[
-                Tensor::ones((t * n, 1), DType::F32, dev)?,
-                Tensor::zeros((t * n, 1), DType::F32, dev)?,
+                Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?,
+                Tensor::zeros((rows, 1), DType::F32, &Device::Cpu)?,
             ],
             0,
         )?;
@@ -312,12 +332,15 @@ impl Smile {
         // L_gp = mean[(||dD/dx~|| - 1)^2], x~ = u x_E + (1 - u) x_pi, z detached
         let mut loss = bce.clone();
         let mut gp_v = 0.0;
-        if cfg.gp_weight > 0.0 {
-            let u: Vec<f32> = (0..t * n).map(|_| self.rng.random::<f32>()).collect();
-            let u = Tensor::from_vec(u, (t * n, 1), dev)?;
-            let gp = gradient_penalty(&self.disc, &xe, &xp, &z_rows, &u)?;
+        if self.cfg.gp_weight > 0.0 {
+            let u: Vec<f32> = (0..rows).map(|_| self.rng.random::<f32>()).collect();
+            let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu)?;
+            let gp = self
+                .disc
+                .gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u)?;
             gp_v = scalar(&gp)?;
-            loss = (loss + (gp * cfg.gp_weight as f64)?)?;
+            // L_D = L_bce + lambda_gp L_gp
+            loss = (loss + (gp * self.cfg.gp_weight as f64)?)?;
         }
         let bce_v = scalar(&bce)?;
         for (what, v) in [("losses/disc_bce", bce_v), ("losses/disc_gp", gp_v)] {
@@ -329,12 +352,14 @@ impl Smile {
                 });
             }
         }
+        // One backward pass, two optimisers: the discriminator (betas (0, 0.999)) and the
+        // encoder (trained only through this loss).
         let grads = loss.backward()?;
         self.disc_opt.step(&grads)?;
         self.enc_opt.step(&grads)?;
         let l = logits.detach().flatten_all()?.to_vec1::<f32>()?;
-        let acc_e = l[..t * n].iter().filter(|v| **v > 0.0).count() as f32 / (t * n) as f32;
-        let acc_p = l[t * n..].iter().filter(|v| **v < 0.0).count() as f32 / (t * n) as f32;
+        let acc_e = l[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
+        let acc_p = l[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
         Ok(DiscStats {
             bce: bce_v,
             gp: gp_v,
@@ -343,8 +368,9 @@ impl Smile {
         })
     }
 
-    /// One SAC step on fresh tasks and contexts with the discriminator's reward.
-    pub fn sac_step(&mut self) -> Result<(crate::sac::SacStats, f32)> {
+    /// One SAC step on fresh tasks and contexts with the discriminator's reward (Algorithm 1's
+    /// inner loop, second half).
+    pub fn sac_step(&mut self) -> Result<(SacStats, f32)> {
         let cfg = &self.cfg;
         let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
         let n = cfg.sac_per_task;
@@ -376,9 +402,11 @@ impl Smile {
             z[0].len(),
         );
         // r = clamp(D([x, z]), -10, 10); the SAC config's reward_scale multiplies it.
-        let mut dx = Vec::with_capacity(rows * (self.x_dim() + zd));
+        let xzd = self.disc.x_dim() + zd;
+        let mut dx = Vec::with_capacity(rows * xzd);
         for r in 0..rows {
-            self.push_x(
+            self.disc.push_x(
+                &self.data.norm,
                 &bv.obs[r * od..(r + 1) * od],
                 &bv.act[r * ad..(r + 1) * ad],
                 &bv.next_obs[r * od..(r + 1) * od],
@@ -386,11 +414,11 @@ impl Smile {
             );
             dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
         }
-        let dx = Tensor::from_vec(dx, (rows, self.x_dim() + zd), &Device::Cpu)?;
-        let c = cfg.logit_clamp as f64;
-        let rew = self.disc.forward_const_weights(&dx)?.clamp(-c, c)?.detach();
+        let rew = self
+            .disc
+            .reward(&Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?)?;
         let reward_mean = scalar(&rew.mean_all()?)?;
-        let batch = crate::replay::Batch {
+        let batch = Batch {
             obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
             act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
             rew,
@@ -464,7 +492,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             ("charts/env_steps", run.env_steps as f64),
         ];
         if let Some(s) = &ss {
-            fields.extend(crate::metrics::sac_fields(s));
+            fields.extend(crate::io::sac_fields(s));
         }
         log.log(run.updates, &fields)?;
         if run.updates >= next_eval || (run.updates >= cfg.total_updates && cfg.eval_every > 0) {
@@ -482,7 +510,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
                         ("eval/val_best", run.best as f64),
                     ],
                 )?;
-                on(Event::Eval(run.updates, m, run.best));
+                on(Event::Eval {
+                    updates: run.updates,
+                    metric: m,
+                    best: run.best,
+                });
             }
         }
         if run.updates >= next_ckpt || run.updates >= cfg.total_updates {
@@ -498,7 +530,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         source: e,
     })?;
     run.meta_policy().save(&last)?;
-    if run.data.val.is_empty() || !dir.join(crate::meta_policy::META_POLICY_FILE).exists() {
+    if run.data.val.is_empty() || !dir.join(crate::model::META_POLICY_FILE).exists() {
         run.meta_policy().save(dir)?;
     }
     Ok(())

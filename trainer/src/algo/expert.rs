@@ -18,11 +18,12 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Environment, EpisodeMetric, Family, PointGoalPdExpert, Task};
 
-use crate::checkpoint;
-pub use crate::expert_eval::{EvalReport, ExpertSet, evaluate};
-use crate::policy::TanhGaussianPolicy;
-use crate::replay::ReplayBuffer;
-use crate::sac::{Sac, SacConfig, SacCounters, SacStats};
+use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
+use crate::data::ReplayBuffer;
+pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate};
+use crate::io::checkpoint;
+use crate::io::checkpoint::rng_state;
+use crate::model::TanhGaussianPolicy;
 use crate::{Error, Result};
 
 /// File name of an exported expert policy inside a run directory.
@@ -109,7 +110,7 @@ impl ExpertConfig {
                     "give task_index or task_value, not both".into(),
                 ));
             }
-            return Ok(vec![family.task_from_value(v).map_err(sim_err)?]);
+            return Ok(vec![family.task_from_value(v)?]);
         }
         let all = family.train_tasks();
         match self.task_index {
@@ -121,10 +122,6 @@ impl ExpertConfig {
             ))),
         }
     }
-}
-
-fn sim_err(e: impl std::fmt::Display) -> Error {
-    Error::Sim(e.to_string())
 }
 
 /// What one finished episode reports.
@@ -161,7 +158,7 @@ impl ExpertTrainer {
     pub fn new(cfg: ExpertConfig) -> Result<Self> {
         let family = cfg.family()?;
         let tasks = cfg.tasks()?;
-        let env = sim::make_env(family, cfg.env_config()).map_err(sim_err)?;
+        let env = sim::make_env(family, cfg.env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.oracle_obs_dim(), family.act_dim());
         let sac = Sac::new(od, ad, cfg.sac.clone(), &mut rng)?;
@@ -203,10 +200,10 @@ impl ExpertTrainer {
             .seed
             .wrapping_mul(1_000_003)
             .wrapping_add(self.episodes);
-        self.env.reset(&task, reset_seed).map_err(sim_err)?;
+        self.env.reset(&task, reset_seed)?;
         let (od, ad) = (self.family.oracle_obs_dim(), self.family.act_dim());
         let (mut obs, mut next) = (vec![0.0f32; od], vec![0.0f32; od]);
-        self.env.oracle_observation(&mut obs).map_err(sim_err)?;
+        self.env.oracle_observation(&mut obs)?;
         let mut metric = EpisodeMetric::new(self.family);
         let (mut ret, mut last_update) = (0.0f32, None);
         loop {
@@ -217,9 +214,9 @@ impl ExpertTrainer {
             } else {
                 self.sac.actor.act(&obs, false, &mut self.rng)?
             };
-            let tr = self.env.step(&action).map_err(sim_err)?;
+            let tr = self.env.step(&action)?;
             let (reward, done, info) = (tr.reward, tr.done, tr.info);
-            self.env.oracle_observation(&mut next).map_err(sim_err)?;
+            self.env.oracle_observation(&mut next)?;
             self.replay
                 .push(&obs, &action, reward, &next, info.terminated)?;
             metric.record(&info);
@@ -279,7 +276,7 @@ impl ExpertTrainer {
         }
         let mut run = Self::new(cfg)?;
         let counters: SacCounters = ck.meta_field("sac_counters")?;
-        let wrap = |e: Error| Error::Checkpoint {
+        let wrap = |e: Error| Error::CheckpointState {
             path: ck.path().to_path_buf(),
             reason: format!("does not match this configuration: {e}"),
         };
@@ -289,7 +286,7 @@ impl ExpertTrainer {
             .map_err(wrap)?;
         run.env_steps = ck.meta_field("env_steps")?;
         run.episodes = ck.meta_field("episodes")?;
-        run.rng = rng_from_state(&ck.meta_field("rng")?).map_err(wrap)?;
+        run.rng = ck.meta_rng("rng")?;
         Ok(run)
     }
 
@@ -419,7 +416,7 @@ impl Expert {
                 action.copy_from_slice(&policy.act(oracle_obs, true, &mut rng)?);
                 Ok(())
             }
-            Expert::ScriptedPd(pd) => pd.act(oracle_obs, action).map_err(sim_err),
+            Expert::ScriptedPd(pd) => Ok(pd.act(oracle_obs, action)?),
         }
     }
 }
@@ -432,43 +429,6 @@ impl ExpertTrainer {
             policy: self.sac.actor.clone(),
         }
     }
-}
-
-/// ChaCha8 state as JSON: seed (hex), stream and word position (decimal strings).
-pub fn rng_state(rng: &ChaCha8Rng) -> serde_json::Value {
-    let seed: String = rng.get_seed().iter().map(|b| format!("{b:02x}")).collect();
-    serde_json::json!({
-        "seed": seed,
-        "stream": rng.get_stream().to_string(),
-        "word_pos": rng.get_word_pos().to_string(),
-    })
-}
-
-/// Inverse of [`rng_state`].
-pub fn rng_from_state(v: &serde_json::Value) -> Result<ChaCha8Rng> {
-    let bad = || Error::Shape("malformed RNG state".into());
-    let hex = v["seed"].as_str().ok_or_else(bad)?;
-    if hex.len() != 64 {
-        return Err(bad());
-    }
-    let mut seed = [0u8; 32];
-    for (i, b) in seed.iter_mut().enumerate() {
-        *b = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).map_err(|_| bad())?;
-    }
-    let stream: u64 = v["stream"]
-        .as_str()
-        .ok_or_else(bad)?
-        .parse()
-        .map_err(|_| bad())?;
-    let word_pos: u128 = v["word_pos"]
-        .as_str()
-        .ok_or_else(bad)?
-        .parse()
-        .map_err(|_| bad())?;
-    let mut rng = ChaCha8Rng::from_seed(seed);
-    rng.set_stream(stream);
-    rng.set_word_pos(word_pos);
-    Ok(rng)
 }
 
 /// What [`train`] reports to its caller (progress bars).
@@ -487,7 +447,7 @@ pub enum Event {
 /// `dir/policy.safetensors`. A non-finite loss returns [`Error::NonFinite`]; the last
 /// checkpoint on disk is the last good one.
 pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
-    let mut log = crate::metrics::MetricsLog::open(dir)?;
+    let mut log = crate::io::MetricsLog::open(dir)?;
     let every = run.cfg.checkpoint_every.max(1);
     let mut next_ckpt = (run.env_steps / every + 1) * every;
     let eval_every = run.cfg.eval_every;
@@ -507,7 +467,7 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
             ("charts/updates", run.sac.updates() as f64),
         ];
         if let Some(s) = &rep.last_update {
-            fields.extend(crate::metrics::sac_fields(s));
+            fields.extend(crate::io::sac_fields(s));
         }
         log.log(rep.env_steps, &fields)?;
         on(Event::Episode(rep, sps));

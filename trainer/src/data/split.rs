@@ -1,19 +1,15 @@
-//! What every meta-learner shares: the meta-train demos split into training tasks and held-out
-//! *train* tasks (for validation / progress; the meta-test tasks are never read here), context
-//! sampling, and episode rollouts of a context-conditioned policy.
+//! The meta-train demos split into training tasks and held-out *train* tasks (for validation
+//! and checkpoint selection; the meta-test tasks are never read here), and the sampling of
+//! tasks and contexts every meta-learner shares.
 //!
 //! Honesty rule: [`MetaData::from_dataset`] refuses a dataset whose split is `test` or that
 //! contains any task outside the family's meta-train list.
 
 use rand::Rng;
 use rand::seq::SliceRandom;
-use sim::{
-    DemoDataset, EnvConfig, Environment, EpisodeMetric, Family, MetricKind, Split, Task, TaskDemos,
-    Trajectory,
-};
+use sim::{DemoDataset, Family, Split, TaskDemos, Trajectory};
 
-use crate::context::{ContextSpec, ObsNorm};
-use crate::meta_policy::MetaPolicy;
+use crate::model::{ContextSpec, ObsNorm};
 use crate::{Error, Result};
 
 /// Meta-train demos, split into training tasks and held-out train tasks.
@@ -29,20 +25,6 @@ pub struct MetaData {
     pub val: Vec<TaskDemos>,
 }
 
-/// `true` if `a` is a better value than `b` for a metric of this kind (NaN is never better).
-pub fn better(kind: MetricKind, a: f32, b: f32) -> bool {
-    if a.is_nan() {
-        return false;
-    }
-    if b.is_nan() {
-        return true;
-    }
-    match kind {
-        MetricKind::Return => a > b,
-        MetricKind::MinGoalDistance | MetricKind::MeanVelocityError => a < b,
-    }
-}
-
 impl MetaData {
     /// Splits `ds`: every `holdout_every`-th task (indices `holdout_every-1, 2*holdout_every-1,
     /// ...`) is held out for validation; 0 holds none out.
@@ -51,24 +33,23 @@ impl MetaData {
     /// its family, is of another family, or has a task without trajectories.
     pub fn from_dataset(ds: &DemoDataset, family: Family, holdout_every: usize) -> Result<Self> {
         if ds.split == Split::Test {
-            return Err(Error::Config(
+            return Err(Error::Data(
                 "refusing to train on a meta-test dataset (split = test): training must never \
                  see meta-test tasks or their demos"
                     .into(),
             ));
         }
-        ds.ensure_family(family)
-            .map_err(|e| Error::Sim(e.to_string()))?;
+        ds.ensure_family(family)?;
         let train_tasks = family.train_tasks();
         for td in &ds.tasks {
             if !train_tasks.contains(&td.task) {
-                return Err(Error::Config(format!(
+                return Err(Error::Data(format!(
                     "dataset task {} is not a meta-train task of {family}; refusing to train on it",
                     td.task
                 )));
             }
             if td.trajectories.iter().all(Trajectory::is_empty) {
-                return Err(Error::Config(format!(
+                return Err(Error::Data(format!(
                     "task {} has no demo transitions",
                     td.task
                 )));
@@ -84,7 +65,7 @@ impl MetaData {
             }
         }
         if train.is_empty() {
-            return Err(Error::Config(
+            return Err(Error::Data(
                 "no training tasks left after the hold-out".into(),
             ));
         }
@@ -119,122 +100,10 @@ pub fn distinct_tasks(len: usize, n: usize, rng: &mut impl Rng) -> Vec<usize> {
     idx
 }
 
-/// One step of a rollout as seen by a callback.
-#[derive(Debug, Clone, Copy)]
-pub struct Step<'a> {
-    /// Observation before the step.
-    pub obs: &'a [f32],
-    /// Oracle observation before the step (observation + task parameter).
-    pub oracle: &'a [f32],
-    /// Action taken (after clipping to [-1, 1]).
-    pub action: &'a [f32],
-    /// Observation after the step.
-    pub next_obs: &'a [f32],
-    /// True terminal (not a time-limit truncation).
-    pub terminated: bool,
-}
-
-/// Outcome of one episode.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Episode {
-    /// The family's metric (min distance, mean |v - v*|, return).
-    pub metric: f32,
-    /// Undiscounted return.
-    pub ret: f32,
-    /// Steps taken.
-    pub steps: usize,
-}
-
-/// A policy callback: `act(obs, action)` writes the action for a raw observation.
-pub type ActFn<'a> = dyn FnMut(&[f32], &mut [f32]) -> Result<()> + 'a;
-
-/// Runs one episode of `task` from reset seed `seed`; `act(obs, action)` chooses actions and
-/// `on_step` sees every transition.
-pub fn run_episode(
-    env: &mut dyn Environment,
-    task: &Task,
-    seed: u64,
-    act: &mut ActFn<'_>,
-    on_step: &mut dyn FnMut(&Step<'_>) -> Result<()>,
-) -> Result<Episode> {
-    let sim_err = |e: sim::SimError| Error::Sim(e.to_string());
-    let mut obs = env.reset(task, seed).map_err(sim_err)?.to_vec();
-    let mut oracle = vec![0.0f32; env.oracle_obs_dim()];
-    let mut action = vec![0.0f32; env.act_dim()];
-    let mut metric = EpisodeMetric::new(env.family());
-    let (mut ret, mut steps) = (0.0f32, 0usize);
-    loop {
-        env.oracle_observation(&mut oracle).map_err(sim_err)?;
-        act(&obs, &mut action)?;
-        for a in action.iter_mut() {
-            *a = a.clamp(-1.0, 1.0);
-        }
-        let tr = env.step(&action).map_err(sim_err)?;
-        metric.record(&tr.info);
-        ret += tr.reward;
-        steps += 1;
-        let done = tr.done;
-        on_step(&Step {
-            obs: &obs,
-            oracle: &oracle,
-            action: &action,
-            next_obs: tr.obs,
-            terminated: tr.info.terminated,
-        })?;
-        obs.copy_from_slice(tr.obs);
-        if done {
-            return Ok(Episode {
-                metric: metric.value(),
-                ret,
-                steps,
-            });
-        }
-    }
-}
-
-/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `contexts` draws of one
-/// context trajectory (trajectory `d % n`) and `episodes` rollouts each; z = posterior mean.
-pub fn quick_eval(
-    mp: &MetaPolicy,
-    tasks: &[TaskDemos],
-    contexts: usize,
-    episodes: usize,
-    env_cfg: EnvConfig,
-) -> Result<f32> {
-    if tasks.is_empty() {
-        return Ok(f32::NAN);
-    }
-    let mut env = sim::make_env(mp.family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-    use rand::SeedableRng;
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for td in tasks {
-        for d in 0..contexts.max(1) {
-            let traj = &td.trajectories[d % td.trajectories.len()];
-            let z = mp.latent(&[traj])?;
-            for e in 0..episodes.max(1) {
-                let seed = 3_000_000 + (d * 1000 + e) as u64;
-                let ep = run_episode(
-                    env.as_mut(),
-                    &td.task,
-                    seed,
-                    &mut |o, a| {
-                        a.copy_from_slice(&mp.act(o, &z, true, &mut rng)?);
-                        Ok(())
-                    },
-                    &mut |_| Ok(()),
-                )?;
-                sum += ep.metric as f64;
-                n += 1;
-            }
-        }
-    }
-    Ok((sum / n as f64) as f32)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sim::{EnvConfig, Task};
 
     fn dataset(split: Split, tasks: Vec<Task>) -> DemoDataset {
         let mut ds = DemoDataset::new(Family::PointGoal, split, "scripted-pd");

@@ -10,10 +10,10 @@ use candle_core::Tensor;
 use rand::Rng;
 use sim::{Family, Trajectory};
 
-use crate::checkpoint;
-use crate::context::{ContextConfig, ContextEncoder, ObsNorm};
-use crate::nn::Mlp;
-use crate::policy::TanhGaussianPolicy;
+use crate::io::checkpoint;
+use crate::model::Mlp;
+use crate::model::TanhGaussianPolicy;
+use crate::model::{ContextConfig, ContextEncoder, ObsNorm};
 use crate::{Error, Result};
 
 /// File name of a trained meta-policy inside a run directory.
@@ -171,9 +171,7 @@ impl MetaPolicy {
             });
         }
         let env: String = ck.meta_field("env")?;
-        let family = env
-            .parse::<Family>()
-            .map_err(|e| Error::Sim(e.to_string()))?;
+        let family = env.parse::<Family>()?;
         let cfg: ContextConfig = ck.meta_field("context")?;
         let norm: ObsNorm = ck.meta_field("norm")?;
         let widths: Vec<usize> = ck.meta_field("policy_widths")?;
@@ -213,7 +211,7 @@ impl MetaPolicy {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::context::tests::{close, setup};
+    use crate::model::context::tests::{close, setup};
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;
 

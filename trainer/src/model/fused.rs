@@ -15,16 +15,34 @@
 
 use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
 
+use super::policy::HALF_LN_2PI;
+
 fn msg(m: &str) -> candle_core::Error {
     candle_core::Error::Msg(format!("fused linear: {m}"))
 }
 
-fn slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Result<&'a [f32]> {
+/// Contiguous f32 slice of a CPU tensor storage (shared by the in-place ops of the MLP and
+/// the optimiser).
+pub(crate) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Result<&'a [f32]> {
     let (a, b) = l
         .contiguous_offsets()
         .ok_or_else(|| msg("non-contiguous input"))?;
     match s {
         CpuStorage::F32(v) => Ok(&v[a..b]),
+        _ => Err(msg("f32 only")),
+    }
+}
+
+/// Mutable [`f32_slice`].
+pub(crate) fn f32_slice_mut<'a>(
+    s: &'a mut CpuStorage,
+    l: &Layout,
+) -> candle_core::Result<&'a mut [f32]> {
+    let (a, b) = l
+        .contiguous_offsets()
+        .ok_or_else(|| msg("non-contiguous input"))?;
+    match s {
+        CpuStorage::F32(v) => Ok(&mut v[a..b]),
         _ => Err(msg("f32 only")),
     }
 }
@@ -108,7 +126,7 @@ impl CustomOp3 for Linear {
         if w_in != d_in || l3.shape().elem_count() != d_out {
             return Err(msg("shape mismatch"));
         }
-        let (x, w, b) = (slice(s1, l1)?, slice(s2, l2)?, slice(s3, l3)?);
+        let (x, w, b) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
         let mut y = Vec::with_capacity(rows * d_out);
         for _ in 0..rows {
             y.extend_from_slice(b);
@@ -137,14 +155,14 @@ impl CustomOp3 for Linear {
         let grad_res = grad_res.contiguous()?;
         let (gs, gl) = grad_res.storage_and_layout();
         let gs = match &*gs {
-            candle_core::Storage::Cpu(s) => slice(s, gl)?,
+            candle_core::Storage::Cpu(s) => f32_slice(s, gl)?,
             _ => return Err(msg("cpu only")),
         };
         // g = dL/dy * 1[y > 0]
         let g: Vec<f32> = if self.relu {
             let (rs, rl) = res.storage_and_layout();
             let ys = match &*rs {
-                candle_core::Storage::Cpu(s) => slice(s, rl)?,
+                candle_core::Storage::Cpu(s) => f32_slice(s, rl)?,
                 _ => return Err(msg("cpu only")),
             };
             gs.iter()
@@ -159,7 +177,7 @@ impl CustomOp3 for Linear {
             let w = w.contiguous()?;
             let (ws, wl) = w.storage_and_layout();
             let ws = match &*ws {
-                candle_core::Storage::Cpu(s) => slice(s, wl)?,
+                candle_core::Storage::Cpu(s) => f32_slice(s, wl)?,
                 _ => return Err(msg("cpu only")),
             };
             // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
@@ -175,7 +193,7 @@ impl CustomOp3 for Linear {
             let x = x.contiguous()?;
             let (xs, xl) = x.storage_and_layout();
             let xs = match &*xs {
-                candle_core::Storage::Cpu(s) => slice(s, xl)?,
+                candle_core::Storage::Cpu(s) => f32_slice(s, xl)?,
                 _ => return Err(msg("cpu only")),
             };
             // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
@@ -218,8 +236,6 @@ pub struct TanhGaussian {
     pub hi: f32,
 }
 
-const HALF_LN_2PI: f32 = 0.918_938_5;
-
 impl candle_core::CustomOp2 for TanhGaussian {
     fn name(&self) -> &'static str {
         "tanh-gaussian"
@@ -237,7 +253,7 @@ impl candle_core::CustomOp2 for TanhGaussian {
         if l2.shape().dims2()? != (rows, a_dim) || two_a % 2 != 0 {
             return Err(msg("tanh-gaussian: shape mismatch"));
         }
-        let (h, eps) = (slice(s1, l1)?, slice(s2, l2)?);
+        let (h, eps) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?);
         let mut out = vec![0.0f32; rows * (a_dim + 1)];
         for r in 0..rows {
             let (hr, er) = (
@@ -257,7 +273,7 @@ impl candle_core::CustomOp2 for TanhGaussian {
                 o[i] = ((1.0 - t) / (1.0 + t)).copysign(u);
                 let softplus_m2u = (-2.0 * u).max(0.0) + t.ln_1p();
                 let squash = 2.0 * (std::f32::consts::LN_2 - u - softplus_m2u);
-                logp += -0.5 * e * e - ls - HALF_LN_2PI - squash;
+                logp += -0.5 * e * e - ls - HALF_LN_2PI as f32 - squash;
             }
             o[a_dim] = logp;
         }

@@ -1,4 +1,6 @@
-//! `smile`: train SAC experts, record demonstrations and benchmark the learner.
+//! `smile`: the SMILe trainer's command line: experts, demos, meta-training (SMILe, Meta-BC,
+//! Meta-DAgger), evaluation, blob export, the quickstart and benchmarks. One file per
+//! subcommand.
 //!
 //! Thread layout: the learner runs candle single-threaded (`--threads`, default 1); see
 //! `trainer::threads` for why.
@@ -6,17 +8,19 @@
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
-mod cli_bench;
-mod cli_eval;
-mod cli_expert;
-mod cli_quickstart;
-mod cli_train;
+mod bench;
+mod demos;
+mod eval;
+mod expert;
+mod export;
+mod quickstart;
+mod train;
 
 #[derive(Parser, Debug)]
 #[command(
     name = "smile",
     version,
-    about = "SMILe trainer: SAC experts, demos, benchmarks"
+    about = "SMILe: meta-train a few-shot imitation policy (SMILe, Meta-BC, Meta-DAgger), evaluate it and export it to a no_std device blob"
 )]
 struct Cli {
     /// Threads for candle's matmul (1 is fastest on 2 vCPUs shared with rollouts).
@@ -32,49 +36,49 @@ enum Cmd {
     #[command(
         after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
     )]
-    Expert(cli_expert::ExpertArgs),
+    Expert(expert::ExpertArgs),
     /// Record deterministic expert demonstrations in sim's dataset format.
     #[command(
         after_help = "Examples:\n  smile demos --env point-goal --split train --per-task 4 --subsample 20 --expert runs/pg-expert -o demos/pg-train.safetensors\n  smile demos --env point-goal --task-params 0.1,1.7 --per-task 1 --expert runs/pg-pd -o demos/pg-extra.safetensors"
     )]
-    Demos(cli_expert::DemosArgs),
+    Demos(demos::DemosArgs),
     /// Time SAC updates (batch 256, obs 20 + z 16, act 6) at several hidden widths.
     #[command(
         after_help = "Examples:\n  smile bench\n  smile bench --hidden 64 256 --iters 500 --json bench.json"
     )]
-    Bench(cli_bench::BenchArgs),
+    Bench(bench::BenchArgs),
     /// Meta-train SMILe (state-action or state-only), Meta-BC or Meta-DAgger on meta-train demos.
     #[command(
         after_help = "Examples:\n  smile train --algo smile --env point-goal --demos demos/pg-train.safetensors -o runs/pg-smile\n  smile train --algo meta-bc --env point-goal --demos demos/pg-train.safetensors -o runs/pg-bc\n  smile train --algo smile -o runs/pg-smile --demos demos/pg-train.safetensors --resume --updates 30000"
     )]
-    Train(cli_train::TrainArgs),
+    Train(train::TrainArgs),
     /// Evaluate trained meta-policies on a split's tasks with the paper's protocol.
     #[command(
         after_help = "Examples:\n  smile eval --policy runs/pg-smile runs/pg-bc --env point-goal --split test --contexts demos/pg-test.safetensors -o runs/pg-eval\n  smile eval --policy runs/pg-smile --contexts demos/pg-test.safetensors --render\n  smile eval --policy runs/wd-smile --env walker-dyn --contexts demos/wd-test.safetensors --base runs/walker-base --expert runs/walker-expert -o runs/wd-eval"
     )]
-    Eval(cli_eval::EvalArgs),
+    Eval(eval::EvalArgs),
     /// Export a meta-policy as an infer-core blob and verify it (parity + metric).
     #[command(
         after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob"
     )]
-    Export(cli_eval::ExportArgs),
+    Export(export::ExportArgs),
     /// The whole pipeline on point-goal: expert, demos, SMILe + Meta-BC, eval, blob, device.
     #[command(
         after_help = "Examples:\n  smile quickstart\n  smile quickstart --out runs/qs-seed1 --seed 1\n  smile quickstart --budget tiny --quiet"
     )]
-    Quickstart(cli_quickstart::QuickstartArgs),
+    Quickstart(quickstart::QuickstartArgs),
 }
 
 fn main() -> Result<()> {
     let cli = Cli::parse();
     trainer::threads::set_compute_threads(cli.threads);
     match cli.cmd {
-        Cmd::Bench(a) => cli_bench::run(a),
-        Cmd::Expert(a) => cli_expert::run_expert(a),
-        Cmd::Demos(a) => cli_expert::run_demos(a),
-        Cmd::Train(a) => cli_train::run(a),
-        Cmd::Eval(a) => cli_eval::run_eval(a),
-        Cmd::Export(a) => cli_eval::run_export(a),
-        Cmd::Quickstart(a) => cli_quickstart::run(a),
+        Cmd::Bench(a) => bench::run(a),
+        Cmd::Expert(a) => expert::run(a),
+        Cmd::Demos(a) => demos::run(a),
+        Cmd::Train(a) => train::run(a),
+        Cmd::Eval(a) => eval::run(a),
+        Cmd::Export(a) => export::run(a),
+        Cmd::Quickstart(a) => quickstart::run(a),
     }
 }

@@ -4,8 +4,8 @@
 
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
-use crate::expert::{Expert, ExpertSet};
-use crate::{Error, Result};
+use crate::Result;
+use crate::algo::expert::{Expert, ExpertSet};
 
 /// What to record.
 #[derive(Debug, Clone)]
@@ -33,8 +33,7 @@ pub fn record(expert: &Expert, spec: &DemoSpec) -> Result<DemoDataset> {
 /// As [`record`], each task acted by its expert in `experts` (per-task experts).
 pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> {
     let family: Family = experts.family();
-    let sim_err = |e: sim::DatasetError| Error::Sim(e.to_string());
-    let mut env = sim::make_env(family, spec.env).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
     for task in &spec.tasks {
         let expert = experts.for_task(task)?;
@@ -45,8 +44,7 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
                 if let Err(e) = expert.act(o, a) {
                     failure.get_or_insert(e);
                 }
-            })
-            .map_err(sim_err)?;
+            })?;
             if let Some(e) = failure {
                 return Err(e);
             }
@@ -58,7 +56,7 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
         });
     }
     if spec.subsample > 1 {
-        ds = ds.subsample(spec.subsample, spec.seed).map_err(sim_err)?;
+        ds = ds.subsample(spec.subsample, spec.seed)?;
     }
     Ok(ds)
 }

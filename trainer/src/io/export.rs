@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
 use crate::eval::ConditionedActor;
-use crate::meta_policy::MetaPolicy;
+use crate::model::MetaPolicy;
 use crate::{Error, Result};
 
 /// Widest layer the blob runners here accept.
@@ -83,14 +83,14 @@ pub fn export_blob(
 ) -> Result<Vec<u8>> {
     let fm = mp.to_float_model()?;
     infer_core::write_blob(&fm, quant, &calibration(mp, calib_demos))
-        .map_err(|e| Error::Config(format!("blob writer: {e}")))
+        .map_err(|e| Error::Blob(format!("writer: {e}")))
 }
 
 /// Loads (and fully validates) `blob` with infer-core, refusing layers wider than the
 /// runners' capacity [`BLOB_CAPACITY`].
 pub fn load_blob(blob: &[u8]) -> Result<infer_core::Model<'_>> {
     let model = infer_core::Model::from_bytes(blob)
-        .map_err(|e| Error::Config(format!("blob does not load: {e}")))?;
+        .map_err(|e| Error::Blob(format!("does not load: {e}")))?;
     if model.max_width() > BLOB_CAPACITY {
         return Err(Error::Shape(format!(
             "blob layer width {} exceeds {BLOB_CAPACITY}",
@@ -122,7 +122,7 @@ impl<'m, 'a> BlobActor<'m, 'a> {
 }
 
 fn infer_err(e: infer_core::InferError) -> Error {
-    Error::Config(format!("blob inference: {e}"))
+    Error::Blob(format!("inference: {e}"))
 }
 
 impl ConditionedActor for BlobActor<'_, '_> {
@@ -130,7 +130,7 @@ impl ConditionedActor for BlobActor<'_, '_> {
         let h = *self.model.header();
         let (od, ad) = (h.obs_dim as usize, h.act_dim as usize);
         let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(self.model)
-            .map_err(|e| Error::Config(e.to_string()))?;
+            .map_err(|e| Error::Blob(e.to_string()))?;
         for t in context {
             for i in 0..t.len() {
                 enc.push(

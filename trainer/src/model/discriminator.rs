@@ -1,16 +1,128 @@
-//! Discriminator losses of adversarial imitation (SMILe's AIRL discriminator), each next to
-//! the equation it implements:
+//! SMILe's context-conditioned AIRL discriminator `D(x, z)` and its losses, each next to the
+//! equation it implements.
+//!
+//! The input is `[x, z]` with `x = [norm(s), a]` (state-action) or `[norm(s), norm(s')]`
+//! (state-only) and `z` the task latent of the context encoder. The logit is clamped to
+//! `[-c, c]`; its value is also the policy's reward, `log D - log(1 - D)`.
 //!
 //! ```text
-//! L_bce = mean[ softplus(l) - y l ]                            (BCE with logits, l = logit)
+//! l = clamp(D(x, z), -c, c)                                    (logit; c = 10)
+//! L_bce = mean[ softplus(l) - y l ]                            (BCE with logits)
 //! x~ = u x_E + (1 - u) x_pi,  u ~ U(0, 1) per sample,  z detached
 //! L_gp = mean[ (|| d D(x~, z) / d x~ || - 1)^2 ]               (WGAN-GP form)
 //! ```
 
-use candle_core::{DType, Device, Tensor};
+use candle_core::{DType, Device, Tensor, Var};
+use rand::Rng;
 
+use super::context::ObsNorm;
+use super::mlp::Mlp;
 use crate::Result;
-use crate::nn::Mlp;
+
+/// What the discriminator sees of a transition besides `z`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DiscInput {
+    /// `x = [norm(s), a]` (SMILe state-action).
+    StateAction,
+    /// `x = [norm(s), norm(s')]` (SMILe state-only: demos without actions suffice).
+    StateOnly,
+}
+
+/// The discriminator network with its input layout and logit clamp.
+#[derive(Debug, Clone)]
+pub struct Discriminator {
+    net: Mlp,
+    input: DiscInput,
+    obs_dim: usize,
+    act_dim: usize,
+    clamp: f32,
+}
+
+impl Discriminator {
+    /// A new discriminator `[x, z] -> hidden... -> 1` (initialised as [`Mlp::new`]).
+    pub fn new(
+        obs_dim: usize,
+        act_dim: usize,
+        z_dim: usize,
+        hidden: &[usize],
+        input: DiscInput,
+        logit_clamp: f32,
+        rng: &mut impl Rng,
+    ) -> Result<Self> {
+        let x_dim = match input {
+            DiscInput::StateAction => obs_dim + act_dim,
+            DiscInput::StateOnly => 2 * obs_dim,
+        };
+        let mut widths = vec![x_dim + z_dim];
+        widths.extend_from_slice(hidden);
+        widths.push(1);
+        Ok(Self {
+            net: Mlp::new(&widths, rng)?,
+            input,
+            obs_dim,
+            act_dim,
+            clamp: logit_clamp,
+        })
+    }
+
+    /// Width of `x` (without `z`).
+    pub fn x_dim(&self) -> usize {
+        match self.input {
+            DiscInput::StateAction => self.obs_dim + self.act_dim,
+            DiscInput::StateOnly => 2 * self.obs_dim,
+        }
+    }
+
+    /// The input layout.
+    pub fn input(&self) -> DiscInput {
+        self.input
+    }
+
+    /// Appends `x` of one transition `(s, a, s')`: `[norm(s), a]` or `[norm(s), norm(s')]`.
+    pub fn push_x(&self, norm: &ObsNorm, s: &[f32], a: &[f32], s2: &[f32], out: &mut Vec<f32>) {
+        norm.push(s, out);
+        match self.input {
+            DiscInput::StateAction => out.extend_from_slice(a),
+            DiscInput::StateOnly => norm.push(s2, out),
+        }
+    }
+
+    /// The underlying network (checkpoints, export of its widths).
+    pub fn net(&self) -> &Mlp {
+        &self.net
+    }
+
+    /// The trainable variables (for its optimiser).
+    pub fn vars(&self) -> &[Var] {
+        self.net.vars()
+    }
+
+    /// `l = clamp(D([x, z]), -c, c)` for rows `[x, z]`; gradients flow into the weights and
+    /// into `z` (so into the encoder).
+    pub fn logits(&self, xz: &Tensor) -> Result<Tensor> {
+        let c = self.clamp as f64;
+        Ok(self.net.forward(xz)?.clamp(-c, c)?)
+    }
+
+    /// The policy's reward `r = clamp(D([x, z]), -c, c) = log D - log(1 - D)`, a constant for
+    /// the SAC step (no gradient anywhere).
+    pub fn reward(&self, xz: &Tensor) -> Result<Tensor> {
+        let c = self.clamp as f64;
+        Ok(self.net.forward_const_weights(xz)?.clamp(-c, c)?.detach())
+    }
+
+    /// `L_gp` on interpolates of expert and policy rows `x` with their `z` rows (see
+    /// [`gradient_penalty`]).
+    pub fn gradient_penalty(
+        &self,
+        x_expert: &Tensor,
+        x_policy: &Tensor,
+        z: &Tensor,
+        u: &Tensor,
+    ) -> Result<Tensor> {
+        gradient_penalty(&self.net, x_expert, x_policy, z, u)
+    }
+}
 
 /// `dD/dx` of a ReLU MLP with a scalar output, per row, as a differentiable function of the
 /// weights (for the gradient penalty; candle has no double backward through our fused

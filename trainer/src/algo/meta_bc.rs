@@ -28,14 +28,15 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Environment, Family, TaskDemos};
 
-use crate::checkpoint;
-use crate::context::{ContextConfig, ContextEncoder, ContextSpec};
-use crate::expert::{Expert, rng_from_state, rng_state};
-use crate::meta_data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
-use crate::meta_policy::MetaPolicy;
-use crate::metrics::MetricsLog;
-use crate::nn::{Adam, AdamConfig};
-use crate::policy::TanhGaussianPolicy;
+use crate::algo::expert::Expert;
+use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::io::MetricsLog;
+use crate::io::checkpoint;
+use crate::io::checkpoint::rng_state;
+use crate::model::{
+    ContextConfig, ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, scalar,
+};
+use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
 
 /// The validation signal that keeps the best policy and stops training, both measured on the
@@ -188,10 +189,6 @@ pub struct MetaBc {
     stopped: bool,
 }
 
-fn scalar(t: &Tensor) -> Result<f32> {
-    Ok(t.flatten_all()?.to_vec1::<f32>()?[0])
-}
-
 impl MetaBc {
     /// A fresh run; Meta-DAgger needs `expert`.
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<Expert>) -> Result<Self> {
@@ -200,7 +197,7 @@ impl MetaBc {
             .parse()
             .map_err(|e: sim::SimError| Error::Config(e.to_string()))?;
         if data.family != family {
-            return Err(Error::Config(format!(
+            return Err(Error::Data(format!(
                 "demos are {}, config says {family}",
                 data.family
             )));
@@ -213,7 +210,7 @@ impl MetaBc {
         if cfg.tasks_per_batch == 0 || cfg.per_task == 0 || cfg.max_context == 0 {
             return Err(Error::Config("meta-bc batch sizes must be positive".into()));
         }
-        let env = sim::make_env(family, cfg.env_config()).map_err(|e| Error::Sim(e.to_string()))?;
+        let env = sim::make_env(family, cfg.env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.obs_dim(), family.act_dim());
         let encoder = ContextEncoder::new(od, ad, cfg.context.clone(), &mut rng)?;
@@ -500,7 +497,7 @@ impl MetaBc {
             .map_or(f32::NAN, |v| v as f32);
         run.bad_evals = ck.meta_field("bad_evals")?;
         run.stopped = ck.meta_field("stopped")?;
-        run.rng = rng_from_state(&ck.meta_field("rng")?)?;
+        run.rng = ck.meta_rng("rng")?;
         Ok(run)
     }
 }
@@ -608,7 +605,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
         source: e,
     })?;
     run.meta_policy().save(&last)?;
-    if !dir.join(crate::meta_policy::META_POLICY_FILE).exists() {
+    if !dir.join(crate::model::META_POLICY_FILE).exists() {
         run.meta_policy().save(dir)?;
     }
     Ok(())

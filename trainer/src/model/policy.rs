@@ -13,10 +13,10 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 use crate::Result;
-use crate::nn::Mlp;
+use crate::model::Mlp;
 
 /// `0.5 * ln(2 pi)`.
-const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
+pub(crate) const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
 
 /// A tanh-squashed Gaussian policy; actions lie in `(-1, 1)^act_dim`.
 #[derive(Debug, Clone)]
@@ -126,9 +126,9 @@ impl TanhGaussianPolicy {
             self.net.forward(obs)?
         };
         let a = self.act_dim;
-        // One fused node for squash + log-density (crate::fused::TanhGaussian), equal to
+        // One fused node for squash + log-density (crate::model::TanhGaussian), equal to
         // `sample_reference` below.
-        let op = crate::fused::TanhGaussian {
+        let op = crate::model::TanhGaussian {
             lo: self.log_std_min,
             hi: self.log_std_max,
         };

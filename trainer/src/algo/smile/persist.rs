@@ -6,11 +6,11 @@ use std::path::Path;
 use candle_core::Tensor;
 
 use super::{Smile, SmileConfig};
-use crate::checkpoint;
-use crate::expert::{rng_from_state, rng_state};
-use crate::meta_data::MetaData;
-use crate::meta_policy::{mlp_load, mlp_tensors};
-use crate::sac::SacCounters;
+use crate::algo::sac::SacCounters;
+use crate::data::MetaData;
+use crate::io::checkpoint;
+use crate::io::checkpoint::rng_state;
+use crate::model::{mlp_load, mlp_tensors};
 use crate::{Error, Result};
 
 impl Smile {
@@ -19,7 +19,7 @@ impl Smile {
         let mut ts: Vec<(String, Tensor)> = Vec::new();
         mlp_tensors("phi", &self.encoder.phi, &mut ts);
         mlp_tensors("head", &self.encoder.head, &mut ts);
-        mlp_tensors("disc", &self.disc, &mut ts);
+        mlp_tensors("disc", self.disc.net(), &mut ts);
         let (sac_ts, sac_counters) = self.sac.state_tensors()?;
         ts.extend(sac_ts.into_iter().map(|(k, v)| (format!("sac.{k}"), v)));
         let mut steps = [0u64; 2];
@@ -68,14 +68,14 @@ impl Smile {
             cfg.total_updates = t;
         }
         let mut run = Self::new(cfg, data)?;
-        let wrap = |e: Error| Error::Checkpoint {
+        let wrap = |e: Error| Error::CheckpointState {
             path: ck.path().to_path_buf(),
             reason: format!("does not match this configuration or data: {e}"),
         };
         let get = |n: &str| ck.get(n);
         mlp_load("phi", &run.encoder.phi, &get).map_err(wrap)?;
         mlp_load("head", &run.encoder.head, &get).map_err(wrap)?;
-        mlp_load("disc", &run.disc, &get).map_err(wrap)?;
+        mlp_load("disc", run.disc.net(), &get).map_err(wrap)?;
         let counters: SacCounters = ck.meta_field("sac_counters")?;
         run.sac
             .load_state(&|n| ck.get(&format!("sac.{n}")), counters)
@@ -106,7 +106,7 @@ impl Smile {
         run.env_steps = ck.meta_field("env_steps")?;
         run.episodes = ck.meta_field("episodes")?;
         run.best = ck.meta_field::<Option<f32>>("best")?.unwrap_or(f32::NAN);
-        run.rng = rng_from_state(&ck.meta_field("rng")?).map_err(wrap)?;
+        run.rng = ck.meta_rng("rng")?;
         Ok(run)
     }
 }

@@ -17,7 +17,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::sac::SacStats;
+use crate::algo::sac::SacStats;
 use crate::{Error, Result};
 
 /// File name of the metrics log inside a run directory.

@@ -6,13 +6,9 @@ use std::path::Path;
 use serde::Serialize;
 use sim::{EnvConfig, EpisodeMetric, Family, Task};
 
-use crate::checkpoint;
-use crate::expert::{Expert, POLICY_FILE};
+use crate::algo::expert::{Expert, POLICY_FILE};
+use crate::io::checkpoint;
 use crate::{Error, Result};
-
-fn sim_err(e: impl std::fmt::Display) -> Error {
-    Error::Sim(e.to_string())
-}
 
 /// The task value a per-task expert was trained on (`smile expert --task-value`, `--nominal`),
 /// `None` for a general expert; `path` is a run directory or a policy file.
@@ -62,7 +58,7 @@ impl ExpertSet {
                 per_task: Vec::new(),
             });
             if ex.family() != s.family {
-                return Err(Error::Config(format!(
+                return Err(Error::Data(format!(
                     "{} is a {} expert; the others are {}",
                     p.display(),
                     ex.family(),
@@ -102,7 +98,7 @@ impl ExpertSet {
             .find(|(tv, _)| (tv - v).abs() <= 1e-6 * (1.0 + v.abs()))
             .map(|(_, e)| e)
             .or(self.general.as_ref())
-            .ok_or_else(|| Error::Config(format!("no expert for task {}", task.label())))
+            .ok_or_else(|| Error::Data(format!("no expert for task {}", task.label())))
     }
 }
 
@@ -127,7 +123,7 @@ pub fn evaluate(
     env_cfg: EnvConfig,
 ) -> Result<EvalReport> {
     let family = expert.family();
-    let mut env = sim::make_env(family, env_cfg).map_err(sim_err)?;
+    let mut env = sim::make_env(family, env_cfg)?;
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
     let mut action = vec![0.0f32; family.act_dim()];
     let mut per_task = Vec::with_capacity(tasks.len());
@@ -135,12 +131,12 @@ pub fn evaluate(
     for task in tasks {
         let mut sum = 0.0f32;
         for k in 0..episodes {
-            env.reset(task, 1_000_000 + k as u64).map_err(sim_err)?;
+            env.reset(task, 1_000_000 + k as u64)?;
             let mut m = EpisodeMetric::new(family);
             loop {
-                env.oracle_observation(&mut oracle).map_err(sim_err)?;
+                env.oracle_observation(&mut oracle)?;
                 expert.act(&oracle, &mut action)?;
-                let tr = env.step(&action).map_err(sim_err)?;
+                let tr = env.step(&action)?;
                 m.record(&tr.info);
                 if tr.done {
                     final_sum += tr.info.metric_sample;

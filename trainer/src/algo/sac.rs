@@ -16,9 +16,9 @@ use candle_core::{Device, Tensor, Var};
 use rand::Rng;
 use serde::{Deserialize, Serialize};
 
-use crate::nn::{Adam, AdamConfig, FrozenMlp, Mlp};
-use crate::policy::TanhGaussianPolicy;
-use crate::replay::Batch;
+use crate::data::Batch;
+use crate::model::{FrozenMlp, Mlp, TanhGaussianPolicy, scalar};
+use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
 
 /// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
@@ -137,12 +137,6 @@ pub struct Sac {
     alpha_opt: Adam,
     target_entropy: f32,
     updates: u64,
-}
-
-fn scalar(t: &Tensor) -> Result<f32> {
-    Ok(t.to_dtype(candle_core::DType::F32)?
-        .flatten_all()?
-        .to_vec1::<f32>()?[0])
 }
 
 impl Sac {

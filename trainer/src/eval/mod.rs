@@ -27,8 +27,8 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
 
-use crate::meta_data::run_episode;
-use crate::meta_policy::MetaPolicy;
+use crate::data::run_episode;
+use crate::model::MetaPolicy;
 use crate::{Error, Result};
 
 /// Something that turns a context into z and acts deterministically given z: a candle
@@ -182,7 +182,7 @@ pub fn normalised_score(method: &[f32], base: &[f32], expert: &[f32]) -> Result<
         )));
     }
     if let Some(r) = method.iter().find(|r| !r.is_finite()) {
-        return Err(Error::Config(format!(
+        return Err(Error::Data(format!(
             "normalised metric: a method return is {r}; every episode must have a finite return"
         )));
     }
@@ -259,9 +259,7 @@ pub fn contexts_for<'a>(
     family: Family,
     tasks: &[Task],
 ) -> Result<Vec<&'a sim::TaskDemos>> {
-    contexts
-        .ensure_family(family)
-        .map_err(|e| Error::Sim(e.to_string()))?;
+    contexts.ensure_family(family)?;
     tasks
         .iter()
         .map(|t| {
@@ -269,9 +267,7 @@ pub fn contexts_for<'a>(
                 .tasks
                 .iter()
                 .find(|td| td.task == *t && td.trajectories.iter().any(|tr| !tr.is_empty()))
-                .ok_or_else(|| {
-                    Error::Config(format!("the contexts file has no demos for task {t}"))
-                })
+                .ok_or_else(|| Error::Data(format!("the contexts file has no demos for task {t}")))
         })
         .collect()
 }
@@ -293,7 +289,7 @@ pub fn evaluate(
         horizon: protocol.horizon,
         ..EnvConfig::default()
     };
-    let mut env = sim::make_env(family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut env = sim::make_env(family, env_cfg)?;
     let mut results = Vec::with_capacity(tasks.len());
     let mut all = Vec::new();
     for (i, (task, td)) in tasks.iter().zip(&demos).enumerate() {
@@ -381,7 +377,7 @@ impl EvalReport {
     /// Adds the normalised metric: stores `reference` and scores every method against it.
     pub fn with_reference(mut self, reference: ReferenceReturns) -> Result<Self> {
         if self.lower_is_better {
-            return Err(Error::Config(format!(
+            return Err(Error::Data(format!(
                 "the normalised metric needs returns; {} reports {}",
                 self.env, self.metric
             )));
@@ -589,17 +585,16 @@ pub fn render_episode(
     env_cfg: EnvConfig,
     path: &Path,
 ) -> Result<f32> {
-    let mut env = sim::make_env(family, env_cfg).map_err(|e| Error::Sim(e.to_string()))?;
+    let mut env = sim::make_env(family, env_cfg)?;
     let z = actor.latent(context)?;
-    env.reset(task, 7_000_000)
-        .map_err(|e| Error::Sim(e.to_string()))?;
+    env.reset(task, 7_000_000)?;
     let mut frames = vec![env.frame()];
     let mut metric = sim::EpisodeMetric::new(family);
     let mut action = vec![0.0f32; family.act_dim()];
     loop {
         let obs = env.observation().to_vec();
         actor.act(&obs, &z, &mut action)?;
-        let tr = env.step(&action).map_err(|e| Error::Sim(e.to_string()))?;
+        let tr = env.step(&action)?;
         metric.record(&tr.info);
         let done = tr.done;
         frames.push(env.frame());
@@ -613,6 +608,9 @@ pub fn render_episode(
     })?;
     Ok(metric.value())
 }
+
+pub mod expert;
+pub mod norm;
 
 #[cfg(test)]
 mod tests;

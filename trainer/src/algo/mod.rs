@@ -1,0 +1,11 @@
+//! The learning algorithms, one file each, their losses next to the equations they implement.
+//!
+//! * [`sac`]: soft actor-critic (SAC v2), the RL learner of the experts and of SMILe.
+//! * [`expert`]: oracle SAC experts per family (and the scripted PD expert of point-goal).
+//! * [`smile`]: SMILe, state-action and state-only (Algorithm 1 of the paper).
+//! * [`meta_bc`]: the baselines Meta-BC and Meta-DAgger.
+
+pub mod expert;
+pub mod meta_bc;
+pub mod sac;
+pub mod smile;

@@ -1,0 +1,133 @@
+//! Episode rollouts of a context-conditioned policy, and the quick deterministic evaluation
+//! the meta-learners select their kept weights with.
+
+use sim::{EnvConfig, Environment, EpisodeMetric, MetricKind, Task, TaskDemos};
+
+use crate::Result;
+use crate::model::MetaPolicy;
+
+/// `true` if `a` is a better value than `b` for a metric of this kind (NaN is never better).
+pub fn better(kind: MetricKind, a: f32, b: f32) -> bool {
+    if a.is_nan() {
+        return false;
+    }
+    if b.is_nan() {
+        return true;
+    }
+    match kind {
+        MetricKind::Return => a > b,
+        MetricKind::MinGoalDistance | MetricKind::MeanVelocityError => a < b,
+    }
+}
+
+/// One step of a rollout as seen by a callback.
+#[derive(Debug, Clone, Copy)]
+pub struct Step<'a> {
+    /// Observation before the step.
+    pub obs: &'a [f32],
+    /// Oracle observation before the step (observation + task parameter).
+    pub oracle: &'a [f32],
+    /// Action taken (after clipping to [-1, 1]).
+    pub action: &'a [f32],
+    /// Observation after the step.
+    pub next_obs: &'a [f32],
+    /// True terminal (not a time-limit truncation).
+    pub terminated: bool,
+}
+
+/// Outcome of one episode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Episode {
+    /// The family's metric (min distance, mean |v - v*|, return).
+    pub metric: f32,
+    /// Undiscounted return.
+    pub ret: f32,
+    /// Steps taken.
+    pub steps: usize,
+}
+
+/// A policy callback: `act(obs, action)` writes the action for a raw observation.
+pub type ActFn<'a> = dyn FnMut(&[f32], &mut [f32]) -> Result<()> + 'a;
+
+/// Runs one episode of `task` from reset seed `seed`; `act(obs, action)` chooses actions and
+/// `on_step` sees every transition.
+pub fn run_episode(
+    env: &mut dyn Environment,
+    task: &Task,
+    seed: u64,
+    act: &mut ActFn<'_>,
+    on_step: &mut dyn FnMut(&Step<'_>) -> Result<()>,
+) -> Result<Episode> {
+    let mut obs = env.reset(task, seed)?.to_vec();
+    let mut oracle = vec![0.0f32; env.oracle_obs_dim()];
+    let mut action = vec![0.0f32; env.act_dim()];
+    let mut metric = EpisodeMetric::new(env.family());
+    let (mut ret, mut steps) = (0.0f32, 0usize);
+    loop {
+        env.oracle_observation(&mut oracle)?;
+        act(&obs, &mut action)?;
+        for a in action.iter_mut() {
+            *a = a.clamp(-1.0, 1.0);
+        }
+        let tr = env.step(&action)?;
+        metric.record(&tr.info);
+        ret += tr.reward;
+        steps += 1;
+        let done = tr.done;
+        on_step(&Step {
+            obs: &obs,
+            oracle: &oracle,
+            action: &action,
+            next_obs: tr.obs,
+            terminated: tr.info.terminated,
+        })?;
+        obs.copy_from_slice(tr.obs);
+        if done {
+            return Ok(Episode {
+                metric: metric.value(),
+                ret,
+                steps,
+            });
+        }
+    }
+}
+
+/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `contexts` draws of one
+/// context trajectory (trajectory `d % n`) and `episodes` rollouts each; z = posterior mean.
+pub fn quick_eval(
+    mp: &MetaPolicy,
+    tasks: &[TaskDemos],
+    contexts: usize,
+    episodes: usize,
+    env_cfg: EnvConfig,
+) -> Result<f32> {
+    if tasks.is_empty() {
+        return Ok(f32::NAN);
+    }
+    let mut env = sim::make_env(mp.family, env_cfg)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    use rand::SeedableRng;
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for td in tasks {
+        for d in 0..contexts.max(1) {
+            let traj = &td.trajectories[d % td.trajectories.len()];
+            let z = mp.latent(&[traj])?;
+            for e in 0..episodes.max(1) {
+                let seed = 3_000_000 + (d * 1000 + e) as u64;
+                let ep = run_episode(
+                    env.as_mut(),
+                    &td.task,
+                    seed,
+                    &mut |o, a| {
+                        a.copy_from_slice(&mp.act(o, &z, true, &mut rng)?);
+                        Ok(())
+                    },
+                    &mut |_| Ok(()),
+                )?;
+                sum += ep.metric as f64;
+                n += 1;
+            }
+        }
+    }
+    Ok((sum / n as f64) as f32)
+}

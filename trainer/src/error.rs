@@ -1,0 +1,84 @@
+//! The trainer's one error type.
+
+use std::path::PathBuf;
+
+/// Errors of the trainer library.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A tensor operation failed inside candle.
+    #[error("tensor op: {0}")]
+    Candle(#[from] candle_core::Error),
+    /// A configuration value is invalid (a config file, a flag, a hyper-parameter).
+    #[error("invalid config: {0}")]
+    Config(String),
+    /// The input data do not fit what was asked: demos, contexts, experts or reference returns
+    /// that are missing, empty, of another split or family, or inconsistent with each other.
+    #[error("{0}")]
+    Data(String),
+    /// Tensor shapes or dimensions disagree (e.g. a checkpoint for another network size).
+    #[error("shape mismatch: {0}")]
+    Shape(String),
+    /// A loss or statistic became NaN or infinite.
+    #[error("non-finite {what} ({value}) at update {update}")]
+    NonFinite {
+        /// Which quantity diverged, e.g. `losses/qf`.
+        what: &'static str,
+        /// Its value.
+        value: f32,
+        /// The update counter at which it happened (1-based).
+        update: u64,
+    },
+    /// A replay buffer cannot serve the request (e.g. sampling from an empty buffer).
+    #[error("replay buffer: {0}")]
+    Replay(String),
+    /// A checkpoint or run directory could not be written or read (missing, truncated,
+    /// corrupt, not a checkpoint, or a run directory that already holds a run).
+    #[error("checkpoint {}: {reason}", path.display())]
+    Checkpoint {
+        /// The file or directory concerned.
+        path: PathBuf,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A checkpoint was read, but the state it holds is malformed or does not fit this run
+    /// (a missing or mistyped metadata field, weights of another configuration or data).
+    #[error("checkpoint {} holds a state this run cannot use: {reason}", path.display())]
+    CheckpointState {
+        /// The checkpoint file.
+        path: PathBuf,
+        /// What does not fit.
+        reason: String,
+    },
+    /// An environment error from `sim`.
+    #[error("sim: {0}")]
+    Sim(#[from] sim::SimError),
+    /// A demo dataset could not be read, written or used (from `sim`, its format's owner).
+    #[error("dataset: {0}")]
+    Dataset(#[from] sim::DatasetError),
+    /// A policy blob could not be written, loaded or run by infer-core.
+    #[error("blob: {0}")]
+    Blob(String),
+    /// The simulated device (firmware-sim) refused the blob or failed to run it.
+    #[error("device: {0}")]
+    Device(String),
+    /// A report or configuration could not be serialised (JSON, TOML).
+    #[error("serialising {what}: {reason}")]
+    Serialise {
+        /// What was being written.
+        what: &'static str,
+        /// The serialiser's message.
+        reason: String,
+    },
+    /// A file could not be read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+}
+
+/// Result alias of the trainer library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
