@@ -455,7 +455,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         6,
         "export a w8a8 blob and check it against the float policy",
     );
-    let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, &train)?;
+    let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, Some(&train))?;
     write(&out.join("policy.blob"), &blob)?;
     let model = export::load_blob(&blob)?;
     let mut actor = BlobActor::new(&model)?;

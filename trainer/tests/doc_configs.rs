@@ -22,7 +22,11 @@ fn results_configs_parse_and_validate() {
         ("cv1000-bc-roll.toml", Selection::Rollouts, 1000),
     ] {
         let bc: MetaBcConfig = toml::from_str(&read(name)).unwrap();
-        assert_eq!((bc.select_by, bc.horizon), (select_by, Some(horizon)), "{name}");
+        assert_eq!(
+            (bc.select_by, bc.horizon),
+            (select_by, Some(horizon)),
+            "{name}"
+        );
         assert_eq!(bc.context.enc_hidden, vec![128, 128], "{name}");
     }
 }

@@ -105,7 +105,7 @@ fn eval_report_and_blob_parity() {
         ("w8a32", 0.1, 0.02),
         ("w8a8", 0.5, 0.1),
     ] {
-        let blob = export::export_blob(&mp, export::parse_quant(q).unwrap(), &train).unwrap();
+        let blob = export::export_blob(&mp, export::parse_quant(q).unwrap(), Some(&train)).unwrap();
         let model = export::load_blob(&blob).unwrap();
         let mut actor = BlobActor::new(&model).unwrap();
         let p = export::parity(&mp, &mut actor, &test).unwrap();

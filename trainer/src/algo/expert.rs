@@ -447,7 +447,7 @@ pub enum Event {
 /// `dir/policy.safetensors`. A non-finite loss returns [`Error::NonFinite`]; the last
 /// checkpoint on disk is the last good one.
 pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
-    let mut log = crate::io::MetricsLog::open(dir)?;
+    let mut log = crate::io::MetricsLog::open_at(dir, run.env_steps)?;
     let every = run.cfg.checkpoint_every.max(1);
     let mut next_ckpt = (run.env_steps / every + 1) * every;
     let eval_every = run.cfg.eval_every;

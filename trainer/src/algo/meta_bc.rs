@@ -532,7 +532,7 @@ fn val_mse_on(run: &MetaBc, tasks: &[TaskDemos]) -> Result<f32> {
 /// `eval/val_metric`; keeps the best weights by `select_by` (lowest validation MSE, or best
 /// held-out rollout metric) in `dir/meta_policy.safetensors` and the final ones in `dir/last/`.
 pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
-    let mut log = MetricsLog::open(dir)?;
+    let mut log = MetricsLog::open_at(dir, run.steps)?;
     let cfg = run.cfg.clone();
     let kind = run.data.family.metric_kind();
     let t0 = std::time::Instant::now();

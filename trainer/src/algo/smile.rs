@@ -446,7 +446,7 @@ impl Smile {
 /// `dir/meta_policy.safetensors`; the final one as `dir/last/meta_policy.safetensors`) and
 /// checkpointing every `checkpoint_every` updates and at the end.
 pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
-    let mut log = MetricsLog::open(dir)?;
+    let mut log = MetricsLog::open_at(dir, run.updates)?;
     let kind = run.data.family.metric_kind();
     if run.updates == 0 && run.replay.total_len() == 0 {
         run.warm_start()?;

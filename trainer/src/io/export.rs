@@ -75,15 +75,49 @@ pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibrat
     }
 }
 
-/// The blob bytes of `mp` with `quant`, calibrated on `calib_demos` (meta-train demos).
+/// Refuses demos (calibration or contexts) that are not of `mp`'s family and dimensions, with
+/// one line naming what differs.
+pub fn check_demos_fit(mp: &MetaPolicy, demos: &DemoDataset, what: &str) -> Result<()> {
+    if demos.family != mp.family {
+        return Err(Error::Data(format!(
+            "{what} are {} demos, but the policy was trained on {}",
+            demos.family, mp.family
+        )));
+    }
+    let (od, ad) = (mp.family.obs_dim(), mp.family.act_dim());
+    if (demos.obs_dim, demos.act_dim) != (od, ad) {
+        return Err(Error::Data(format!(
+            "{what} have obs/act dimensions {}/{}, the policy {od}/{ad}",
+            demos.obs_dim, demos.act_dim
+        )));
+    }
+    Ok(())
+}
+
+/// The blob bytes of `mp` with `quant`. `calib_demos` (meta-train demos) calibrate the
+/// activation scales of `w8a8` and are required for it; the other formats ignore them.
 pub fn export_blob(
     mp: &MetaPolicy,
     quant: infer_core::Quant,
-    calib_demos: &DemoDataset,
+    calib_demos: Option<&DemoDataset>,
 ) -> Result<Vec<u8>> {
+    let calib = match (quant, calib_demos) {
+        (_, Some(demos)) => {
+            check_demos_fit(mp, demos, "the calibration demos")?;
+            calibration(mp, demos)
+        }
+        (infer_core::Quant::W8A8, None) => {
+            return Err(Error::Config(
+                "w8a8 needs calibration demos (meta-train demos of the policy's family)".into(),
+            ));
+        }
+        (_, None) => infer_core::Calibration {
+            contexts: Vec::new(),
+            observations: Vec::new(),
+        },
+    };
     let fm = mp.to_float_model()?;
-    infer_core::write_blob(&fm, quant, &calibration(mp, calib_demos))
-        .map_err(|e| Error::Blob(format!("writer: {e}")))
+    infer_core::write_blob(&fm, quant, &calib).map_err(|e| Error::Blob(format!("writer: {e}")))
 }
 
 /// Loads (and fully validates) `blob` with infer-core, refusing layers wider than the
@@ -250,6 +284,7 @@ pub fn verify(
     contexts: &DemoDataset,
     protocol: &crate::eval::Protocol,
 ) -> Result<ExportReport> {
+    check_demos_fit(mp, contexts, "the contexts")?;
     let model = load_blob(blob)?;
     let mut actor = BlobActor::new(&model)?;
     let parity = parity(mp, &mut actor, contexts)?;

@@ -3,15 +3,15 @@
 //! `charts/entropy`, `charts/episodic_return`, `charts/metric`, `charts/sps`. Every line has
 //! `step` (environment steps) and `wall_s` (seconds since the log was opened).
 //!
-//! The same scalars also go to a TensorBoard event file (`tb/events.out.tfevents.*`; watch with
-//! `tensorboard --logdir runs`), written by [`TbWriter`]: TFRecord framing with masked CRC-32C
-//! around hand-encoded `Event { wall_time, step, summary { value { tag, simple_value } } }`
-//! protobufs, a few dozen lines instead of a protobuf toolchain.
-//!
 //! The same scalars also go to a TensorBoard event file (`tb/events.out.tfevents.*`, watch with
 //! `tensorboard --logdir runs`), written by [`TbWriter`]: TFRecord framing with masked CRC-32C
 //! around hand-encoded `Event { wall_time, step, summary { value { tag, simple_value } } }`
 //! protobufs (no maintained Rust crate does this without pulling in a protobuf toolchain).
+//!
+//! A resumed run continues the log from its checkpoint: [`MetricsLog::open_at`] drops the lines
+//! written after the checkpoint by the interrupted process (rewriting the file atomically), and
+//! the new event file starts with a `SessionLog { status: START }` at the checkpoint's step, on
+//! which TensorBoard discards the interrupted process's events past that step.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -32,20 +32,40 @@ pub struct MetricsLog {
 }
 
 impl MetricsLog {
-    /// Open (append to) `dir/metrics.jsonl`.
-    pub fn open(dir: &Path) -> Result<Self> {
+    /// Open (append to) `dir/metrics.jsonl` for a run now at `step` (0 for a fresh run): lines
+    /// with a larger step, left by an interrupted process after its last checkpoint, are
+    /// dropped first (as are torn, unparseable lines), so that no step appears twice.
+    pub fn open_at(dir: &Path, step: u64) -> Result<Self> {
         let path = dir.join(METRICS_FILE);
         let io = |e| Error::Io {
             path: path.clone(),
             source: e,
         };
         std::fs::create_dir_all(dir).map_err(io)?;
+        if let Ok(old) = std::fs::read_to_string(&path) {
+            let kept: String = old
+                .lines()
+                .filter(|l| {
+                    serde_json::from_str::<serde_json::Value>(l)
+                        .ok()
+                        .and_then(|v| v.get("step").and_then(serde_json::Value::as_u64))
+                        .is_some_and(|s| s <= step)
+                })
+                .flat_map(|l| [l, "\n"])
+                .collect();
+            if kept.len() != old.len() {
+                crate::io::checkpoint::write_atomic(&path, kept.as_bytes())?;
+            }
+        }
         let f = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
             .open(&path)
             .map_err(io)?;
-        let tb = TbWriter::create(&dir.join("tb"))?;
+        let mut tb = TbWriter::create(&dir.join("tb"))?;
+        if step > 0 {
+            tb.session_start(step)?;
+        }
         Ok(Self {
             path,
             file: std::io::BufWriter::new(f),
@@ -188,6 +208,15 @@ impl TbWriter {
                 path: self.path.clone(),
                 source: e,
             })
+    }
+
+    /// A `SessionLog { status: START }` event at `step`: TensorBoard then discards events with
+    /// a larger step from earlier files of this run (those of an interrupted process).
+    pub fn session_start(&mut self, step: u64) -> Result<()> {
+        let mut ev = Self::event_head(step);
+        // field 7 (session_log) = SessionLog { field 1 (status) = 1 (START) }
+        len_field(7, &[0x08, 0x01], &mut ev);
+        self.record(&ev)
     }
 
     /// One event holding every finite `(tag, value)` as a scalar at `step`.

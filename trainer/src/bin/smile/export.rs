@@ -1,6 +1,6 @@
 //! `smile export`: a meta-policy as an infer-core blob, verified against the float policy.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::Args;
@@ -21,9 +21,9 @@ pub struct ExportArgs {
     /// Output blob file; a JSON report is written next to it (`<blob>.json`).
     #[arg(short, long)]
     out: PathBuf,
-    /// Meta-train demos: calibration inputs for w8a8.
+    /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
     #[arg(long)]
-    demos: PathBuf,
+    demos: Option<PathBuf>,
     /// Held-out contexts (e.g. the meta-test demos) for the parity check and the metric.
     #[arg(long)]
     contexts: PathBuf,
@@ -35,24 +35,40 @@ pub struct ExportArgs {
     horizon: Option<usize>,
 }
 
+/// Reads a demo file given with `flag` and checks that it fits the policy (one-line errors).
+fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
+    let demos =
+        DemoDataset::read(path).with_context(|| format!("reading {flag} {}", path.display()))?;
+    export::check_demos_fit(mp, &demos, &format!("{flag} {}", path.display()))?;
+    Ok(demos)
+}
+
 /// Run `smile export`.
 pub fn run(a: ExportArgs) -> Result<()> {
     let quant = export::parse_quant(&a.quant)?;
     let mp =
         MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
     let family = mp.family;
-    let demos =
-        DemoDataset::read(&a.demos).with_context(|| format!("reading {}", a.demos.display()))?;
-    if demos.split != Split::Train {
-        bail!(
-            "--demos must be meta-train demos (calibration); {} is {}",
-            a.demos.display(),
-            demos.split
-        );
-    }
-    let ctx = DemoDataset::read(&a.contexts)
-        .with_context(|| format!("reading {}", a.contexts.display()))?;
-    let blob = export::export_blob(&mp, quant, &demos)?;
+    let demos = match &a.demos {
+        Some(path) => {
+            let demos = read_demos(path, "--demos", &mp)?;
+            if demos.split != Split::Train {
+                bail!(
+                    "--demos must be meta-train demos (calibration); {} is {}",
+                    path.display(),
+                    demos.split
+                );
+            }
+            Some(demos)
+        }
+        None if quant == infer_core::Quant::W8A8 => bail!(
+            "--quant w8a8 needs --demos (meta-train demos of {}) to calibrate its activation scales",
+            family
+        ),
+        None => None,
+    };
+    let ctx = read_demos(&a.contexts, "--contexts", &mp)?;
+    let blob = export::export_blob(&mp, quant, demos.as_ref())?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir)?;
     }

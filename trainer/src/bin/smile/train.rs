@@ -22,12 +22,41 @@ pub enum Algo {
     MetaDagger,
 }
 
+impl Algo {
+    /// The name `--algo` takes.
+    fn name(self) -> &'static str {
+        match self {
+            Algo::Smile => "smile",
+            Algo::SmileStateOnly => "smile-state-only",
+            Algo::MetaBc => "meta-bc",
+            Algo::MetaDagger => "meta-dagger",
+        }
+    }
+}
+
+/// File in a run directory recording how the run was started, so that `--resume` continues
+/// it with the same algorithm and expert.
+const RUN_FILE: &str = "run.json";
+
+/// The expert name recorded for the scripted point-goal PD controller.
+const SCRIPTED_PD: &str = "scripted-pd";
+
+/// What `smile train` records in [`RUN_FILE`].
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
+struct RunInfo {
+    /// `--algo` of the run.
+    algo: String,
+    /// Meta-DAgger's relabelling expert: a `smile expert` run, or `scripted-pd`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    expert: Option<String>,
+}
+
 /// Arguments of `smile train`.
 #[derive(Args, Debug)]
 pub struct TrainArgs {
-    /// Algorithm.
-    #[arg(long, value_enum, default_value_t = Algo::Smile)]
-    algo: Algo,
+    /// Algorithm [default: smile]; `--resume` reads it from the run directory.
+    #[arg(long, value_enum)]
+    algo: Option<Algo>,
     /// Task family: point-goal, cheetah-vel or walker-dyn.
     #[arg(long, default_value = "point-goal")]
     env: String,
@@ -59,7 +88,8 @@ pub struct TrainArgs {
     /// Reward scale (SMILe).
     #[arg(long)]
     reward_scale: Option<f32>,
-    /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file.
+    /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file
+    /// (point-goal: the scripted PD expert if omitted; `--resume` reuses the run's expert).
     #[arg(long)]
     expert: Option<PathBuf>,
     /// Evaluate on the held-out train tasks every N updates.
@@ -88,25 +118,93 @@ fn read_toml<T: serde::de::DeserializeOwned + Default>(a: &TrainArgs) -> Result<
     }
 }
 
+/// The algorithm (and Meta-DAgger's expert) of the run in `dir`: from its `run.json`, or for
+/// runs older than that file, from its `config.toml`.
+fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
+    let info = dir.join(RUN_FILE);
+    if let Ok(text) = std::fs::read_to_string(&info) {
+        return serde_json::from_str(&text).with_context(|| format!("parsing {}", info.display()));
+    }
+    let cfg = dir.join("config.toml");
+    let text = std::fs::read_to_string(&cfg).with_context(|| {
+        format!(
+            "{} holds no run to resume (no {RUN_FILE} or config.toml)",
+            dir.display()
+        )
+    })?;
+    let table: toml::Table =
+        toml::from_str(&text).with_context(|| format!("parsing {}", cfg.display()))?;
+    let algo = match table.get("dagger").and_then(toml::Value::as_bool) {
+        Some(true) => Algo::MetaDagger,
+        Some(false) => Algo::MetaBc,
+        None => {
+            let state_only = table
+                .get("context")
+                .and_then(|c| c.get("state_only"))
+                .and_then(toml::Value::as_bool);
+            if state_only == Some(true) {
+                Algo::SmileStateOnly
+            } else {
+                Algo::Smile
+            }
+        }
+    };
+    Ok(RunInfo {
+        algo: algo.name().into(),
+        expert: None,
+    })
+}
+
 /// Run `smile train`.
-pub fn run(a: TrainArgs) -> Result<()> {
+pub fn run(mut a: TrainArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let ds = DemoDataset::read(&a.demos)
         .with_context(|| format!("reading demos {}", a.demos.display()))?;
-    if !a.resume {
+    let algo = if a.resume {
+        let rec = recorded_run(&a.out)?;
+        let algo = Algo::from_str(&rec.algo, false)
+            .map_err(|e| anyhow::anyhow!("{}: unknown algo {:?}: {e}", RUN_FILE, rec.algo))?;
+        if let Some(given) = a.algo.filter(|g| *g != algo) {
+            bail!(
+                "{} is a {} run; --algo {} does not match (drop --algo to resume it)",
+                a.out.display(),
+                algo.name(),
+                given.name()
+            );
+        }
+        if a.expert.is_none() {
+            a.expert = rec.expert.map(PathBuf::from);
+        }
+        algo
+    } else {
         trainer::checkpoint::ensure_fresh_run_dir(&a.out)?;
-    }
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
-    match a.algo {
-        Algo::Smile | Algo::SmileStateOnly => train_smile(a, family, &ds),
-        Algo::MetaBc | Algo::MetaDagger => train_bc(a, family, &ds),
+        a.algo.unwrap_or(Algo::Smile)
+    };
+    match algo {
+        Algo::Smile | Algo::SmileStateOnly => train_smile(a, algo, family, &ds),
+        Algo::MetaBc | Algo::MetaDagger => train_bc(a, algo, family, &ds),
     }
 }
 
-fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
+/// Creates the run directory (only once the inputs were accepted, so a refused run leaves
+/// nothing behind) and records the run's algorithm and expert.
+fn start_run_dir(a: &TrainArgs, algo: Algo, expert: Option<String>) -> Result<()> {
+    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+    let info = RunInfo {
+        algo: algo.name().into(),
+        expert,
+    };
+    trainer::checkpoint::write_atomic(
+        &a.out.join(RUN_FILE),
+        serde_json::to_string_pretty(&info)?.as_bytes(),
+    )?;
+    Ok(())
+}
+
+fn train_smile(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Result<()> {
     let mut cfg: SmileConfig = read_toml(&a)?;
     cfg.env = family.name().into();
-    cfg.context.state_only = a.algo == Algo::SmileStateOnly;
+    cfg.context.state_only = algo == Algo::SmileStateOnly;
     if let Some(v) = a.updates {
         cfg.total_updates = v;
     }
@@ -134,7 +232,14 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
         Smile::new(cfg, data)?
     };
     let cfg = run.config().clone();
-    std::fs::write(a.out.join("config.toml"), toml::to_string(&cfg)?)?;
+    start_run_dir(&a, algo, None)?;
+    trainer::checkpoint::write_atomic(
+        &a.out.join("config.toml"),
+        toml::to_string(&cfg)?.as_bytes(),
+    )?;
+    if a.resume {
+        eprintln!("resuming from update {}", run.updates());
+    }
     eprintln!(
         "{}: {} training tasks, {} held-out train tasks; {} update pairs",
         cfg.algo_name(),
@@ -164,10 +269,10 @@ fn train_smile(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     Ok(())
 }
 
-fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
+fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Result<()> {
     let mut cfg: MetaBcConfig = read_toml(&a)?;
     cfg.env = family.name().into();
-    cfg.dagger = a.algo == Algo::MetaDagger;
+    cfg.dagger = algo == Algo::MetaDagger;
     if let Some(v) = a.updates {
         cfg.total_steps = v;
     }
@@ -180,20 +285,22 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
     if let Some(v) = a.eval_every {
         cfg.eval_every = v;
     }
+    let scripted = a.expert.as_deref() == Some(std::path::Path::new(SCRIPTED_PD));
     let expert = match (&a.expert, cfg.dagger) {
-        (Some(p), true) => Some(
-            trainer::expert::Expert::load(p)
-                .with_context(|| format!("loading expert {}", p.display()))?,
-        ),
-        (None, true) if family == Family::PointGoal => {
-            eprintln!(
-                "meta-dagger: no --expert given, relabelling with the scripted point-goal PD expert"
-            );
+        (Some(p), true) if !scripted => {
+            eprintln!("meta-dagger: relabelling with the expert {}", p.display());
+            Some(
+                trainer::expert::Expert::load(p)
+                    .with_context(|| format!("loading expert {}", p.display()))?,
+            )
+        }
+        (_, true) if family == Family::PointGoal => {
+            eprintln!("meta-dagger: relabelling with the scripted point-goal PD expert");
             Some(trainer::expert::Expert::ScriptedPd(
                 sim::PointGoalPdExpert::default(),
             ))
         }
-        (None, true) => bail!("meta-dagger on {family} needs --expert (a `smile expert` run)"),
+        (_, true) => bail!("meta-dagger on {family} needs --expert (a `smile expert` run)"),
         (_, false) => None,
     };
     let data = MetaData::from_dataset(ds, family, cfg.holdout_every)?;
@@ -203,7 +310,19 @@ fn train_bc(a: TrainArgs, family: Family, ds: &DemoDataset) -> Result<()> {
         MetaBc::new(cfg, data, expert)?
     };
     let cfg = run.config().clone();
-    std::fs::write(a.out.join("config.toml"), toml::to_string(&cfg)?)?;
+    let expert_name = match (&a.expert, cfg.dagger) {
+        (Some(p), true) => Some(p.display().to_string()),
+        (None, true) => Some(SCRIPTED_PD.to_string()),
+        (_, false) => None,
+    };
+    start_run_dir(&a, algo, expert_name)?;
+    trainer::checkpoint::write_atomic(
+        &a.out.join("config.toml"),
+        toml::to_string(&cfg)?.as_bytes(),
+    )?;
+    if a.resume {
+        eprintln!("resuming from step {}", run.steps());
+    }
     let pb = trainer::progress_bar(cfg.total_steps, a.quiet, "steps");
     pb.set_position(run.steps());
     let select_by = cfg.select_by;
