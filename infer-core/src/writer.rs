@@ -306,7 +306,7 @@ fn encode_layer(
 }
 
 fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
-    let mut layers = Layers::new();
+    let mut layers = Layers::default();
     for e in encoded {
         // Length was checked against MAX_LAYERS in `FloatModel::check`.
         let _ = layers.push(LayerRecord {
