@@ -119,12 +119,12 @@ impl Device {
             HostMessage::BlobEnd => {
                 let (len, crc) = self.announced.take().ok_or(Refusal::NotReady)?;
                 let blob = &self.flash[..self.received];
-                if self.received != len
-                    || infer_core::format::crc32(blob) != crc
-                    || Model::from_bytes(blob).is_err()
-                {
+                if self.received != len || infer_core::format::crc32(blob) != crc {
                     return Err(Refusal::BadBlob);
                 }
+                let model = Model::from_bytes(blob).map_err(|_| Refusal::BadBlob)?;
+                // A blob the application could not run is never committed.
+                check_fits(&model, self.config).map_err(|_| Refusal::DoesNotFit)?;
                 self.committed = Some(len);
                 Ok(())
             }
@@ -148,6 +148,29 @@ pub fn ram_needed() -> usize {
     size_of::<Controller<'static, 'static>>() + size_of::<Model<'static>>() + 2 * MAX_FRAME
 }
 
+/// Whether the application can run `model` on a device with `config`: every dimension a link
+/// message carries, the RAM budget, and layer widths within [`CAPACITY`]. The bootloader
+/// refuses a blob that fails this ([`Refusal::DoesNotFit`]) and [`Controller::new`] checks
+/// the same, so the host can name the reason of a refusal.
+pub fn check_fits(model: &Model<'_>, config: DeviceConfig) -> Result<(), DeviceError> {
+    let h = model.header();
+    for dim in [h.obs_dim, h.act_dim, h.z_dim] {
+        if dim as usize > MAX_DIM {
+            return Err(DeviceError::DimTooLarge { dim: dim as usize });
+        }
+    }
+    let needed = ram_needed();
+    if needed > config.ram_bytes {
+        return Err(DeviceError::RamBudget {
+            needed,
+            budget: config.ram_bytes,
+        });
+    }
+    ContextEncoder::<CAPACITY>::new(model)?;
+    Policy::<CAPACITY>::new(model)?;
+    Ok(())
+}
+
 /// The application: teaches the context encoder from link messages and runs the policy.
 #[derive(Debug)]
 pub struct Controller<'m, 'a> {
@@ -162,19 +185,7 @@ pub struct Controller<'m, 'a> {
 impl<'m, 'a> Controller<'m, 'a> {
     /// Checks that `model` fits the device and builds the application state.
     pub fn new(model: &'m Model<'a>, config: DeviceConfig) -> Result<Self, DeviceError> {
-        let h = model.header();
-        for dim in [h.obs_dim, h.act_dim, h.z_dim] {
-            if dim as usize > MAX_DIM {
-                return Err(DeviceError::DimTooLarge { dim: dim as usize });
-            }
-        }
-        let needed = ram_needed();
-        if needed > config.ram_bytes {
-            return Err(DeviceError::RamBudget {
-                needed,
-                budget: config.ram_bytes,
-            });
-        }
+        check_fits(model, config)?;
         Ok(Self {
             model,
             encoder: ContextEncoder::new(model)?,

@@ -20,8 +20,8 @@ pub mod reference;
 pub mod session;
 pub mod trace;
 
-pub use control::{LoopConfig, RunReport, TickRecord, run};
-pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, ram_needed};
+pub use control::{LoopConfig, LoopError, RunReport, TickRecord, run};
+pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, ram_needed};
 pub use session::{Session, SessionConfig, SessionError, run_session};
 
 /// Writes `bytes` to `path` via a temporary file and a rename, so a reader never sees a

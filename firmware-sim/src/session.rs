@@ -3,7 +3,7 @@
 
 use sim::{EnvConfig, Task, Trajectory, make_env};
 
-use crate::link::{LinkConfig, LinkError, SimLink};
+use crate::link::{LinkConfig, LinkError, Refusal, SimLink};
 use crate::{Controller, Device, DeviceConfig, DeviceError, LoopConfig, RunReport, host};
 
 /// Why a session failed.
@@ -71,7 +71,17 @@ pub fn run_session(
     let family = task.family();
     let mut device = Device::new(config.device);
     let mut link = SimLink::new(config.link);
-    host::upload_blob(&mut link, &mut device, blob)?;
+    let uploaded = host::upload_blob(&mut link, &mut device, blob);
+    if let Err(LinkError::Refused {
+        reason: Refusal::DoesNotFit,
+        ..
+    }) = uploaded
+    {
+        // The device only says "does not fit"; the same check on the host names the reason.
+        let model = infer_core::Model::from_bytes(blob).map_err(DeviceError::from)?;
+        crate::check_fits(&model, config.device)?;
+    }
+    uploaded?;
     let model = infer_core::Model::from_bytes(device.blob()?).map_err(DeviceError::from)?;
     let h = *model.header();
     let (obs, act) = (h.obs_dim as usize, h.act_dim as usize);

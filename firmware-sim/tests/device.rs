@@ -2,7 +2,7 @@
 
 use firmware_sim::link::{HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::{
-    Controller, Device, DeviceConfig, DeviceError, LoopConfig, host, reference, run,
+    Controller, Device, DeviceConfig, DeviceError, LoopConfig, LoopError, host, reference, run,
 };
 use infer_core::{Calibration, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
@@ -190,15 +190,40 @@ fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
     let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
     let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
     let task = Family::PointGoal.test_tasks()[0];
+    let err = run(
+        &mut controller,
+        plant.as_mut(),
+        &task,
+        &LoopConfig::default(),
+    )
+    .unwrap_err();
     assert!(
-        run(
-            &mut controller,
-            plant.as_mut(),
-            &task,
-            &LoopConfig::default()
-        )
-        .is_err()
+        matches!(err, LoopError::Device(DeviceError::NotTaught)),
+        "{err}"
     );
+}
+
+#[test]
+fn loop_settings_the_plant_cannot_honour_are_named_errors() {
+    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let bytes = blob(Quant::F32, &d);
+    let model = Model::from_bytes(&bytes).unwrap();
+    let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
+    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let task = Family::PointGoal.test_tasks()[0];
+    let plant_rate = 1.0 / plant.control_dt();
+    let mut loop_run =
+        |config: LoopConfig| run(&mut controller, plant.as_mut(), &task, &config).unwrap_err();
+    let err = loop_run(LoopConfig {
+        rate_hz: Some(plant_rate * 0.7),
+        ..LoopConfig::default()
+    });
+    assert!(matches!(err, LoopError::Rate { .. }), "{err}");
+    let err = loop_run(LoopConfig {
+        noise_std: -1.0,
+        ..LoopConfig::default()
+    });
+    assert!(matches!(err, LoopError::Noise(n) if n == -1.0), "{err}");
 }
 
 #[test]

@@ -54,6 +54,14 @@ pub enum BlobError {
         /// Which MLP.
         part: &'static str,
     },
+    /// An MLP has more layers than the format allows
+    /// ([`MAX_LAYERS`](crate::format::MAX_LAYERS)).
+    TooManyLayers {
+        /// Which MLP.
+        part: &'static str,
+        /// Layers stored in the blob.
+        found: usize,
+    },
     /// A tensor's byte length does not match its declared shape.
     TensorLength {
         /// Which part of the model.
@@ -114,6 +122,11 @@ impl fmt::Display for BlobError {
                 found,
             } => write!(f, "{part}: dimension {found} where {expected} is required"),
             Self::EmptyMlp { part } => write!(f, "{part}: MLP has no layers"),
+            Self::TooManyLayers { part, found } => write!(
+                f,
+                "{part}: {found} layers, the format allows at most {}",
+                crate::format::MAX_LAYERS
+            ),
             Self::TensorLength {
                 part,
                 expected,

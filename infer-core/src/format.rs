@@ -154,8 +154,77 @@ pub(crate) struct LayerRecord<'a> {
     pub input_scale: f32,
 }
 
-/// The layers of one MLP.
-pub(crate) type Layers<'a> = heapless::Vec<LayerRecord<'a>, MAX_LAYERS>;
+/// The layers of one MLP: at most [`MAX_LAYERS`] are kept. A stored list that is longer is
+/// still read to its end (each extra record is decoded and dropped, without a heap), and
+/// [`Layers::stored`] lets the validator refuse it by name
+/// ([`BlobError::TooManyLayers`](crate::BlobError::TooManyLayers)) instead of as a decode error.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub(crate) struct Layers<'a> {
+    kept: heapless::Vec<LayerRecord<'a>, MAX_LAYERS>,
+    /// Records in the blob's list (more than `kept.len()` when over the limit).
+    stored: usize,
+}
+
+impl<'a> Layers<'a> {
+    /// Appends a layer; gives it back when [`MAX_LAYERS`] are already kept.
+    #[cfg(feature = "alloc")]
+    pub fn push(&mut self, layer: LayerRecord<'a>) -> Result<(), LayerRecord<'a>> {
+        self.kept.push(layer)?;
+        self.stored += 1;
+        Ok(())
+    }
+
+    /// Number of layers the blob stores, including any beyond [`MAX_LAYERS`].
+    pub fn stored(&self) -> usize {
+        self.stored
+    }
+}
+
+impl<'a> core::ops::Deref for Layers<'a> {
+    type Target = [LayerRecord<'a>];
+    fn deref(&self) -> &Self::Target {
+        &self.kept
+    }
+}
+
+impl<'a> core::ops::DerefMut for Layers<'a> {
+    fn deref_mut(&mut self) -> &mut Self::Target {
+        &mut self.kept
+    }
+}
+
+impl Serialize for Layers<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        // The same bytes as the plain list: a length, then the records.
+        self.kept.serialize(s)
+    }
+}
+
+impl<'de: 'a, 'a> Deserialize<'de> for Layers<'a> {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = Layers<'de>;
+            fn expecting(&self, f: &mut core::fmt::Formatter<'_>) -> core::fmt::Result {
+                f.write_str("a list of layers")
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut layers = Layers::default();
+                while let Some(layer) = seq.next_element::<LayerRecord<'de>>()? {
+                    // Each record takes payload bytes, so the count stays below their number.
+                    layers.stored = layers.stored.saturating_add(1);
+                    // Beyond MAX_LAYERS the record is dropped; `stored` keeps the count.
+                    let _ = layers.kept.push(layer);
+                }
+                Ok(layers)
+            }
+        }
+        d.deserialize_seq(Visitor)
+    }
+}
 
 /// Everything after the envelope.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

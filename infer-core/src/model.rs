@@ -3,8 +3,8 @@
 
 use crate::error::BlobError;
 use crate::format::{
-    self, Activation, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC, Payload,
-    Quant,
+    self, Activation, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC, MAX_LAYERS,
+    Payload, Quant,
 };
 
 /// A read-only view of `f32` little-endian values stored in the blob.
@@ -189,11 +189,17 @@ fn check_mlp(
     input: usize,
     output: usize,
 ) -> Result<(), BlobError> {
+    if layers.stored() > MAX_LAYERS {
+        return Err(BlobError::TooManyLayers {
+            part,
+            found: layers.stored(),
+        });
+    }
     let Some(last) = layers.last() else {
         return Err(BlobError::EmptyMlp { part });
     };
     let mut width = input;
-    for layer in layers {
+    for layer in layers.iter() {
         if layer.in_dim as usize != width {
             return Err(BlobError::DimMismatch {
                 part,
@@ -257,3 +263,6 @@ fn check_layer(part: &'static str, l: &LayerRecord<'_>, quant: Quant) -> Result<
     }
     Ok(())
 }
+
+#[cfg(all(test, feature = "alloc"))]
+mod tests;

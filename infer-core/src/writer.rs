@@ -4,12 +4,15 @@
 extern crate alloc;
 
 use alloc::vec::Vec;
-use core::fmt;
 
 use crate::format::{
     self, Activation, Bytes, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC,
-    MAX_LAYERS, ModelKind, Payload, Quant,
+    ModelKind, Payload, Quant,
 };
+
+mod check;
+
+pub use check::WriteError;
 
 /// One float dense layer, `y = act(W x + b)`, weights row-major `[out][in]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -78,44 +81,6 @@ pub struct Calibration {
     pub observations: Vec<Vec<f32>>,
 }
 
-/// Why a float model could not be written as a blob.
-#[derive(Debug, Clone, PartialEq)]
-#[non_exhaustive]
-pub enum WriteError {
-    /// A dimension or tensor length is inconsistent.
-    Shape(&'static str),
-    /// More layers in one MLP than the format allows.
-    TooManyLayers {
-        /// Which MLP.
-        part: &'static str,
-    },
-    /// A weight or statistic is NaN or infinite.
-    NonFinite(&'static str),
-    /// `w8a8` needs calibration contexts and observations.
-    MissingCalibration,
-    /// A dimension does not fit the format's `u16`.
-    TooLarge,
-    /// The finished blob did not load back (a bug in the writer; please report).
-    SelfCheck(crate::BlobError),
-}
-
-impl fmt::Display for WriteError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::Shape(what) => write!(f, "inconsistent shape: {what}"),
-            Self::TooManyLayers { part } => write!(f, "{part}: more than {MAX_LAYERS} layers"),
-            Self::NonFinite(what) => write!(f, "{what}: NaN or infinite value"),
-            Self::MissingCalibration => {
-                f.write_str("w8a8 needs calibration contexts and observations")
-            }
-            Self::TooLarge => f.write_str("a dimension exceeds 65535"),
-            Self::SelfCheck(e) => write!(f, "written blob failed to load back: {e}"),
-        }
-    }
-}
-
-impl core::error::Error for WriteError {}
-
 fn run(layers: &[FloatLayer], x: &[f32], mut tap: impl FnMut(usize, &[f32])) -> Vec<f32> {
     let mut v = x.to_vec();
     for (i, l) in layers.iter().enumerate() {
@@ -126,6 +91,14 @@ fn run(layers: &[FloatLayer], x: &[f32], mut tap: impl FnMut(usize, &[f32])) -> 
 }
 
 impl FloatModel {
+    /// Width of one raw context transition: `[s, a, s']` or `[s, s']`.
+    pub(crate) fn transition_dim(&self) -> usize {
+        match self.kind {
+            ModelKind::StateAction => 2 * self.obs_dim + self.act_dim,
+            ModelKind::StateOnly => 2 * self.obs_dim,
+        }
+    }
+
     pub(crate) fn normalise(&self, x: &[f32]) -> Vec<f32> {
         x.iter()
             .zip(&self.obs_mean)
@@ -210,44 +183,6 @@ impl FloatModel {
         }
         ranges
     }
-
-    fn check(&self) -> Result<(), WriteError> {
-        let vectors = [
-            ("obs_mean", &self.obs_mean, self.obs_dim),
-            ("obs_std", &self.obs_std, self.obs_dim),
-            ("act_scale", &self.act_scale, self.act_dim),
-            ("act_offset", &self.act_offset, self.act_dim),
-        ];
-        for (name, v, n) in vectors {
-            if v.len() != n {
-                return Err(WriteError::Shape(name));
-            }
-            if v.iter().any(|x| !x.is_finite()) {
-                return Err(WriteError::NonFinite(name));
-            }
-        }
-        if self.obs_std.iter().any(|s| *s <= 0.0) {
-            return Err(WriteError::Shape("obs_std must be > 0"));
-        }
-        for (name, layers) in [
-            ("encoder", &self.encoder),
-            ("z_head", &self.z_head),
-            ("policy", &self.policy),
-        ] {
-            if layers.len() > MAX_LAYERS {
-                return Err(WriteError::TooManyLayers { part: name });
-            }
-            for l in layers {
-                if l.weights.len() != l.in_dim * l.out_dim || l.bias.len() != l.out_dim {
-                    return Err(WriteError::Shape(name));
-                }
-                if l.weights.iter().chain(&l.bias).any(|x| !x.is_finite()) {
-                    return Err(WriteError::NonFinite(name));
-                }
-            }
-        }
-        Ok(())
-    }
 }
 
 fn f32_bytes(v: &[f32]) -> Vec<u8> {
@@ -306,9 +241,9 @@ fn encode_layer(
 }
 
 fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
-    let mut layers = Layers::new();
+    let mut layers = Layers::default();
     for e in encoded {
-        // Length was checked against MAX_LAYERS in `FloatModel::check`.
+        // Length was checked against `MAX_LAYERS` in `FloatModel::check`.
         let _ = layers.push(LayerRecord {
             in_dim: e.layer.0,
             out_dim: e.layer.1,
@@ -323,7 +258,7 @@ fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
 }
 
 /// Quantizes `model` with `quant` and returns the blob bytes. `calibration` is required for
-/// [`Quant::W8A8`] and ignored otherwise. The blob is loaded back before it is returned.
+/// [`Quant::W8A8`] (every row of the model's dimension, finite) and ignored otherwise. The blob is loaded back before it is returned.
 pub fn write_blob(
     model: &FloatModel,
     quant: Quant,
@@ -333,16 +268,14 @@ pub fn write_blob(
     // w8a8 quantizes each layer's input with one scale: equalise the observation ranges first
     // (float-equivalent; see `equalise`).
     let equalised;
-    let model = if quant == Quant::W8A8 && !calibration.contexts.is_empty() {
+    let model = if quant == Quant::W8A8 {
+        calibration.check(model)?;
         equalised = crate::equalise::equalised(model, calibration);
         &equalised
     } else {
         model
     };
     let ranges = if quant == Quant::W8A8 {
-        if calibration.contexts.is_empty() || calibration.observations.is_empty() {
-            return Err(WriteError::MissingCalibration);
-        }
         model.input_ranges(calibration)
     } else {
         [

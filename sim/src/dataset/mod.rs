@@ -8,82 +8,14 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
-use crate::{Environment, Family, SimError, Split, Task};
+use crate::{Environment, Family, Split, Task};
+
+pub use error::DatasetError;
 
 /// Value of the `format` metadata key.
 pub const FORMAT_NAME: &str = "smile-demos";
 /// Value of the `format_version` metadata key written by this crate.
 pub const FORMAT_VERSION: u32 = 1;
-
-/// Everything that can go wrong reading, writing or transforming a demo dataset.
-#[derive(Debug, thiserror::Error)]
-pub enum DatasetError {
-    /// Reading or writing the file failed.
-    #[error("{path}: {source}")]
-    Io {
-        /// The file.
-        path: String,
-        /// The I/O error.
-        source: std::io::Error,
-    },
-    /// The file is shorter than its header says (e.g. an interrupted copy).
-    #[error("truncated demo file: {expected} bytes expected, {got} present")]
-    Truncated {
-        /// Bytes the header announces.
-        expected: usize,
-        /// Bytes present.
-        got: usize,
-    },
-    /// The bytes are not a valid safetensors file.
-    #[error("corrupt demo file: {0}")]
-    Corrupt(String),
-    /// A valid safetensors file that is not a demo dataset, or an unsupported version.
-    #[error("not a {FORMAT_NAME} v{FORMAT_VERSION} file: {0}")]
-    NotADemoFile(String),
-    /// A required metadata key is missing or cannot be parsed.
-    #[error("metadata key {key:?}: {reason}")]
-    BadMetadata {
-        /// The key.
-        key: &'static str,
-        /// What is wrong.
-        reason: String,
-    },
-    /// A required tensor is missing or has the wrong dtype or shape.
-    #[error("tensor {name:?}: {reason}")]
-    BadTensor {
-        /// Tensor name.
-        name: &'static str,
-        /// What is wrong.
-        reason: String,
-    },
-    /// Tensors disagree with each other (offsets out of range, non-increasing, ...).
-    #[error("inconsistent demo file: {0}")]
-    Inconsistent(String),
-    /// The dataset is of another family than the one asked for.
-    #[error("demo file is for {found}, expected {expected}")]
-    FamilyMismatch {
-        /// Family the caller needs.
-        expected: Family,
-        /// Family in the file.
-        found: Family,
-    },
-    /// A trajectory or transition does not match the dataset's dimensions.
-    #[error("{what} has length {got}, expected {expected}")]
-    DimensionMismatch {
-        /// What was checked.
-        what: &'static str,
-        /// Expected length.
-        expected: usize,
-        /// Actual length.
-        got: usize,
-    },
-    /// Subsampling was asked for with a bad factor or on an already subsampled dataset.
-    #[error("cannot subsample: {0}")]
-    Subsample(String),
-    /// Rolling out the expert failed.
-    #[error("recording a demo failed: {0}")]
-    Sim(#[from] SimError),
-}
 
 /// One expert trajectory, possibly subsampled: row `i` is the transition taken at time step
 /// `time_steps[i]`, with its true one-step next observation.
@@ -208,6 +140,27 @@ impl Trajectory {
         }
         Ok(())
     }
+
+    /// Errors on the first NaN or infinite float, naming its tensor, task and trajectory.
+    fn check_finite(&self, task: usize, trajectory: usize) -> Result<(), DatasetError> {
+        let tensors: [(&'static str, &[f32]); 4] = [
+            (names::OBS, &self.obs),
+            (names::ACTIONS, &self.actions),
+            (names::REWARDS, &self.rewards),
+            (names::NEXT_OBS, &self.next_obs),
+        ];
+        for (tensor, values) in tensors {
+            if let Some(&value) = values.iter().find(|v| !v.is_finite()) {
+                return Err(DatasetError::NonFinite {
+                    tensor,
+                    task,
+                    trajectory: Some(trajectory),
+                    value: value.into(),
+                });
+            }
+        }
+        Ok(())
+    }
 }
 
 /// The demonstrations of one task.
@@ -296,7 +249,9 @@ impl DemoDataset {
         self.check()
     }
 
-    /// Checks dimensions, task families and per-trajectory lengths.
+    /// Checks dimensions, task families, per-trajectory lengths and that every stored float
+    /// is finite ([`DatasetError::NonFinite`]). Both [`DemoDataset::to_bytes`] and
+    /// [`DemoDataset::from_bytes`] run it: a file the reader would refuse is never written.
     pub fn check(&self) -> Result<(), DatasetError> {
         let dims = [
             ("obs_dim", self.family.obs_dim(), self.obs_dim),
@@ -314,7 +269,8 @@ impl DemoDataset {
         if self.subsample_factor == 0 {
             return Err(DatasetError::Subsample("factor 0".into()));
         }
-        for demos in &self.tasks {
+        let mut trajectory_index = 0;
+        for (task_index, demos) in self.tasks.iter().enumerate() {
             if demos.task.family() != self.family {
                 return Err(DatasetError::FamilyMismatch {
                     expected: self.family,
@@ -323,6 +279,8 @@ impl DemoDataset {
             }
             for trajectory in &demos.trajectories {
                 trajectory.check_dims(self.obs_dim, self.act_dim)?;
+                trajectory.check_finite(task_index, trajectory_index)?;
+                trajectory_index += 1;
                 if trajectory.subsample_offset >= self.subsample_factor {
                     return Err(DatasetError::Inconsistent(format!(
                         "subsample offset {} not below factor {}",
@@ -577,6 +535,7 @@ impl DemoDataset {
     }
 }
 
+mod error;
 mod read;
 #[cfg(test)]
 mod tests;

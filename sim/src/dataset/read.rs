@@ -149,6 +149,32 @@ fn check_offsets(offsets: &[usize], total: usize, name: &str) -> Result<(), Data
     Ok(())
 }
 
+/// Checks that every task value and task parameter is finite (the per-trajectory tensors are
+/// checked by [`DemoDataset::check`]).
+fn check_task_floats(
+    values: &[f64],
+    parameters: &[f32],
+    task_dim: usize,
+) -> Result<(), DatasetError> {
+    let non_finite = |tensor, task, value: f64| DatasetError::NonFinite {
+        tensor,
+        task,
+        trajectory: None,
+        value,
+    };
+    if let Some((task, &value)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(non_finite(names::TASK_VALUES, task, value));
+    }
+    if let Some((i, &value)) = parameters.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(non_finite(
+            names::TASK_PARAMETERS,
+            i / task_dim.max(1),
+            value.into(),
+        ));
+    }
+    Ok(())
+}
+
 impl DemoDataset {
     /// Parses and validates safetensors bytes written by [`DemoDataset::to_bytes`].
     pub fn from_bytes(bytes: &[u8]) -> Result<DemoDataset, DatasetError> {
@@ -165,7 +191,10 @@ impl DemoDataset {
         }
         let version: u32 = meta_parse(map, "format_version")?;
         if version != FORMAT_VERSION {
-            return Err(DatasetError::NotADemoFile(format!("version {version}")));
+            return Err(DatasetError::UnsupportedVersion {
+                found: version,
+                supported: FORMAT_VERSION,
+            });
         }
         let family: Family = meta_parse(map, "family")?;
         let split: Split = meta_parse(map, "split")?;
@@ -173,6 +202,12 @@ impl DemoDataset {
         let act_dim: usize = meta_parse(map, "act_dim")?;
         let task_dim: usize = meta_parse(map, "task_dim")?;
         let subsample_factor: usize = meta_parse(map, "subsample_factor")?;
+        if subsample_factor == 0 {
+            return Err(DatasetError::BadMetadata {
+                key: "subsample_factor",
+                reason: "must be at least 1".into(),
+            });
+        }
         let dims = [
             ("obs_dim", family.obs_dim(), obs_dim),
             ("act_dim", family.act_dim(), act_dim),
@@ -206,15 +241,28 @@ impl DemoDataset {
         let time_steps = indices(
             tensor(&file, names::TIME_STEPS, Dtype::I64, &[Some(n)])?.0,
             names::TIME_STEPS,
-        )?;
+        )?
+        .into_iter()
+        .map(|t| {
+            u32::try_from(t).map_err(|_| DatasetError::BadTensor {
+                name: names::TIME_STEPS,
+                reason: format!("time step {t} does not fit in u32"),
+            })
+        })
+        .collect::<Result<Vec<u32>, _>>()?;
         let (values, shape) = tensor(&file, names::TASK_VALUES, Dtype::F64, &[None])?;
         let k = shape[0];
-        tensor(
-            &file,
-            names::TASK_PARAMETERS,
-            Dtype::F32,
-            &[Some(k), Some(task_dim)],
-        )?;
+        let parameters = f32s(
+            tensor(
+                &file,
+                names::TASK_PARAMETERS,
+                Dtype::F32,
+                &[Some(k), Some(task_dim)],
+            )?
+            .0,
+        );
+        let values: Vec<f64> = words(values).map(f64::from_le_bytes).collect();
+        check_task_floats(&values, &parameters, task_dim)?;
         let task_offsets = indices(
             tensor(&file, names::TASK_TRAJ_OFFSETS, Dtype::I64, &[Some(k + 1)])?.0,
             names::TASK_TRAJ_OFFSETS,
@@ -243,7 +291,7 @@ impl DemoDataset {
         check_offsets(&task_offsets, t_count, names::TASK_TRAJ_OFFSETS)?;
 
         let mut tasks = Vec::with_capacity(k);
-        for (task_index, value) in words(values).map(f64::from_le_bytes).enumerate() {
+        for (task_index, &value) in values.iter().enumerate() {
             let task = family
                 .task_from_value(value)
                 .map_err(|e| DatasetError::Inconsistent(format!("task {task_index}: {e}")))?;
@@ -254,7 +302,7 @@ impl DemoDataset {
                     Trajectory {
                         seed: seeds[j],
                         subsample_offset: sub_offsets[j],
-                        time_steps: time_steps[rows.clone()].iter().map(|&t| t as u32).collect(),
+                        time_steps: time_steps[rows.clone()].to_vec(),
                         obs: obs[o0..o1].to_vec(),
                         actions: actions[rows.start * act_dim..rows.end * act_dim].to_vec(),
                         rewards: rewards[rows.clone()].to_vec(),

@@ -2,7 +2,7 @@ use super::*;
 use crate::{EnvConfig, PointGoalPdExpert, make_env};
 use proptest::prelude::*;
 
-fn point_goal_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
+pub(super) fn point_goal_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     let config = EnvConfig {
         horizon: Some(horizon),
         ..EnvConfig::default()
@@ -150,13 +150,29 @@ fn mismatched_metadata_and_families_are_rejected() {
 
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Any byte changed anywhere is an `Ok` or a `DatasetError`, never a panic.
     #[test]
-    fn arbitrary_damage_never_panics(position in 0usize..4096, value in any::<u8>(), cut in 0usize..4096) {
+    fn arbitrary_damage_never_panics(position in any::<prop::sample::Index>(), value in any::<u8>()) {
         let bytes = point_goal_demos(1, 1, 5).to_bytes().unwrap();
         let mut damaged = bytes.clone();
-        let position = position % damaged.len();
-        damaged[position] = value;
+        damaged[position.index(bytes.len())] = value;
         let _ = DemoDataset::from_bytes(&damaged);
-        let _ = DemoDataset::from_bytes(&bytes[..cut.min(bytes.len())]);
+    }
+
+    /// Every strict prefix of a file, cut anywhere from 0 to one byte short, is `Truncated`
+    /// with the length actually present.
+    #[test]
+    fn every_prefix_is_reported_as_truncated(cut in any::<prop::sample::Index>()) {
+        let bytes = point_goal_demos(1, 1, 5).to_bytes().unwrap();
+        let cut = cut.index(bytes.len());
+        match DemoDataset::from_bytes(&bytes[..cut]) {
+            Err(DatasetError::Truncated { expected, got }) => {
+                prop_assert_eq!(got, cut);
+                prop_assert!(expected > cut && expected <= bytes.len());
+            }
+            other => prop_assert!(false, "cut at {} of {}: {:?}", cut, bytes.len(), other),
+        }
     }
 }
+
+mod forged;
