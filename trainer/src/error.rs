@@ -70,6 +70,16 @@ pub enum Error {
         /// The serialiser's message.
         reason: String,
     },
+    /// A child process (a sweep cell's `smile train` or `smile eval`, `sbatch`) failed.
+    #[error("`{command}` failed ({status}); see {}", log.display())]
+    Child {
+        /// The command line, abbreviated.
+        command: String,
+        /// Its exit status.
+        status: String,
+        /// Where its output went.
+        log: PathBuf,
+    },
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

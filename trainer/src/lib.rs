@@ -18,6 +18,8 @@
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
 //! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], progress bars.
+//! * [`sweep`]: grids of runs (`smile sweep`), locally or as a Slurm array;
+//!   [`eval::report`] aggregates them (`smile report`).
 //! * [`quickstart`]: the whole pipeline in one call (`smile quickstart`); [`bench`](mod@bench):
 //!   timing of the learner's update steps (`smile bench`); [`threads`]: the compute thread
 //!   layout.
@@ -35,6 +37,7 @@ mod optim;
 pub mod bench;
 pub mod eval;
 pub mod quickstart;
+pub mod sweep;
 pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type, `train` and its `Event`s.

@@ -611,6 +611,8 @@ pub fn render_episode(
 
 pub mod expert;
 pub mod norm;
+pub mod report;
+mod report_plot;
 
 #[cfg(test)]
 mod tests;

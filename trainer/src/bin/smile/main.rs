@@ -14,6 +14,8 @@ mod eval;
 mod expert;
 mod export;
 mod quickstart;
+mod report;
+mod sweep;
 mod train;
 
 #[derive(Parser, Debug)]
@@ -67,6 +69,16 @@ enum Cmd {
         after_help = "Examples:\n  smile quickstart\n  smile quickstart --out runs/qs-seed1 --seed 1\n  smile quickstart --budget tiny --quiet"
     )]
     Quickstart(quickstart::QuickstartArgs),
+    /// Run a grid of trainings + evaluations from a plan: every core, or a Slurm array.
+    #[command(
+        after_help = "Examples:\n  smile sweep docs/plans/point-goal-3seeds.toml\n  smile sweep plan.toml --jobs 2 --dry-run\n  smile sweep plan.toml --slurm --submit\n  smile sweep run-cell plan.toml --index 3"
+    )]
+    Sweep(sweep::SweepArgs),
+    /// Aggregate evaluations of sweeps or runs: mean +- std over seeds, markdown, JSON, plots.
+    #[command(
+        after_help = "Examples:\n  smile report runs/point-goal-3seeds -o runs/point-goal-3seeds/report\n  smile report runs/h6/eval-s0 runs/h6/eval-s1 runs/h6/eval-s2"
+    )]
+    Report(report::ReportArgs),
 }
 
 fn main() -> Result<()> {
@@ -80,5 +92,7 @@ fn main() -> Result<()> {
         Cmd::Eval(a) => eval::run(a),
         Cmd::Export(a) => export::run(a),
         Cmd::Quickstart(a) => quickstart::run(a),
+        Cmd::Sweep(a) => sweep::run(a),
+        Cmd::Report(a) => report::run(a),
     }
 }

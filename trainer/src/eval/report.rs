@@ -1,0 +1,304 @@
+//! `smile report`: `smile eval` results of many runs aggregated into a paper-shaped table
+//! (methods x settings, mean +- std over seeds, the number of seeds), as markdown and JSON,
+//! with plots: the metric per test task with a band over seeds (the paper's Figure 2) and the
+//! metric against the number of context demos.
+//!
+//! Inputs are sweep directories (their `manifest.json` names each cell's method, setting and
+//! seed) or evaluation directories / `eval.json` files (each method in them is one seed of the
+//! algorithm named before " (" in its name, in the setting "-").
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use super::{EvalReport, MethodResult, mean_std};
+use crate::sweep::{MANIFEST_FILE, Manifest};
+use crate::{Error, Result};
+
+/// One seed of one method in one setting.
+#[derive(Debug, Clone)]
+struct Entry {
+    method: String,
+    setting: String,
+    seed: String,
+    result: MethodResult,
+}
+
+/// A method in a setting, over seeds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Row {
+    /// The method (plan table name or algorithm).
+    pub method: String,
+    /// The setting (demo file and swept keys), "-" for plain evaluations.
+    pub setting: String,
+    /// The seeds (labels) aggregated.
+    pub seeds: Vec<String>,
+    /// Each seed's mean over tasks.
+    pub per_seed: Vec<f32>,
+    /// Mean over seeds.
+    pub mean: f32,
+    /// Sample standard deviation over seeds (0 for one seed).
+    pub std: f32,
+    /// Mean over seeds per context size.
+    pub by_context_size: Vec<f32>,
+    /// Task labels.
+    pub tasks: Vec<String>,
+    /// Task parameters (the plot's x axis).
+    pub task_values: Vec<f64>,
+    /// Per task: mean over seeds.
+    pub task_mean: Vec<f32>,
+    /// Per task: sample std over seeds.
+    pub task_std: Vec<f32>,
+}
+
+/// The aggregated report.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Report {
+    /// Family.
+    pub env: String,
+    /// Metric name.
+    pub metric: String,
+    /// True if lower is better.
+    pub lower_is_better: bool,
+    /// Context sizes of the protocol.
+    pub context_sizes: Vec<usize>,
+    /// One row per (method, setting).
+    pub rows: Vec<Row>,
+}
+
+fn read_eval(path: &Path) -> Result<EvalReport> {
+    let file = if path.is_dir() {
+        path.join("eval.json")
+    } else {
+        path.to_path_buf()
+    };
+    let text = std::fs::read_to_string(&file).map_err(|e| Error::Io {
+        path: file.clone(),
+        source: e,
+    })?;
+    serde_json::from_str(&text).map_err(|e| {
+        Error::Data(format!(
+            "{} is not a `smile eval` report: {e}",
+            file.display()
+        ))
+    })
+}
+
+/// Sample standard deviation (n - 1), 0 for fewer than two values.
+fn sample_std(xs: &[f32]) -> f32 {
+    if xs.len() < 2 {
+        return 0.0;
+    }
+    let m = xs.iter().map(|&x| x as f64).sum::<f64>() / xs.len() as f64;
+    let v = xs.iter().map(|&x| (x as f64 - m).powi(2)).sum::<f64>() / (xs.len() - 1) as f64;
+    v.sqrt() as f32
+}
+
+impl Report {
+    /// Aggregates the evaluations found in `inputs` (sweep directories, evaluation
+    /// directories or `eval.json` files). Cells without an evaluation yet are left out; all
+    /// evaluations must be of one family, metric and protocol.
+    pub fn from_inputs(inputs: &[PathBuf]) -> Result<Self> {
+        let mut entries = Vec::new();
+        let mut head: Option<EvalReport> = None;
+        let mut take = |rep: EvalReport, origin: &Path| -> Result<Vec<MethodResult>> {
+            if let Some(h) = &head {
+                if (h.env.as_str(), h.metric.as_str(), &h.protocol.context_sizes)
+                    != (
+                        rep.env.as_str(),
+                        rep.metric.as_str(),
+                        &rep.protocol.context_sizes,
+                    )
+                {
+                    return Err(Error::Data(format!(
+                        "{} is a {} evaluation ({}, context sizes {:?}); the first was {} ({}, {:?})",
+                        origin.display(),
+                        rep.env,
+                        rep.metric,
+                        rep.protocol.context_sizes,
+                        h.env,
+                        h.metric,
+                        h.protocol.context_sizes
+                    )));
+                }
+            } else {
+                head = Some(rep.clone());
+            }
+            Ok(rep.methods)
+        };
+        for input in inputs {
+            let manifest = input.join(MANIFEST_FILE);
+            if manifest.exists() {
+                let text = std::fs::read_to_string(&manifest).map_err(|e| Error::Io {
+                    path: manifest.clone(),
+                    source: e,
+                })?;
+                let m: Manifest = serde_json::from_str(&text).map_err(|e| {
+                    Error::Data(format!(
+                        "{} is not a sweep manifest: {e}",
+                        manifest.display()
+                    ))
+                })?;
+                for c in &m.cells {
+                    let eval = input.join(&c.cell.name).join("eval");
+                    if !eval.join("eval.json").exists() {
+                        continue;
+                    }
+                    for r in take(read_eval(&eval)?, &eval)? {
+                        entries.push(Entry {
+                            method: c.cell.method.clone(),
+                            setting: c.cell.setting(),
+                            seed: c.cell.seed.to_string(),
+                            result: r,
+                        });
+                    }
+                }
+            } else {
+                for r in take(read_eval(input)?, input)? {
+                    let method = r.name.split(" (").next().unwrap_or(&r.name).to_string();
+                    entries.push(Entry {
+                        method,
+                        setting: "-".into(),
+                        seed: r.name.clone(),
+                        result: r,
+                    });
+                }
+            }
+        }
+        let head = head.ok_or_else(|| {
+            Error::Data(
+                "no evaluation found in the inputs (no eval.json; cells not evaluated yet?)".into(),
+            )
+        })?;
+        let mut groups: BTreeMap<(String, String), Vec<Entry>> = BTreeMap::new();
+        let mut order: Vec<(String, String)> = Vec::new();
+        for e in entries {
+            let key = (e.method.clone(), e.setting.clone());
+            if !groups.contains_key(&key) {
+                order.push(key.clone());
+            }
+            groups.entry(key).or_default().push(e);
+        }
+        let rows = order
+            .into_iter()
+            .map(|key| row(&key.0, &key.1, &groups[&key]))
+            .collect::<Result<Vec<_>>>()?;
+        Ok(Self {
+            env: head.env,
+            metric: head.metric,
+            lower_is_better: head.lower_is_better,
+            context_sizes: head.protocol.context_sizes,
+            rows,
+        })
+    }
+
+    /// The markdown table.
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "# {}: {} ({} is better), mean +- std over seeds\n\n",
+            self.env,
+            self.metric,
+            if self.lower_is_better {
+                "lower"
+            } else {
+                "higher"
+            }
+        );
+        let sizes: Vec<String> = self.context_sizes.iter().map(usize::to_string).collect();
+        s.push_str(&format!(
+            "| method | setting | seeds | per seed | mean +- std | by context size ({}) |\n|---|---|---|---|---|---|\n",
+            sizes.join(" / ")
+        ));
+        for r in &self.rows {
+            let per: Vec<String> = r.per_seed.iter().map(|x| format!("{x:.3}")).collect();
+            let by: Vec<String> = r
+                .by_context_size
+                .iter()
+                .map(|x| format!("{x:.3}"))
+                .collect();
+            s.push_str(&format!(
+                "| {} | {} | {} | {} | **{:.3} +- {:.3}** | {} |\n",
+                r.method,
+                r.setting,
+                r.seeds.len(),
+                per.join(", "),
+                r.mean,
+                r.std,
+                by.join(" / ")
+            ));
+        }
+        s
+    }
+
+    /// Writes `report.md`, `report.json`, `tasks.svg` and (with several context sizes)
+    /// `context-sizes.svg` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+            path: dir.to_path_buf(),
+            source: e,
+        })?;
+        let md = dir.join("report.md");
+        crate::io::checkpoint::write_atomic(&md, self.markdown().as_bytes())?;
+        let json = dir.join("report.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Serialise {
+            what: "report.json",
+            reason: e.to_string(),
+        })?;
+        crate::io::checkpoint::write_atomic(&json, text.as_bytes())?;
+        let tasks = dir.join("tasks.svg");
+        super::report_plot::per_task(self, &tasks)?;
+        let mut written = vec![md, json, tasks];
+        if self.context_sizes.len() > 1 {
+            let sizes = dir.join("context-sizes.svg");
+            super::report_plot::by_context_size(self, &sizes)?;
+            written.push(sizes);
+        }
+        Ok(written)
+    }
+}
+
+fn row(method: &str, setting: &str, entries: &[Entry]) -> Result<Row> {
+    let first = &entries[0].result;
+    for e in entries {
+        if e.result.tasks.len() != first.tasks.len() {
+            return Err(Error::Data(format!(
+                "{method} ({setting}): seed {} has {} tasks, seed {} has {}",
+                e.seed,
+                e.result.tasks.len(),
+                entries[0].seed,
+                first.tasks.len()
+            )));
+        }
+    }
+    let per_seed: Vec<f32> = entries.iter().map(|e| e.result.mean).collect();
+    let (mean, _) = mean_std(&per_seed);
+    let by_context_size = (0..first.by_context_size.len())
+        .map(|k| {
+            let xs: Vec<f32> = entries
+                .iter()
+                .map(|e| e.result.by_context_size[k])
+                .collect();
+            mean_std(&xs).0
+        })
+        .collect();
+    let (mut task_mean, mut task_std) = (Vec::new(), Vec::new());
+    for t in 0..first.tasks.len() {
+        let xs: Vec<f32> = entries.iter().map(|e| e.result.tasks[t].metric).collect();
+        task_mean.push(mean_std(&xs).0);
+        task_std.push(sample_std(&xs));
+    }
+    Ok(Row {
+        method: method.into(),
+        setting: setting.into(),
+        seeds: entries.iter().map(|e| e.seed.clone()).collect(),
+        std: sample_std(&per_seed),
+        per_seed,
+        mean,
+        by_context_size,
+        tasks: first.tasks.iter().map(|t| t.task.clone()).collect(),
+        task_values: first.tasks.iter().map(|t| t.value).collect(),
+        task_mean,
+        task_std,
+    })
+}

@@ -1,0 +1,189 @@
+//! The report's SVG plots: the metric per test task with a band of +- one std over seeds (one
+//! line per method and setting, as the paper's Figure 2), and the metric against the number of
+//! context demos.
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::report::Report;
+use crate::{Error, Result};
+
+fn err(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> Error + '_ {
+    move |e| Error::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    }
+}
+
+fn label(r: &super::report::Row) -> String {
+    if r.setting == "-" {
+        format!("{} ({} seeds, mean {:.3})", r.method, r.seeds.len(), r.mean)
+    } else {
+        format!(
+            "{}, {} ({} seeds, mean {:.3})",
+            r.method,
+            r.setting,
+            r.seeds.len(),
+            r.mean
+        )
+    }
+}
+
+fn y_range(values: impl Iterator<Item = f32>) -> std::ops::Range<f32> {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((0.0f32, f32::NEG_INFINITY), |(a, b), v| {
+            (a.min(v), b.max(v))
+        });
+    if hi.is_finite() && hi > lo {
+        lo..hi * 1.1
+    } else {
+        lo..lo + 1.0
+    }
+}
+
+/// Metric per task (x = task parameter), mean over seeds with a +- std band.
+pub fn per_task(report: &Report, path: &Path) -> Result<()> {
+    let e = err(path);
+    let xs = report
+        .rows
+        .iter()
+        .flat_map(|r| r.task_values.iter().copied());
+    let (x0, x1) = xs.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+        (a.min(x), b.max(x))
+    });
+    let (x0, x1) = if x0.is_finite() && x1 > x0 {
+        (x0, x1)
+    } else {
+        (0.0, 1.0)
+    };
+    let ys = y_range(report.rows.iter().flat_map(|r| {
+        r.task_mean
+            .iter()
+            .zip(&r.task_std)
+            .map(|(m, s)| m + s)
+            .collect::<Vec<_>>()
+    }));
+    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let x_desc = match report.env.as_str() {
+        "point-goal" | "ant-goal" => "goal angle (rad)",
+        "cheetah-vel" => "target velocity (m/s)",
+        _ => "task",
+    };
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!(
+                "{}: {} per test task (band: +- std over seeds)",
+                report.env, report.metric
+            ),
+            ("sans-serif", 17),
+        )
+        .margin(12)
+        .x_label_area_size(38)
+        .y_label_area_size(50)
+        .build_cartesian_2d(x0..x1, ys)
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc(report.metric.clone())
+        .draw()
+        .map_err(|x| e(&x))?;
+    for (i, r) in report.rows.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let mut band: Vec<(f64, f32)> = r
+            .task_values
+            .iter()
+            .zip(r.task_mean.iter().zip(&r.task_std))
+            .map(|(&x, (m, s))| (x, m + s))
+            .collect();
+        band.extend(
+            r.task_values
+                .iter()
+                .zip(r.task_mean.iter().zip(&r.task_std))
+                .rev()
+                .map(|(&x, (m, s))| (x, m - s)),
+        );
+        chart
+            .draw_series(std::iter::once(Polygon::new(
+                band,
+                color.mix(0.15).filled(),
+            )))
+            .map_err(|x| e(&x))?;
+        let line: Vec<(f64, f32)> = r
+            .task_values
+            .iter()
+            .copied()
+            .zip(r.task_mean.iter().copied())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(line, color.stroke_width(2)))
+            .map_err(|x| e(&x))?
+            .label(label(r))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|x| e(&x))?;
+    root.present().map_err(|x| e(&x))
+}
+
+/// Metric (mean over tasks and seeds) against the number of context demos.
+pub fn by_context_size(report: &Report, path: &Path) -> Result<()> {
+    let e = err(path);
+    let k0 = *report.context_sizes.first().unwrap_or(&1) as f64;
+    let k1 = *report.context_sizes.last().unwrap_or(&1) as f64;
+    let (k0, k1) = if k1 > k0 { (k0, k1) } else { (k0, k0 + 1.0) };
+    let ys = y_range(report.rows.iter().flat_map(|r| r.by_context_size.clone()));
+    let root = SVGBackend::new(path, (640, 420)).into_drawing_area();
+    root.fill(&WHITE).map_err(|x| e(&x))?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption(
+            format!("{}: {} vs context demos", report.env, report.metric),
+            ("sans-serif", 17),
+        )
+        .margin(12)
+        .x_label_area_size(38)
+        .y_label_area_size(50)
+        .build_cartesian_2d(k0..k1, ys)
+        .map_err(|x| e(&x))?;
+    chart
+        .configure_mesh()
+        .x_desc("demos in the context")
+        .y_desc(report.metric.clone())
+        .draw()
+        .map_err(|x| e(&x))?;
+    for (i, r) in report.rows.iter().enumerate() {
+        let color = Palette99::pick(i).to_rgba();
+        let pts: Vec<(f64, f32)> = report
+            .context_sizes
+            .iter()
+            .map(|&k| k as f64)
+            .zip(r.by_context_size.iter().copied())
+            .collect();
+        chart
+            .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))
+            .map_err(|x| e(&x))?
+            .label(label(r))
+            .legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 18, y)], color.stroke_width(2))
+            });
+        chart
+            .draw_series(pts.into_iter().map(|p| Circle::new(p, 3, color.filled())))
+            .map_err(|x| e(&x))?;
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|x| e(&x))?;
+    root.present().map_err(|x| e(&x))
+}

@@ -1,0 +1,394 @@
+//! A sweep plan (TOML) and its expansion into cells.
+//!
+//! ```toml
+//! env = "point-goal"                      # task family
+//! out = "runs/pg-3seeds"                  # sweep directory (default: runs/<plan file stem>)
+//! demos = ["runs/pg-train.safetensors"]   # axis: meta-train demo files (one or more)
+//! seeds = [0, 1, 2]                       # axis: seeds
+//!
+//! [algo.smile]                            # axis: one table per method
+//! algo = "smile"                          # smile | smile-state-only | meta-bc | meta-dagger
+//! config = "docs/configs/cv-smile.toml"   # optional base config (paths relative to the plan)
+//! set = { total_updates = 30000 }         # config keys set for every cell of this method
+//! axes = { gp_weight = [0.1, 1.0] }       # config keys swept for this method
+//! expert = "runs/pg-expert"               # meta-dagger's relabelling expert
+//!
+//! [eval]                                  # the evaluation run after training
+//! contexts = "runs/pg-test.safetensors"
+//! horizon = 1000                          # optional episode length
+//! context_sizes = [1, 2, 3, 4]            # optional (default: the family's protocol)
+//! ```
+//!
+//! Cells are the product of methods x demo files x each method's config axes x seeds, in that
+//! order (seeds vary fastest); a cell's index is its position. Every cell's configuration is
+//! checked against its algorithm's config type (unknown keys, invalid values) and every file
+//! is checked to exist before anything runs.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sim::Family;
+
+use crate::algo::meta_bc::MetaBcConfig;
+use crate::algo::smile::SmileConfig;
+use crate::{Error, Result};
+
+/// The meta-learners a plan can name.
+pub const ALGOS: [&str; 4] = ["smile", "smile-state-only", "meta-bc", "meta-dagger"];
+
+/// A sweep plan as written.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Plan {
+    /// Task family.
+    pub env: String,
+    /// Sweep directory; relative paths are relative to the current directory. Default
+    /// `runs/<plan file stem>`.
+    #[serde(default)]
+    pub out: Option<PathBuf>,
+    /// Meta-train demo files (an axis).
+    pub demos: Vec<PathBuf>,
+    /// Seeds (an axis).
+    pub seeds: Vec<u64>,
+    /// Methods (an axis), by name.
+    pub algo: BTreeMap<String, Method>,
+    /// The evaluation after training.
+    pub eval: EvalPlan,
+}
+
+/// One method of a plan.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Method {
+    /// `smile train --algo` (default: the table's name).
+    #[serde(default)]
+    pub algo: Option<String>,
+    /// Base config file (SMILe or Meta-BC TOML), relative to the plan file.
+    #[serde(default)]
+    pub config: Option<PathBuf>,
+    /// Config keys set in every cell of this method (dotted keys for sections).
+    #[serde(default)]
+    pub set: toml::Table,
+    /// Config keys swept for this method: key -> values.
+    #[serde(default)]
+    pub axes: BTreeMap<String, Vec<toml::Value>>,
+    /// Meta-DAgger's expert (a `smile expert` run), relative to the plan file.
+    #[serde(default)]
+    pub expert: Option<PathBuf>,
+}
+
+/// The evaluation of every cell (`smile eval` on the test split).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct EvalPlan {
+    /// Context demos of the evaluation tasks (meta-test demos).
+    pub contexts: PathBuf,
+    /// Episode length override.
+    #[serde(default)]
+    pub horizon: Option<usize>,
+    /// Context sizes override.
+    #[serde(default)]
+    pub context_sizes: Vec<usize>,
+    /// Rollouts per context draw override.
+    #[serde(default)]
+    pub rollouts: Option<usize>,
+}
+
+/// One cell: a training run and its evaluation.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Cell {
+    /// Position in the sweep (the Slurm array index).
+    pub index: usize,
+    /// Directory name inside the sweep directory.
+    pub name: String,
+    /// The method's table name (what the report groups by).
+    pub method: String,
+    /// `smile train --algo`.
+    pub algo: String,
+    /// The demo file.
+    pub demos: PathBuf,
+    /// The seed.
+    pub seed: u64,
+    /// The swept config keys of this cell (key -> value as TOML).
+    pub params: BTreeMap<String, String>,
+    /// The full config given to `smile train --config` (base file + set + params + seed).
+    pub config: String,
+    /// Meta-DAgger's expert.
+    pub expert: Option<PathBuf>,
+}
+
+impl Cell {
+    /// The setting this cell belongs to, without the seed: what the report averages over.
+    pub fn setting(&self) -> String {
+        let mut s = self.demos_label();
+        for (k, v) in &self.params {
+            s.push_str(&format!(", {k}={v}"));
+        }
+        s
+    }
+
+    /// The demo file's stem.
+    pub fn demos_label(&self) -> String {
+        self.demos
+            .file_stem()
+            .map_or("demos".into(), |s| s.to_string_lossy().into_owned())
+    }
+}
+
+/// A plan read from a file, with its cells.
+#[derive(Debug, Clone)]
+pub struct Sweep {
+    /// The plan file.
+    pub path: PathBuf,
+    /// The plan (its file paths resolved against the plan's directory).
+    pub plan: Plan,
+    /// The family.
+    pub family: Family,
+    /// The sweep directory.
+    pub out: PathBuf,
+    /// The cells, by index.
+    pub cells: Vec<Cell>,
+}
+
+fn plan_err(path: &Path, text: &str, needle: Option<&str>, msg: String) -> Error {
+    let line = needle.and_then(|n| {
+        text.lines()
+            .position(|l| l.contains(n))
+            .map(|i| format!(" (line {})", i + 1))
+    });
+    Error::Config(format!(
+        "plan {}{}: {msg}",
+        path.display(),
+        line.unwrap_or_default()
+    ))
+}
+
+/// Sets a dotted `key` in `table` (creating sections as needed).
+fn set_key(
+    table: &mut toml::Table,
+    key: &str,
+    value: toml::Value,
+) -> std::result::Result<(), String> {
+    let mut parts: Vec<&str> = key.split('.').collect();
+    let last = parts.pop().ok_or("empty key")?;
+    let mut t = table;
+    for p in parts {
+        t = t
+            .entry(p)
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
+            .as_table_mut()
+            .ok_or_else(|| format!("`{p}` in `{key}` is not a section"))?;
+    }
+    t.insert(last.to_string(), value);
+    Ok(())
+}
+
+/// The cartesian product of `axes` (key -> values), in key order, last key fastest.
+fn product(axes: &BTreeMap<String, Vec<toml::Value>>) -> Vec<Vec<(String, toml::Value)>> {
+    let mut out = vec![Vec::new()];
+    for (k, vs) in axes {
+        out = out
+            .into_iter()
+            .flat_map(|prefix| {
+                vs.iter().map(move |v| {
+                    let mut p = prefix.clone();
+                    p.push((k.clone(), v.clone()));
+                    p
+                })
+            })
+            .collect();
+    }
+    out
+}
+
+fn short(v: &toml::Value) -> String {
+    match v {
+        toml::Value::String(s) => s.clone(),
+        other => other.to_string().replace([' ', '[', ']', '"'], ""),
+    }
+}
+
+impl Sweep {
+    /// Reads, checks and expands the plan at `path`. Refuses unknown keys, empty axes, unknown
+    /// algorithms, missing files and configs their algorithm rejects, naming the plan line.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            path: path.to_path_buf(),
+            source: e,
+        })?;
+        let plan: Plan = toml::from_str(&text)
+            .map_err(|e| Error::Config(format!("plan {}: {e}", path.display())))?;
+        let base = path.parent().unwrap_or(Path::new("."));
+        let rel = |p: &Path| {
+            if p.is_absolute() {
+                p.to_path_buf()
+            } else {
+                base.join(p)
+            }
+        };
+        let err = |needle: Option<&str>, msg: String| plan_err(path, &text, needle, msg);
+        let family: Family = plan
+            .env
+            .parse()
+            .map_err(|e: sim::SimError| err(Some("env"), e.to_string()))?;
+        for (axis, empty) in [
+            ("demos", plan.demos.is_empty()),
+            ("seeds", plan.seeds.is_empty()),
+            ("algo", plan.algo.is_empty()),
+        ] {
+            if empty {
+                return Err(err(Some(axis), format!("the axis `{axis}` is empty")));
+            }
+        }
+        let mut files: Vec<(&str, PathBuf)> =
+            plan.demos.iter().map(|d| ("demos", rel(d))).collect();
+        files.push(("contexts", rel(&plan.eval.contexts)));
+        for (name, m) in &plan.algo {
+            if let Some(c) = &m.config {
+                files.push(("config", rel(c)));
+            }
+            if let Some(e) = &m.expert {
+                files.push(("expert", rel(e)));
+            }
+            if let Some((k, _)) = m.axes.iter().find(|(_, v)| v.is_empty()) {
+                return Err(err(
+                    Some(k),
+                    format!("the axis `{k}` of [algo.{name}] is empty"),
+                ));
+            }
+        }
+        for (what, f) in &files {
+            if !f.exists() {
+                let needle = f.file_name().map(|n| n.to_string_lossy().into_owned());
+                return Err(err(
+                    needle.as_deref(),
+                    format!("{what} file {} does not exist", f.display()),
+                ));
+            }
+        }
+        let out = plan.out.clone().unwrap_or_else(|| {
+            let stem = path
+                .file_stem()
+                .map_or("sweep".into(), |s| s.to_string_lossy());
+            PathBuf::from("runs").join(stem.as_ref())
+        });
+        let mut cells = Vec::new();
+        for (name, m) in &plan.algo {
+            let algo = m.algo.clone().unwrap_or_else(|| name.clone());
+            if !ALGOS.contains(&algo.as_str()) {
+                return Err(err(
+                    Some(&format!("[algo.{name}]")),
+                    format!("unknown algo {algo:?}; expected one of {ALGOS:?}"),
+                ));
+            }
+            if algo == "meta-dagger" && m.expert.is_none() && family != Family::PointGoal {
+                return Err(err(
+                    Some(&format!("[algo.{name}]")),
+                    format!("meta-dagger on {family} needs `expert`"),
+                ));
+            }
+            let mut table = match &m.config {
+                Some(c) => {
+                    let p = rel(c);
+                    let s = std::fs::read_to_string(&p).map_err(|e| Error::Io {
+                        path: p.clone(),
+                        source: e,
+                    })?;
+                    toml::from_str::<toml::Table>(&s)
+                        .map_err(|e| err(Some("config"), format!("{}: {e}", p.display())))?
+                }
+                None => toml::Table::new(),
+            };
+            for (k, v) in &m.set {
+                set_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
+            }
+            for demos in &plan.demos {
+                for point in product(&m.axes) {
+                    for &seed in &plan.seeds {
+                        let mut t = table.clone();
+                        for (k, v) in &point {
+                            set_key(&mut t, k, v.clone()).map_err(|e| err(Some(k), e))?;
+                        }
+                        t.insert("seed".into(), toml::Value::Integer(seed as i64));
+                        t.insert("env".into(), toml::Value::String(family.name().into()));
+                        check_config(&algo, &t).map_err(|e| {
+                            let key = point
+                                .iter()
+                                .map(|(k, _)| k.as_str())
+                                .chain(m.set.keys().map(String::as_str));
+                            let needle =
+                                key.into_iter().find(|k| e.contains(k)).map(str::to_string);
+                            err(
+                                Some(needle.as_deref().unwrap_or(&format!("[algo.{name}]"))),
+                                format!("[algo.{name}]: {e}"),
+                            )
+                        })?;
+                        let params: BTreeMap<String, String> =
+                            point.iter().map(|(k, v)| (k.clone(), short(v))).collect();
+                        let mut cell_name = name.clone();
+                        if plan.demos.len() > 1 {
+                            cell_name.push_str(&format!("-{}", stem(demos)));
+                        }
+                        for (k, v) in &params {
+                            cell_name.push_str(&format!("-{k}={v}"));
+                        }
+                        cell_name.push_str(&format!("-s{seed}"));
+                        cells.push(Cell {
+                            index: cells.len(),
+                            name: cell_name.replace(['/', ' '], "_"),
+                            method: name.clone(),
+                            algo: algo.clone(),
+                            demos: rel(demos),
+                            seed,
+                            params,
+                            config: toml::to_string(&t).map_err(|e| Error::Serialise {
+                                what: "cell config",
+                                reason: e.to_string(),
+                            })?,
+                            expert: m.expert.as_ref().map(|e| rel(e)),
+                        });
+                    }
+                }
+            }
+        }
+        let mut plan = plan;
+        plan.eval.contexts = rel(&plan.eval.contexts);
+        Ok(Self {
+            path: path.to_path_buf(),
+            plan,
+            family,
+            out,
+            cells,
+        })
+    }
+
+    /// The directory of cell `i`.
+    pub fn cell_dir(&self, cell: &Cell) -> PathBuf {
+        self.out.join(&cell.name)
+    }
+}
+
+fn stem(p: &Path) -> String {
+    p.file_stem()
+        .map_or("demos".into(), |s| s.to_string_lossy().into_owned())
+}
+
+fn message(e: Error) -> String {
+    match e {
+        Error::Config(m) => m,
+        other => other.to_string(),
+    }
+}
+
+/// Deserialises `t` into the algorithm's config type and validates it.
+fn check_config(algo: &str, t: &toml::Table) -> std::result::Result<(), String> {
+    let s = toml::to_string(t).map_err(|e| e.to_string())?;
+    if algo.starts_with("smile") {
+        let c: SmileConfig = toml::from_str(&s).map_err(|e| e.message().to_string())?;
+        c.validate().map_err(message)
+    } else {
+        let c: MetaBcConfig = toml::from_str(&s).map_err(|e| e.message().to_string())?;
+        c.validate().map_err(message)
+    }
+}
