@@ -106,7 +106,11 @@ fn process_tree(root: u32) -> Vec<u32> {
         };
         // pid (comm) state ppid ...: comm may hold spaces, so split after the last ')'.
         let rest = &stat[stat.rfind(')').map_or(0, |i| i + 1)..];
-        if let Some(ppid) = rest.split_whitespace().nth(1).and_then(|s| s.parse::<u32>().ok()) {
+        if let Some(ppid) = rest
+            .split_whitespace()
+            .nth(1)
+            .and_then(|s| s.parse::<u32>().ok())
+        {
             parent_of.push((pid, ppid));
         }
     }
@@ -160,9 +164,14 @@ fn a_killed_local_sweep_resumes_to_the_same_results() {
     }
     // kill -9 of the runner and every process below it, each by its own (positive) pid.
     let tree = process_tree(child.id());
-    assert!(tree.len() >= 2, "expected the runner and its cells, got {tree:?}");
+    assert!(
+        tree.len() >= 2,
+        "expected the runner and its cells, got {tree:?}"
+    );
     for pid in &tree {
-        let _ = Command::new("kill").args(["-KILL", &pid.to_string()]).status();
+        let _ = Command::new("kill")
+            .args(["-KILL", &pid.to_string()])
+            .status();
     }
     let _ = child.wait();
     assert!(
