@@ -112,10 +112,13 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
 fn a_slow_family_is_refused_at_the_short_budget_and_runs_tiny() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("cv");
+    // Without shipped assets (the repository's assets/experts/cheetah-vel lets the default
+    // budget start from them instead: trainer's quickstart unit test).
     let short = QuickstartConfig {
         env: Family::CheetahVel,
         out: out.clone(),
         quiet: true,
+        assets: Some(dir.path().join("no-assets")),
         ..QuickstartConfig::default()
     };
     let err = run(&short).unwrap_err().to_string();

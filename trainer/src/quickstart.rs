@@ -23,6 +23,7 @@ use crate::io::bar;
 use crate::io::export::{self, BlobActor};
 use crate::model::MetaPolicy;
 use crate::{Error, Result};
+use indicatif::MultiProgress;
 
 mod report;
 
@@ -81,6 +82,11 @@ pub struct QuickstartConfig {
     pub subsample: usize,
     /// No progress bars.
     pub quiet: bool,
+    /// Directory of shipped experts and demos (`assets/experts` of the repository, used when
+    /// `None` and present): cheetah-vel then starts from `assets/experts/cheetah-vel` instead
+    /// of training an expert. Default None.
+    #[serde(default)]
+    pub assets: Option<PathBuf>,
 }
 
 mod family_name {
@@ -108,36 +114,58 @@ impl Default for QuickstartConfig {
             demos_per_task: 4,
             subsample: 20,
             quiet: false,
+            assets: None,
         }
     }
 }
 
 fn stage(n: usize, what: &str) {
-    eprintln!("\n[{n}/7] {what}");
+    eprintln!("\n[{n}/6] {what}");
 }
 
-/// Episode length the quickstart uses: cheetah-vel runs 200-step episodes (as the reference's
-/// section 7 prototype, 10 s of simulated time) to keep every stage affordable; the others
-/// use their family's horizon.
-fn horizon(family: Family) -> Option<usize> {
-    (family == Family::CheetahVel).then_some(200)
+/// The shipped expert and demos of the family (`assets/experts/<family>/`), used by every
+/// budget but `tiny` on the families without a scripted expert.
+fn shipped(args: &QuickstartConfig) -> Option<PathBuf> {
+    if args.env == Family::PointGoal || args.budget == Budget::Tiny {
+        return None;
+    }
+    let root = args
+        .assets
+        .clone()
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts"));
+    let dir = root.join(args.env.name());
+    [expert::POLICY_FILE, SHIPPED_TRAIN, SHIPPED_TEST]
+        .iter()
+        .all(|f| dir.join(f).exists())
+        .then_some(dir)
 }
 
-fn env_config(family: Family) -> EnvConfig {
+/// The shipped demo files (4 per task, subsampled by 20, full-length episodes).
+const SHIPPED_TRAIN: &str = "demos-train-4x-sub20.safetensors";
+const SHIPPED_TEST: &str = "demos-test-4x-sub20.safetensors";
+
+/// Episode length the quickstart uses: the family's own (cheetah-vel: the paper's 1000 steps)
+/// with shipped assets; without them cheetah-vel runs 200-step episodes (as the reference's
+/// section 7 prototype) to keep training its own expert affordable.
+fn horizon(args: &QuickstartConfig) -> Option<usize> {
+    (args.env == Family::CheetahVel && shipped(args).is_none()).then_some(200)
+}
+
+fn env_config(args: &QuickstartConfig) -> EnvConfig {
     EnvConfig {
-        horizon: horizon(family),
+        horizon: horizon(args),
         ..EnvConfig::default()
     }
 }
 
 /// Refuses, before any work, a budget that cannot do what it promises on this family.
 fn check_budget(args: &QuickstartConfig) -> Result<()> {
-    if args.env != Family::PointGoal && args.budget == Budget::Short {
+    if args.env != Family::PointGoal && args.budget == Budget::Short && shipped(args).is_none() {
         return Err(Error::Config(format!(
-            "{0} has no scripted expert: the quickstart would train an SAC expert (about 1-2 \
-             hours on 2 cores for cheetah-vel, 300k steps) and then SMILe (about 1 hour more). \
-             Pass `--budget long` to run all of it, or `--budget tiny` to check the pipeline in \
-             a minute (nothing useful is learned). point-goal is the fast family.",
+            "{0} has no scripted expert and no shipped one (assets/experts/{0}): the quickstart \
+             would train an SAC expert (about 1-2 hours on 2 cores) and then SMILe (about 1 \
+             hour more). Pass `--budget long` to run all of it, or `--budget tiny` to check the \
+             pipeline in a minute (nothing useful is learned). point-goal is the fast family.",
             args.env
         )));
     }
@@ -151,9 +179,22 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
             "scripted PD controller (point-goal's documented expert; nothing trained)".to_string();
         return Ok((Expert::load(dir)?, note));
     }
+    if let Some(assets) = shipped(args) {
+        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        for f in [expert::POLICY_FILE, "config.toml", "eval.json"] {
+            if assets.join(f).exists() {
+                std::fs::copy(assets.join(f), dir.join(f)).map_err(io(dir))?;
+            }
+        }
+        let note = format!(
+            "the shipped SAC expert ({}; nothing trained)",
+            assets.display()
+        );
+        return Ok((Expert::load(dir)?, note));
+    }
     let mut cfg = expert::ExpertConfig {
         env: args.env.name().into(),
-        horizon: horizon(args.env),
+        horizon: horizon(args),
         seed: args.seed,
         ..expert::ExpertConfig::default()
     };
@@ -195,10 +236,25 @@ fn demos(
         per_task,
         subsample: args.subsample,
         seed,
-        env: env_config(args.env),
+        env: env_config(args),
     };
-    let ds = record(expert, &spec)?;
-    ds.write(path)?;
+    let ds = match shipped(args) {
+        Some(assets) => {
+            let src = assets.join(if split == Split::Train {
+                SHIPPED_TRAIN
+            } else {
+                SHIPPED_TEST
+            });
+            std::fs::copy(&src, path).map_err(io(path))?;
+            eprintln!("  shipped demos {}", src.display());
+            DemoDataset::read(path)?
+        }
+        None => {
+            let ds = record(expert, &spec)?;
+            ds.write(path)?;
+            ds
+        }
+    };
     eprintln!(
         "  {} tasks x {per_task} demos -> {}",
         ds.tasks.len(),
@@ -207,19 +263,27 @@ fn demos(
     Ok(ds)
 }
 
-fn train_smile(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Result<MetaPolicy> {
+fn train_smile(
+    args: &QuickstartConfig,
+    train: &DemoDataset,
+    dir: &Path,
+    bars: &MultiProgress,
+) -> Result<MetaPolicy> {
     let mut cfg = SmileConfig {
         env: args.env.name().into(),
         seed: args.seed,
         ..SmileConfig::default()
     };
-    cfg.horizon = horizon(args.env);
+    cfg.horizon = horizon(args);
     if args.env != Family::PointGoal {
         // The reference's section 7 cheetah prototype: 4 rollouts then 200 update pairs,
-        // encoder 2 x 128.
+        // encoder 2 x 128; 40k pairs at the paper's horizon (docs/configs/cv1000-smile.toml).
         (cfg.rollouts_per_iter, cfg.updates_per_iter) = (4, 200);
         cfg.context.enc_hidden = vec![128, 128];
         (cfg.total_updates, cfg.eval_every, cfg.checkpoint_every) = (60_000, 2_000, 4_000);
+        if shipped(args).is_some() {
+            cfg.total_updates = 40_000;
+        }
     }
     match args.budget {
         Budget::Tiny => {
@@ -243,7 +307,7 @@ fn train_smile(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Resu
             reason: e.to_string(),
         })?,
     )?;
-    let pb = bar(cfg.total_updates, args.quiet, "update pairs");
+    let pb = bars.add(bar(cfg.total_updates, args.quiet, "SMILe update pairs"));
     smile::train(&mut run, dir, &mut |e| match e {
         smile::Event::Updates(u) => pb.set_position(u),
         smile::Event::Eval {
@@ -255,12 +319,23 @@ fn train_smile(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Resu
     MetaPolicy::load(dir)
 }
 
-fn train_meta_bc(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Result<MetaPolicy> {
+fn train_meta_bc(
+    args: &QuickstartConfig,
+    train: &DemoDataset,
+    dir: &Path,
+    bars: &MultiProgress,
+) -> Result<MetaPolicy> {
     let mut cfg = MetaBcConfig {
         env: args.env.name().into(),
         seed: args.seed,
         ..MetaBcConfig::default()
     };
+    if shipped(args).is_some() {
+        // docs/configs/cv1000-bc-roll.toml: kept and stopped on held-out rollouts.
+        cfg.horizon = horizon(args);
+        cfg.select_by = meta_bc::Selection::Rollouts;
+        cfg.context.enc_hidden = vec![128, 128];
+    }
     if args.budget == Budget::Tiny {
         cfg.total_steps = 200;
         cfg.policy_hidden = vec![32, 32];
@@ -275,7 +350,7 @@ fn train_meta_bc(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Re
             reason: e.to_string(),
         })?,
     )?;
-    let pb = bar(cfg.total_steps, args.quiet, "steps");
+    let pb = bars.add(bar(cfg.total_steps, args.quiet, "Meta-BC steps"));
     meta_bc::train(&mut run, dir, &mut |e| match e {
         meta_bc::Event::Steps(s) => pb.set_position(s),
         meta_bc::Event::Eval(_, r) => pb.set_message(format!("val mse {:.4}", r.val_mse)),
@@ -287,7 +362,7 @@ fn train_meta_bc(args: &QuickstartConfig, train: &DemoDataset, dir: &Path) -> Re
 
 fn protocol(args: &QuickstartConfig) -> Protocol {
     let mut p = Protocol::for_family(args.env);
-    p.horizon = horizon(args.env);
+    p.horizon = horizon(args);
     if args.budget == Budget::Tiny {
         p.draws = 1;
         p.rollouts = 1;
@@ -352,7 +427,7 @@ fn device_run(
     )
     .map_err(device_err)?;
     let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
-    let mut plant = sim::make_env(args.env, env_config(args.env))?;
+    let mut plant = sim::make_env(args.env, env_config(args))?;
     let loop_config = LoopConfig {
         seed: args.seed,
         noise_std: 0.005,
@@ -407,6 +482,12 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     );
     if args.budget == Budget::Short && args.env == Family::PointGoal {
         eprintln!("expected time on 2 cores: 5-12 minutes");
+    } else if let Some(assets) = shipped(args) {
+        eprintln!(
+            "from the shipped expert and demos in {}; expected time on 2 cores: 15-25 minutes \
+             (SMILe, 40k update pairs on 1000-step episodes, is the long stage)",
+            assets.display()
+        );
     } else if args.budget == Budget::Long && args.env != Family::PointGoal {
         eprintln!(
             "expected time on 2 cores: 2-4 hours (SAC expert, then SMILe); checkpoints are in the run directory"
@@ -434,25 +515,39 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         &out.join("demos-test.safetensors"),
     )?;
 
-    stage(3, "SMILe (state-action) on the meta-train demos");
-    let smile_dir = out.join("smile");
-    std::fs::create_dir_all(&smile_dir).map_err(io(&smile_dir))?;
-    let mut smile_policy = train_smile(args, &train, &smile_dir)?;
-
     stage(
-        4,
-        "Meta-BC on the same demos (early-stopped on held-out train tasks)",
+        3,
+        "SMILe (state-action) and Meta-BC (early-stopped on held-out train tasks) on the \
+         meta-train demos, one core each",
     );
-    let bc_dir = out.join("meta-bc");
-    std::fs::create_dir_all(&bc_dir).map_err(io(&bc_dir))?;
-    let mut bc_policy = train_meta_bc(args, &train, &bc_dir)?;
+    let (smile_dir, bc_dir) = (out.join("smile"), out.join("meta-bc"));
+    for d in [&smile_dir, &bc_dir] {
+        std::fs::create_dir_all(d).map_err(io(d))?;
+    }
+    // Two learners at once, each single-threaded (crate::threads): deterministic, and as fast
+    // as either alone on a 2-core machine.
+    let bars = if args.quiet {
+        MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
+    } else {
+        MultiProgress::new()
+    };
+    let (smile_res, bc_res) = std::thread::scope(|s| {
+        let smile = s.spawn(|| train_smile(args, &train, &smile_dir, &bars));
+        let bc = s.spawn(|| train_meta_bc(args, &train, &bc_dir, &bars));
+        (smile.join(), bc.join())
+    });
+    let joined = |r: std::thread::Result<Result<MetaPolicy>>| {
+        r.unwrap_or_else(|p| std::panic::resume_unwind(p))
+    };
+    let mut smile_policy = joined(smile_res)?;
+    let mut bc_policy = joined(bc_res)?;
 
-    stage(5, "evaluation on the held-out meta-test tasks");
+    stage(4, "evaluation on the held-out meta-test tasks");
     let smile_result = evaluate(args, &mut smile_policy, "SMILe", &test)?;
     let bc_result = evaluate(args, &mut bc_policy, "Meta-BC", &test)?;
 
     stage(
-        6,
+        5,
         "export a w8a8 blob and check it against the float policy",
     );
     let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, Some(&train))?;
@@ -497,7 +592,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     report.plot_svg(&out.join("eval.svg"))?;
 
     stage(
-        7,
+        6,
         "firmware-sim: the blob on a simulated device, taught one test demo",
     );
     let device = device_run(args, &blob, &test, &out.join("device"))?;
@@ -539,4 +634,46 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
+        let cheetah = QuickstartConfig {
+            env: Family::CheetahVel,
+            ..QuickstartConfig::default()
+        };
+        let dir = shipped(&cheetah).expect("assets/experts/cheetah-vel is in the repository");
+        assert!(dir.ends_with("assets/experts/cheetah-vel"));
+        assert_eq!(horizon(&cheetah), None, "the family's 1000 steps");
+        check_budget(&cheetah).unwrap();
+        // Elsewhere, or at the tiny budget, it trains its own expert on 200-step episodes.
+        for other in [
+            QuickstartConfig {
+                assets: Some(PathBuf::from("/nonexistent")),
+                ..cheetah.clone()
+            },
+            QuickstartConfig {
+                budget: Budget::Tiny,
+                ..cheetah.clone()
+            },
+        ] {
+            assert_eq!(shipped(&other), None);
+            assert_eq!(horizon(&other), Some(200));
+        }
+        let no_assets = QuickstartConfig {
+            assets: Some(PathBuf::from("/nonexistent")),
+            ..cheetah
+        };
+        let err = check_budget(&no_assets).unwrap_err().to_string();
+        assert!(err.contains("no shipped one"), "{err}");
+        assert_eq!(
+            shipped(&QuickstartConfig::default()),
+            None,
+            "point-goal is scripted"
+        );
+    }
 }

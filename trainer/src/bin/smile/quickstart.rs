@@ -31,6 +31,9 @@ pub struct QuickstartArgs {
     /// No progress bars.
     #[arg(long)]
     quiet: bool,
+    /// Directory of shipped experts and demos [default: the repository's assets/experts].
+    #[arg(long)]
+    assets: Option<std::path::PathBuf>,
 }
 
 /// Run `smile quickstart`.
@@ -43,6 +46,7 @@ pub fn run(a: QuickstartArgs) -> Result<()> {
         demos_per_task: a.demos_per_task,
         subsample: a.subsample,
         quiet: a.quiet,
+        assets: a.assets,
     };
     trainer::quickstart::run(&config)?;
     Ok(())
