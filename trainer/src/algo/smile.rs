@@ -6,9 +6,10 @@
 //! discriminator gives. Schedule and batches follow the reference (`smile-reference.md` §1-2):
 //!
 //! * warm start: one rollout of the untrained policy in every training task;
-//! * each iteration: `rollouts_per_iter` rollouts (a uniform task, a context of k in 1..=4 of
-//!   its demos, z sampled, stochastic actions) into that task's replay buffer, then
-//!   `updates_per_iter` x (1 discriminator+encoder step, 1 SAC step).
+//! * each iteration (section 3.5, Algorithm 1): `m = rollouts_per_iter` rollouts (a uniform
+//!   task, a context of k in 1..=4 of its demos, z sampled, stochastic actions) into that
+//!   task's replay buffer, then `d = updates_per_iter` x (1 discriminator+encoder step, 1 SAC
+//!   step).
 //!
 //! Discriminator step, on `tasks_per_batch` distinct tasks, each with a fresh context and its
 //! z (with gradient into the encoder) attached to `disc_per_task` expert transitions (label 1,
@@ -464,6 +465,8 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         let m = run.validate()?;
         log.log(0, &[("eval/val_metric", m as f64)])?;
     }
+    // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
+    // times between the discriminator (+ encoder) and the policy.
     while run.updates < cfg.total_updates {
         for _ in 0..cfg.rollouts_per_iter {
             let ti = run.rng.random_range(0..run.data.train.len());

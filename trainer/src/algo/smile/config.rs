@@ -38,9 +38,10 @@ pub struct SmileConfig {
     pub sac_per_task: usize,
     /// Most context trajectories (contexts use k in 1..=this). Default 4.
     pub max_context: usize,
-    /// Rollouts per iteration. Default 5 (ref).
+    /// Rollouts per iteration, the paper's `m` (section 3.5, Algorithm 1). Default 5 (ref).
     pub rollouts_per_iter: usize,
-    /// Update pairs per iteration. Default 100 (ref).
+    /// Update pairs (1 discriminator + 1 SAC step) per iteration, the paper's `d`. Default
+    /// 100 (ref).
     pub updates_per_iter: usize,
     /// Total update pairs. Default 30 000: on point-goal the kept policy still improved
     /// between 15k and 30k (seed 0: test 0.156 -> 0.118; docs/RESULTS.md).
