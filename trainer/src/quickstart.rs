@@ -134,10 +134,14 @@ fn shipped(args: &QuickstartConfig) -> Option<PathBuf> {
         .clone()
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts"));
     let dir = root.join(args.env.name());
-    [expert::POLICY_FILE, SHIPPED_TRAIN, SHIPPED_TEST]
-        .iter()
-        .all(|f| dir.join(f).exists())
-        .then_some(dir)
+    [
+        crate::io::checkpoint::POLICY_FILE,
+        SHIPPED_TRAIN,
+        SHIPPED_TEST,
+    ]
+    .iter()
+    .all(|f| dir.join(f).exists())
+    .then_some(dir)
 }
 
 /// The shipped demo files (4 per task, subsampled by 20, full-length episodes).
@@ -181,7 +185,11 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
     }
     if let Some(assets) = shipped(args) {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
-        for f in [expert::POLICY_FILE, "config.toml", "eval.json"] {
+        for f in [
+            crate::io::checkpoint::POLICY_FILE,
+            "config.toml",
+            "eval.json",
+        ] {
             if assets.join(f).exists() {
                 std::fs::copy(assets.join(f), dir.join(f)).map_err(io(dir))?;
             }

@@ -82,7 +82,7 @@ fn corrupt_or_foreign_checkpoint_is_a_clear_error() {
     let mut run = ExpertTrainer::new(tiny(40)).unwrap();
     expert::train(&mut run, &d, &mut |_| {}).unwrap();
     // A policy file is not a training checkpoint, and vice versa.
-    let e = ExpertTrainer::resume(&d.join(expert::POLICY_FILE), None)
+    let e = ExpertTrainer::resume(&d.join(trainer::checkpoint::POLICY_FILE), None)
         .err()
         .unwrap();
     assert!(

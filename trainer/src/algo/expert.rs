@@ -22,12 +22,9 @@ use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
 pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate};
 use crate::io::checkpoint;
-use crate::io::checkpoint::rng_state;
+use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::model::TanhGaussianPolicy;
 use crate::{Error, Result};
-
-/// File name of an exported expert policy inside a run directory.
-pub const POLICY_FILE: &str = "policy.safetensors";
 
 /// Expert training configuration (TOML section names match the field names).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

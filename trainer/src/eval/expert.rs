@@ -6,8 +6,9 @@ use std::path::Path;
 use serde::Serialize;
 use sim::{EnvConfig, EpisodeMetric, Family, Task};
 
-use crate::algo::expert::{Expert, POLICY_FILE};
+use crate::algo::expert::Expert;
 use crate::io::checkpoint;
+use crate::io::checkpoint::POLICY_FILE;
 use crate::{Error, Result};
 
 /// The task value a per-task expert was trained on (`smile expert --task-value`, `--nominal`),

@@ -19,6 +19,9 @@ use crate::{Error, Result};
 
 /// File name of the checkpoint inside a run directory.
 pub const CHECKPOINT_FILE: &str = "checkpoint.safetensors";
+
+/// File name of an exported expert policy (`smile expert`) inside its run directory.
+pub const POLICY_FILE: &str = "policy.safetensors";
 /// Metadata key holding the JSON document.
 const META_KEY: &str = "smile";
 /// Format tag stored in the metadata, checked on load.
@@ -26,11 +29,7 @@ pub const CHECKPOINT_FORMAT: &str = "smile-checkpoint-v1";
 
 /// Files whose presence means a directory already holds a run (a checkpoint, a trained
 /// meta-policy, a trained expert).
-const RUN_MARKERS: [&str; 3] = [
-    CHECKPOINT_FILE,
-    crate::model::META_POLICY_FILE,
-    crate::algo::expert::POLICY_FILE,
-];
+const RUN_MARKERS: [&str; 3] = [CHECKPOINT_FILE, crate::model::META_POLICY_FILE, POLICY_FILE];
 
 /// Refuses to start a *fresh* run in `dir` when it already holds one: starting over would
 /// overwrite its checkpoint and trained policy. Continue it with `--resume`, or choose another
