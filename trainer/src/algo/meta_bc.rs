@@ -269,6 +269,13 @@ impl MetaBc {
         self.pairs.iter().map(|p| p.act.len()).sum::<usize>() / self.data.family.act_dim()
     }
 
+    /// Training task `ti`'s aggregate dataset as row-major `(observations, actions)`: its demo
+    /// pairs first, then (Meta-DAgger) the visited states with the expert's actions.
+    pub fn aggregate(&self, ti: usize) -> (&[f32], &[f32]) {
+        let p = &self.pairs[ti];
+        (&p.obs, &p.act)
+    }
+
     /// The current policy as a [`MetaPolicy`] (shares the live weights).
     pub fn meta_policy(&self) -> MetaPolicy {
         MetaPolicy {
