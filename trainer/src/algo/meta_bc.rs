@@ -139,6 +139,28 @@ impl MetaBcConfig {
             ..EnvConfig::default()
         }
     }
+
+    /// Reject values that cannot train.
+    pub fn validate(&self) -> Result<()> {
+        if self.tasks_per_batch == 0 || self.per_task == 0 || self.max_context == 0 {
+            return Err(Error::Config(
+                "meta-bc batch sizes (tasks_per_batch, per_task, max_context) must be positive"
+                    .into(),
+            ));
+        }
+        if !(self.lr.is_finite() && self.lr > 0.0) {
+            return Err(Error::Config(format!(
+                "meta-bc lr must be positive, got {}",
+                self.lr
+            )));
+        }
+        if self.policy_hidden.contains(&0) {
+            return Err(Error::Config(
+                "meta-bc policy_hidden widths must be positive".into(),
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// One validation.
@@ -207,9 +229,7 @@ impl MetaBc {
                 "meta-dagger needs an expert for {family}"
             )));
         }
-        if cfg.tasks_per_batch == 0 || cfg.per_task == 0 || cfg.max_context == 0 {
-            return Err(Error::Config("meta-bc batch sizes must be positive".into()));
-        }
+        cfg.validate()?;
         let env = sim::make_env(family, cfg.env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.obs_dim(), family.act_dim());
