@@ -259,3 +259,57 @@ fn per_task_experts_make_demos_for_their_tasks() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("no expert for task"));
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn two_tiny_quickstarts_with_one_seed_are_byte_identical() {
+    let d = tmp("determinism");
+    let runs = [d.join("a"), d.join("b")];
+    // Two processes at once, as two users would run them.
+    let children: Vec<_> = runs
+        .iter()
+        .map(|out| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_smile"))
+                .args(["quickstart", "--budget", "tiny", "--seed", "3", "--quiet"])
+                .args(["--out", out.to_str().unwrap()])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for child in children {
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    for f in [
+        "eval.json",
+        "policy.blob",
+        "policy.blob.json",
+        "smile/meta_policy.safetensors",
+        "meta-bc/meta_policy.safetensors",
+    ] {
+        let (a, b) = (
+            std::fs::read(runs[0].join(f)).unwrap(),
+            std::fs::read(runs[1].join(f)).unwrap(),
+        );
+        assert!(!a.is_empty(), "{f} is empty");
+        assert!(a == b, "{f} differs between two runs of seed 3");
+    }
+    // The demo files hold the same data; not the same bytes: the safetensors header's
+    // `__metadata__` map is written in HashMap order, which differs between processes.
+    for f in ["demos-train.safetensors", "demos-test.safetensors"] {
+        assert_eq!(
+            sim::DemoDataset::read(runs[0].join(f)).unwrap(),
+            sim::DemoDataset::read(runs[1].join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(runs[0].join("eval.json")).unwrap()).unwrap();
+    assert_eq!(eval["methods"].as_array().unwrap().len(), 3);
+    std::fs::remove_dir_all(&d).ok();
+}
