@@ -259,3 +259,123 @@ fn per_task_experts_make_demos_for_their_tasks() {
     assert!(String::from_utf8_lossy(&out.stderr).contains("no expert for task"));
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn two_tiny_quickstarts_with_one_seed_are_byte_identical() {
+    let d = tmp("determinism");
+    let runs = [d.join("a"), d.join("b")];
+    // Two processes at once, as two users would run them.
+    let children: Vec<_> = runs
+        .iter()
+        .map(|out| {
+            std::process::Command::new(env!("CARGO_BIN_EXE_smile"))
+                .args(["quickstart", "--budget", "tiny", "--seed", "3", "--quiet"])
+                .args(["--out", out.to_str().unwrap()])
+                .stdout(std::process::Stdio::null())
+                .stderr(std::process::Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for child in children {
+        let out = child.wait_with_output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    for f in [
+        "eval.json",
+        "policy.blob",
+        "policy.blob.json",
+        "smile/meta_policy.safetensors",
+        "meta-bc/meta_policy.safetensors",
+    ] {
+        let (a, b) = (
+            std::fs::read(runs[0].join(f)).unwrap(),
+            std::fs::read(runs[1].join(f)).unwrap(),
+        );
+        assert!(!a.is_empty(), "{f} is empty");
+        assert!(a == b, "{f} differs between two runs of seed 3");
+    }
+    // The demo files hold the same data; not the same bytes: the safetensors header's
+    // `__metadata__` map is written in HashMap order, which differs between processes.
+    for f in ["demos-train.safetensors", "demos-test.safetensors"] {
+        assert_eq!(
+            sim::DemoDataset::read(runs[0].join(f)).unwrap(),
+            sim::DemoDataset::read(runs[1].join(f)).unwrap(),
+            "{f}"
+        );
+    }
+    let eval: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(runs[0].join("eval.json")).unwrap()).unwrap();
+    assert_eq!(eval["methods"].as_array().unwrap().len(), 3);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn bench_times_one_tiny_iteration_and_names_bad_flags() {
+    let d = tmp("bench");
+    let json = d.join("bench.json");
+    let out = smile(&[
+        "bench",
+        "--hidden",
+        "8",
+        "16",
+        "--iters",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    ok(&out);
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.starts_with("sac update, batch 256, obs 20 + z 16, act 6, candle threads 1\n"),
+        "{stdout}"
+    );
+    // A header and one row per width, each with a positive median time.
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 4, "{stdout}");
+    assert!(lines[1].contains("median_us") && lines[1].contains("upd/s"));
+    for (line, h) in lines[2..].iter().zip(["8", "16"]) {
+        let cols: Vec<&str> = line.split_whitespace().collect();
+        assert_eq!(cols[0], h, "{line}");
+        assert!(cols[1].parse::<f64>().unwrap() > 0.0, "{line}");
+    }
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for (row, h) in rows.iter().zip([8, 16]) {
+        assert_eq!(
+            (row["workload"].as_str(), row["H"].as_u64()),
+            (Some("sac"), Some(h))
+        );
+        let t = &row["timing"];
+        let med = t["median_us"].as_f64().unwrap();
+        assert!(
+            med > 0.0
+                && (t["updates_per_s"].as_f64().unwrap() - 1e6 / med).abs() < 1e-6 * (1e6 / med)
+        );
+    }
+
+    // Errors name the flag or the value.
+    let out = smile(&["bench", "--hidden", "0", "--iters", "1", "--warmup", "0"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("sac.hidden needs at least one positive width"),
+        "{err}"
+    );
+    let out = smile(&["bench", "--iters", "many"]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("invalid value 'many' for '--iters <ITERS>'"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -256,3 +256,77 @@ fn a_refused_run_leaves_no_directory() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
+    let dir = tmp("configs");
+    let train = dir.join("train.safetensors");
+    common::pd_demos(
+        Split::Train,
+        Family::PointGoal.train_tasks()[..4].to_vec(),
+        1,
+        5,
+    )
+    .write(&train)
+    .unwrap();
+    // (algo, TOML, what the error must say): a misspelt key at the top level and in nested
+    // tables, then values that parse but cannot train (they must reach the config's
+    // validate()). Each also sets a one-step budget, so that a config wrongly accepted fails
+    // the test quickly instead of training for minutes.
+    let cases = [
+        ("smile", "total_updatez = 5\n", "total_updatez"),
+        ("smile", "[context]\nz_dimm = 3\n", "z_dimm"),
+        ("smile", "[sac]\nhiden = [8]\n", "hiden"),
+        (
+            "smile",
+            "tasks_per_batch = 0\n",
+            "batch sizes and counts must be positive",
+        ),
+        (
+            "smile",
+            "sac_per_task = 0\n",
+            "batch sizes and counts must be positive",
+        ),
+        ("smile", "gp_weight = -1.0\n", "gp_weight must be >= 0"),
+        ("smile", "[sac]\nbatch_size = 0\n", "sac.batch_size"),
+        ("meta-bc", "total_stepz = 5\n", "total_stepz"),
+        ("meta-bc", "[context]\nr_dimm = 3\n", "r_dimm"),
+        ("meta-bc", "per_task = 0\n", "batch sizes"),
+        ("meta-bc", "tasks_per_batch = 0\n", "batch sizes"),
+        ("meta-bc", "lr = -0.001\n", "lr must be positive"),
+    ];
+    for (i, (algo, toml_text, needle)) in cases.into_iter().enumerate() {
+        let cfg = dir.join(format!("c{i}.toml"));
+        let budget = if algo == "smile" {
+            "total_updates = 1\n"
+        } else {
+            "total_steps = 1\n"
+        };
+        std::fs::write(&cfg, format!("{budget}{toml_text}")).unwrap();
+        let run = dir.join(format!("run{i}"));
+        let out = smile(&[
+            "train",
+            "--algo",
+            algo,
+            "--demos",
+            s(&train),
+            "--config",
+            s(&cfg),
+            "-o",
+            s(&run),
+            "--quiet",
+        ]);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(
+            out.status.code(),
+            Some(1),
+            "{algo} {toml_text:?} was not refused: {err}"
+        );
+        assert!(err.contains(needle), "{algo} {toml_text:?}: {err}");
+        assert!(
+            !run.exists(),
+            "{algo} {toml_text:?}: a run directory was created"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

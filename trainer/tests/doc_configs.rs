@@ -22,6 +22,7 @@ fn results_configs_parse_and_validate() {
         ("cv1000-bc-roll.toml", Selection::Rollouts, 1000),
     ] {
         let bc: MetaBcConfig = toml::from_str(&read(name)).unwrap();
+        bc.validate().unwrap();
         assert_eq!(
             (bc.select_by, bc.horizon),
             (select_by, Some(horizon)),

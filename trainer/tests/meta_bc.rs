@@ -37,7 +37,7 @@ fn tiny(dagger: bool) -> MetaBcConfig {
 }
 
 #[test]
-fn meta_bc_fits_and_keeps_the_best_validation_weights() {
+fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
     trainer::threads::set_compute_threads(1);
     let dir = std::env::temp_dir().join(format!("smile-bc-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -54,7 +54,8 @@ fn meta_bc_fits_and_keeps_the_best_validation_weights() {
     assert_eq!(vals.len(), 6);
     let best = vals.iter().cloned().fold(f32::INFINITY, f32::min);
     assert!(best < 0.5 * v0, "validation MSE {v0} -> {vals:?}");
-    // The saved policy is the best-validation one.
+    // A policy and a checkpoint are saved (that the policy is the best-validation one is
+    // meta_bc_keeps_the_weights_of_its_best_validation_step's claim).
     let mp = MetaPolicy::load(&dir).unwrap();
     assert_eq!(mp.algo, "meta-bc");
     let saved = MetaBc::resume(&dir, run_data(), None, None).unwrap();
@@ -122,4 +123,105 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
     // It is not simply the last evaluation (otherwise the test proves nothing).
     assert_ne!(best, *metrics.last().unwrap(), "{metrics:?}");
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn dagger_relabels_the_visited_states_with_the_experts_actions() {
+    trainer::threads::set_compute_threads(1);
+    let data = run_data();
+    let pd = sim::PointGoalPdExpert::default();
+    let mut run = MetaBc::new(
+        tiny(true),
+        data.clone(),
+        Some(Expert::ScriptedPd(sim::PointGoalPdExpert::default())),
+    )
+    .unwrap();
+    let (od, ad) = (4, 2);
+    let before: Vec<(Vec<f32>, Vec<f32>)> = (0..data.train.len())
+        .map(|ti| {
+            let (o, a) = run.aggregate(ti);
+            (o.to_vec(), a.to_vec())
+        })
+        .collect();
+    run.dagger_rollouts(3).unwrap();
+    let (mut relabelled, mut moved) = (0, 0.0f32);
+    for (ti, (obs0, act0)) in before.iter().enumerate() {
+        let (obs, act) = run.aggregate(ti);
+        // The demos stay first, unchanged.
+        assert_eq!(
+            (&obs[..obs0.len()], &act[..act0.len()]),
+            (&obs0[..], &act0[..])
+        );
+        let mut oracle = [0.0f32; 6];
+        data.train[ti]
+            .task
+            .write_parameter(&mut oracle[od..])
+            .unwrap();
+        for (o, a) in obs[obs0.len()..]
+            .chunks_exact(od)
+            .zip(act[act0.len()..].chunks_exact(ad))
+        {
+            oracle[..od].copy_from_slice(o);
+            let mut want = [0.0f32; 2];
+            pd.act(&oracle, &mut want).unwrap();
+            assert_eq!(
+                a, want,
+                "task {ti}: state {o:?} labelled {a:?}, expert says {want:?}"
+            );
+            relabelled += 1;
+            moved = moved.max(o[0].hypot(o[1]));
+        }
+    }
+    // Three 30-step rollouts, every visited state relabelled.
+    assert_eq!(relabelled, 3 * 30);
+    // The states are the untrained policy's (it barely leaves the start), not the expert's: an
+    // expert rollout would have travelled most of the way to a goal 2 away.
+    assert!(moved < 1.0, "farthest relabelled state at {moved}");
+}
+
+#[test]
+fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
+    trainer::threads::set_compute_threads(1);
+    let root = std::env::temp_dir().join(format!("smile-bc-best-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let cfg = MetaBcConfig {
+        lr: 3e-2, // noisy validation: the best step is not the last one
+        total_steps: 200,
+        eval_every: 20,
+        ..tiny(false)
+    };
+    let (full, cut) = (root.join("full"), root.join("cut"));
+    let mut run = MetaBc::new(cfg.clone(), run_data(), None).unwrap();
+    let mut vals = Vec::new();
+    meta_bc::train(&mut run, &full, &mut |e| {
+        if let meta_bc::Event::Eval(step, r) = e {
+            vals.push((step, r.val_mse));
+        }
+    })
+    .unwrap();
+    let &(best_step, best) = vals.iter().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap();
+    assert_ne!(
+        best_step,
+        vals.last().unwrap().0,
+        "the last evaluation is the best: this test could not tell best from last ({vals:?})"
+    );
+    // The same seed stopped at the best step: its final weights are the weights of that step.
+    let mut again = MetaBc::new(
+        MetaBcConfig {
+            total_steps: best_step,
+            ..cfg
+        },
+        run_data(),
+        None,
+    )
+    .unwrap();
+    meta_bc::train(&mut again, &cut, &mut |_| {}).unwrap();
+    assert_eq!(again.val_mse().unwrap(), best);
+    let kept = std::fs::read(full.join(trainer::META_POLICY_FILE)).unwrap();
+    let at_best = std::fs::read(cut.join("last").join(trainer::META_POLICY_FILE)).unwrap();
+    assert!(
+        kept == at_best,
+        "the kept policy is not the step-{best_step} one (validation {vals:?})"
+    );
+    std::fs::remove_dir_all(&root).ok();
 }

@@ -154,13 +154,13 @@ impl MetaBcConfig {
         }
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::Config(format!(
-                "lr must be positive, got {}",
+                "meta-bc lr must be positive, got {}",
                 self.lr
             )));
         }
         if self.policy_hidden.contains(&0) {
             return Err(Error::Config(
-                "policy_hidden widths must be positive".into(),
+                "meta-bc policy_hidden widths must be positive".into(),
             ));
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
@@ -296,6 +296,13 @@ impl MetaBc {
     /// Pairs in the aggregate dataset of every training task (demos + relabelled visits).
     pub fn dataset_size(&self) -> usize {
         self.pairs.iter().map(|p| p.act.len()).sum::<usize>() / self.data.family.act_dim()
+    }
+
+    /// Training task `ti`'s aggregate dataset as row-major `(observations, actions)`: its demo
+    /// pairs first, then (Meta-DAgger) the visited states with the expert's actions.
+    pub fn aggregate(&self, ti: usize) -> (&[f32], &[f32]) {
+        let p = &self.pairs[ti];
+        (&p.obs, &p.act)
     }
 
     /// The current policy as a [`MetaPolicy`] (shares the live weights).

@@ -1,0 +1,185 @@
+//! Resume exactness, as a user meets it: a `smile train` process killed with SIGKILL once it has
+//! written a checkpoint, then continued with `smile train --resume -o DIR --demos ...`, ends
+//! with the same bytes (best-validation policy, last policy, checkpoint) as an uninterrupted
+//! run of the same seed. SMILe and Meta-BC.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use sim::Family;
+use trainer::meta_bc::MetaBcConfig;
+use trainer::sac::SacConfig;
+use trainer::smile::SmileConfig;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("smile-resume-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The checkpoint's update / step counter (`key`), read from `checkpoint.json`.
+fn checkpoint_count(run: &Path, key: &str) -> u64 {
+    let ck: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap())
+            .unwrap();
+    ck[key].as_u64().unwrap()
+}
+
+/// Runs `smile train ARGS -o run`, kills it (SIGKILL) as soon as it has written a checkpoint at
+/// `after` or later, and returns that checkpoint's counter.
+fn train_and_kill(args: &[&str], run: &Path, key: &str, after: u64) -> u64 {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(args)
+        .args(["-o", s(run)])
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let ck = run.join("checkpoint.json");
+    while !(ck.exists() && checkpoint_count(run, key) >= after) {
+        if let Some(status) = child.try_wait().unwrap() {
+            panic!("smile train exited ({status}) before the kill");
+        }
+        assert!(t0.elapsed() < Duration::from_secs(120), "no checkpoint");
+        std::thread::sleep(Duration::from_millis(2));
+    }
+    child.kill().unwrap(); // SIGKILL
+    child.wait().unwrap();
+    checkpoint_count(run, key)
+}
+
+/// The files an uninterrupted run and a killed-and-resumed run must hold byte for byte.
+fn assert_same_bytes(algo: &str, a: &Path, b: &Path) {
+    for f in [
+        "meta_policy.safetensors",
+        "last/meta_policy.safetensors",
+        "checkpoint.safetensors",
+    ] {
+        let (x, y) = (
+            std::fs::read(a.join(f)).unwrap(),
+            std::fs::read(b.join(f)).unwrap(),
+        );
+        assert!(x == y, "{algo}: {f} differs after kill -9 and --resume");
+    }
+}
+
+#[test]
+fn killed_and_resumed_runs_end_byte_identical_to_uninterrupted_ones() {
+    let dir = tmp("exact");
+    let train = dir.join("train.safetensors");
+    common::pd_demos(
+        sim::Split::Train,
+        Family::PointGoal.train_tasks()[..8].to_vec(),
+        2,
+        20,
+    )
+    .write(&train)
+    .unwrap();
+
+    let mut sc = SmileConfig {
+        disc_hidden: vec![16, 16],
+        sac: SacConfig {
+            hidden: vec![16, 16],
+            ..SmileConfig::default().sac
+        },
+        tasks_per_batch: 4,
+        disc_per_task: 16,
+        sac_per_task: 16,
+        rollouts_per_iter: 1,
+        updates_per_iter: 10,
+        total_updates: 400,
+        holdout_every: 4,
+        eval_every: 50,
+        eval_contexts: 1,
+        eval_episodes: 1,
+        checkpoint_every: 20,
+        horizon: Some(20),
+        seed: 5,
+        ..SmileConfig::default()
+    };
+    sc.context.enc_hidden = vec![8];
+    sc.context.head_hidden = vec![8];
+    sc.context.r_dim = 4;
+    sc.context.z_dim = 2;
+    let mut bc = MetaBcConfig {
+        policy_hidden: vec![16, 16],
+        tasks_per_batch: 4,
+        per_task: 16,
+        total_steps: 1500,
+        holdout_every: 4,
+        eval_every: 100,
+        patience: 0,
+        eval_episodes: 1,
+        checkpoint_every: 20,
+        horizon: Some(20),
+        seed: 5,
+        ..MetaBcConfig::default()
+    };
+    bc.context = sc.context.clone();
+    let (smile_toml, bc_toml) = (dir.join("smile.toml"), dir.join("bc.toml"));
+    std::fs::write(&smile_toml, toml::to_string(&sc).unwrap()).unwrap();
+    std::fs::write(&bc_toml, toml::to_string(&bc).unwrap()).unwrap();
+
+    // Killed after the first held-out evaluation, so that the best-so-far policy and its
+    // value are part of what the resumed process must continue from.
+    for (algo, config, key, unit, after, total) in [
+        (
+            "smile",
+            &smile_toml,
+            "updates",
+            "update",
+            60,
+            sc.total_updates,
+        ),
+        ("meta-bc", &bc_toml, "steps", "step", 120, bc.total_steps),
+    ] {
+        let args = [
+            "train",
+            "--algo",
+            algo,
+            "--demos",
+            s(&train),
+            "--config",
+            s(config),
+            "--quiet",
+        ];
+        let whole = dir.join(format!("{algo}-whole"));
+        let cut = dir.join(format!("{algo}-cut"));
+        let mut with_out = args.to_vec();
+        with_out.extend(["-o", s(&whole)]);
+        common::ok(&common::smile(&with_out));
+        assert_eq!(checkpoint_count(&whole, key), total);
+
+        let at = train_and_kill(&args, &cut, key, after);
+        eprintln!("{algo}: killed with a checkpoint at {at} of {total}");
+        assert!(
+            at < total,
+            "{algo}: the kill came after the run ended (checkpoint at {at})"
+        );
+        let err = common::ok(&common::smile(&[
+            "train",
+            "--resume",
+            "-o",
+            s(&cut),
+            "--demos",
+            s(&train),
+            "--quiet",
+        ]));
+        assert!(
+            err.contains(&format!("resuming from {unit} {at}\n")),
+            "{algo}: {err}"
+        );
+        assert_eq!(checkpoint_count(&cut, key), total);
+        assert_same_bytes(algo, &whole, &cut);
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
