@@ -25,152 +25,20 @@ use std::path::Path;
 use candle_core::{Device, Tensor};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
-use sim::{EnvConfig, Environment, Family, TaskDemos};
+use sim::{Environment, Family, TaskDemos};
 
 use crate::algo::expert::Expert;
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
 use crate::io::MetricsLog;
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
-use crate::model::{
-    ContextConfig, ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, scalar,
-};
+use crate::model::{ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, scalar};
 use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
 
-/// The validation signal that keeps the best policy and stops training, both measured on the
-/// held-out *train* tasks (never the meta-test tasks).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Selection {
-    /// Action MSE on the held-out tasks' demos (the supervised loss; cheap).
-    #[default]
-    Mse,
-    /// The family's metric of deterministic rollouts on the held-out tasks (reference §7:
-    /// on cheetah, validation MSE did not predict rollout quality).
-    Rollouts,
-}
+mod config;
 
-/// Meta-BC / Meta-DAgger hyper-parameters.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct MetaBcConfig {
-    /// Task family. Default `point-goal`.
-    pub env: String,
-    /// Encoder and latent (as SMILe's).
-    pub context: ContextConfig,
-    /// Policy hidden widths. Default [128, 128] (as SMILe's SAC actor).
-    pub policy_hidden: Vec<usize>,
-    /// Adam learning rate (encoder and policy). Default 3e-4.
-    pub lr: f32,
-    /// Tasks per step. Default 8 (ref).
-    pub tasks_per_batch: usize,
-    /// Expert pairs per task per step. Default 128 (ref).
-    pub per_task: usize,
-    /// Most context trajectories. Default 4.
-    pub max_context: usize,
-    /// Maximum gradient steps. Default 20 000.
-    pub total_steps: u64,
-    /// Hold out every n-th meta-train task for validation. Default 8.
-    pub holdout_every: usize,
-    /// Validate every this many steps. Default 250.
-    pub eval_every: u64,
-    /// What picks the kept policy and drives early stopping. Default `mse`.
-    pub select_by: Selection,
-    /// Stop after this many validations without improvement (0: never stop). Default 8.
-    pub patience: u32,
-    /// Deterministic rollouts per held-out task and context when validating. Default 2.
-    pub eval_episodes: usize,
-    /// Meta-DAgger (needs an expert). Default false.
-    pub dagger: bool,
-    /// Meta-DAgger: relabelled rollouts every this many steps. Default 50.
-    pub dagger_every: u64,
-    /// Meta-DAgger: rollouts each time. Default 2.
-    pub dagger_rollouts: usize,
-    /// Checkpoint every this many steps. Default 2000.
-    pub checkpoint_every: u64,
-    /// Episode length override. Default None.
-    pub horizon: Option<usize>,
-    /// Seed. Default 0.
-    pub seed: u64,
-}
-
-impl Default for MetaBcConfig {
-    fn default() -> Self {
-        Self {
-            env: "point-goal".into(),
-            context: ContextConfig::default(),
-            policy_hidden: vec![128, 128],
-            lr: 3e-4,
-            tasks_per_batch: 8,
-            per_task: 128,
-            max_context: 4,
-            total_steps: 20_000,
-            holdout_every: 8,
-            eval_every: 250,
-            select_by: Selection::Mse,
-            patience: 8,
-            eval_episodes: 2,
-            dagger: false,
-            dagger_every: 50,
-            dagger_rollouts: 2,
-            checkpoint_every: 2000,
-            horizon: None,
-            seed: 0,
-        }
-    }
-}
-
-impl MetaBcConfig {
-    /// `meta-bc` or `meta-dagger`.
-    pub fn algo_name(&self) -> &'static str {
-        if self.dagger {
-            "meta-dagger"
-        } else {
-            "meta-bc"
-        }
-    }
-
-    /// Episode options (the horizon override).
-    pub fn env_config(&self) -> EnvConfig {
-        EnvConfig {
-            horizon: self.horizon,
-            ..EnvConfig::default()
-        }
-    }
-
-    /// Checks the values: family name, positive batch sizes and rates, a finite positive
-    /// learning rate.
-    pub fn validate(&self) -> Result<()> {
-        self.env
-            .parse::<Family>()
-            .map_err(|e| Error::Config(e.to_string()))?;
-        if self.tasks_per_batch == 0 || self.per_task == 0 || self.max_context == 0 {
-            return Err(Error::Config(
-                "meta-bc batch sizes (tasks_per_batch, per_task, max_context) must be positive"
-                    .into(),
-            ));
-        }
-        if !(self.lr.is_finite() && self.lr > 0.0) {
-            return Err(Error::Config(format!(
-                "meta-bc lr must be positive, got {}",
-                self.lr
-            )));
-        }
-        if self.policy_hidden.contains(&0) {
-            return Err(Error::Config(
-                "meta-bc policy_hidden widths must be positive".into(),
-            ));
-        }
-        if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
-            return Err(Error::Config(
-                "dagger_every and dagger_rollouts must be positive".into(),
-            ));
-        }
-        Ok(())
-    }
-}
+pub use config::{MetaBcConfig, Selection};
 
 /// One validation.
 #[derive(Debug, Clone, Copy, PartialEq)]
