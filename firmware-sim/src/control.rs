@@ -10,6 +10,7 @@ use rand_distr::{Distribution, Normal};
 use sim::{Environment, EpisodeMetric, Task};
 
 use crate::device::{Controller, DeviceError};
+use crate::estimation::{Sensing, SensorPath};
 
 /// Sensor, actuator and timing effects of the loop.
 #[derive(Debug, Clone, PartialEq)]
@@ -34,6 +35,9 @@ pub struct LoopConfig {
     pub seed: u64,
     /// Ticks whose sensor reading is replaced by NaN (fault injection).
     pub nan_ticks: Vec<usize>,
+    /// What the sensors deliver: the whole observation, or positions only with an
+    /// on-device estimator rebuilding the rest.
+    pub sensing: Sensing,
 }
 
 impl Default for LoopConfig {
@@ -48,6 +52,7 @@ impl Default for LoopConfig {
             budget_us: 1000.0,
             seed: 0,
             nan_ticks: Vec::new(),
+            sensing: Sensing::Full,
         }
     }
 }
@@ -59,8 +64,12 @@ pub struct TickRecord {
     pub tick: usize,
     /// Simulated time at the tick, seconds.
     pub time: f32,
-    /// The observation as the sensors delivered it.
+    /// The observation the policy received: the sensor reading (full sensing) or the
+    /// estimator's output (position-only sensing).
     pub sensed: Vec<f32>,
+    /// Position-only sensing: the raw readings (the measured entries, in observation order)
+    /// the estimator got. Empty with full sensing.
+    pub measured: Vec<f32>,
     /// The action the policy computed this tick.
     pub computed: Vec<f32>,
     /// The action the actuators applied this tick.
@@ -73,7 +82,8 @@ pub struct TickRecord {
     pub forward_velocity: f32,
     /// The plant's true observation after the tick (what ideal sensors would read).
     pub plant_obs: Vec<f32>,
-    /// A non-finite reading or output was replaced by the safe action.
+    /// A non-finite reading or output was replaced by the safe action, or (position-only
+    /// sensing) the estimator rejected a NaN or out-of-range reading.
     pub fault: bool,
     /// The computation overran its budget.
     pub overrun: bool,
@@ -120,6 +130,9 @@ pub enum LoopError {
     /// The plant refused something (a bug if it happens: actions are always finite).
     #[error("plant: {0}")]
     Plant(#[from] sim::SimError),
+    /// The estimator cannot be built for this plant and configuration.
+    #[error("estimator: {0}")]
+    Estimator(#[from] infer_core::EstimatorError),
     /// The sensor noise std is negative or not finite.
     #[error("sensor noise std must be finite and >= 0, got {0}")]
     Noise(f32),
@@ -133,10 +146,28 @@ pub enum LoopError {
     },
 }
 
-fn quantise(x: f32, bits: u8, range: f32) -> f32 {
+/// The ADC's step: `2 range / (2^bits - 1)`.
+pub(crate) fn adc_lsb(bits: u8, range: f32) -> f32 {
     let levels = ((1u32 << bits.min(24)) - 1) as f32;
-    let lsb = 2.0 * range / levels;
+    2.0 * range / levels
+}
+
+fn quantise(x: f32, bits: u8, range: f32) -> f32 {
+    let lsb = adc_lsb(bits, range);
     ((x.clamp(-range, range) + range) / lsb).round() * lsb - range
+}
+
+/// One sensor reading of the true value `x`: Gaussian noise, then the ADC.
+fn sense(x: f32, config: &LoopConfig, noise: &Normal<f32>, rng: &mut ChaCha8Rng) -> f32 {
+    let mut v = x + if config.noise_std > 0.0 {
+        noise.sample(rng)
+    } else {
+        0.0
+    };
+    if let Some(bits) = config.adc_bits {
+        v = quantise(v, bits, config.adc_range);
+    }
+    v
 }
 
 /// Runs `controller` against `plant` on `task`.
@@ -173,6 +204,7 @@ pub fn run(
     let mut pending = safe.clone();
     let mut applied = safe.clone();
     let mut sensed = plant.reset(task, config.seed)?.to_vec();
+    let mut estimated = SensorPath::new(config, task.family(), rate)?;
     let (mut records, mut compute_ns) = (Vec::with_capacity(ticks), Vec::with_capacity(ticks));
     let (mut overruns, mut faults) = (0, 0);
     let mut computed = vec![0.0; act_dim];
@@ -182,26 +214,39 @@ pub fn run(
             break;
         }
         // Sensors.
-        for (s, &x) in sensed.iter_mut().zip(plant.observation()) {
-            let mut v = x + if config.noise_std > 0.0 {
-                noise.sample(&mut noise_rng)
-            } else {
-                0.0
-            };
-            if let Some(bits) = config.adc_bits {
-                v = quantise(v, bits, config.adc_range);
+        if let Some(path) = estimated.as_mut() {
+            // Position-only sensing: the device gets the measured entries and estimates the
+            // observation the policy needs; a bad reading never reaches it.
+            path.read(plant.observation(), |x| {
+                sense(x, config, &noise, &mut noise_rng)
+            });
+            if config.nan_ticks.contains(&tick) {
+                path.readings[0] = f32::NAN;
             }
-            *s = v;
-        }
-        if config.nan_ticks.contains(&tick) {
-            sensed[0] = f32::NAN;
+        } else {
+            for (s, &x) in sensed.iter_mut().zip(plant.observation()) {
+                *s = sense(x, config, &noise, &mut noise_rng);
+            }
+            if config.nan_ticks.contains(&tick) {
+                sensed[0] = f32::NAN;
+            }
         }
         // Compute.
         let start = Instant::now();
-        let outcome = controller.act(&sensed, &mut computed)?;
+        let (outcome, sensor_fault) = match estimated.as_mut() {
+            None => (controller.act(&sensed, &mut computed)?, false),
+            Some(path) => match path.estimate(&mut sensed)? {
+                Some(rejected) => (controller.act(&sensed, &mut computed)?, rejected),
+                None => {
+                    // No estimate yet: the safe action.
+                    computed.copy_from_slice(&safe);
+                    (Ok(()), true)
+                }
+            },
+        };
         let ns = start.elapsed().as_nanos() as u64;
         compute_ns.push(ns);
-        let fault = outcome.is_err();
+        let fault = outcome.is_err() || sensor_fault;
         faults += fault as usize;
         let overrun = ns as f64 > config.budget_us * 1e3;
         overruns += overrun as usize;
@@ -231,6 +276,9 @@ pub fn run(
             tick,
             time: tick as f32 / rate,
             sensed: sensed.clone(),
+            measured: estimated
+                .as_ref()
+                .map_or_else(Vec::new, |p| p.readings.clone()),
             computed: computed.clone(),
             applied: applied.clone(),
             reward,

@@ -7,13 +7,16 @@
 //! parses the blob in place, streams a context demo into the encoder one transition at a time
 //! ([`host::teach`]), fixes `z`, and then [`control::run`] ticks at the control rate: sensors
 //! (noise, ADC quantisation) -> `act` -> actuators (saturation, optional one-tick latency),
-//! with a compute budget and a fault counter. Nothing in the control path allocates.
+//! with a compute budget and a fault counter. With position-only sensing
+//! ([`Sensing::Positions`]) the sensors deliver positions only and infer-core's estimator
+//! rebuilds the velocities on the device ([`estimation`]). Nothing in the control path allocates.
 //!
 //! This crate never depends on the trainer: a device holds no trainer.
 #![warn(missing_docs)]
 
 pub mod control;
 mod device;
+pub mod estimation;
 pub mod host;
 pub mod link;
 pub mod reference;
@@ -22,6 +25,7 @@ pub mod trace;
 
 pub use control::{LoopConfig, LoopError, RunReport, TickRecord, run};
 pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, ram_needed};
+pub use estimation::Sensing;
 pub use session::{Session, SessionConfig, SessionError, run_session};
 
 /// Writes `bytes` to `path` via a temporary file and a rename, so a reader never sees a

@@ -78,6 +78,17 @@ struct RunArgs {
     /// Compute budget per tick, microseconds; late actions are dropped and the last one held.
     #[arg(long, default_value_t = 1000.0)]
     budget_us: f64,
+    /// What the sensors deliver: `full` (every observation entry) or `positions` (positions
+    /// and angles only; the device estimates the velocities with a Kalman filter per axis).
+    #[arg(long, default_value = "full")]
+    sensing: firmware_sim::Sensing,
+    /// `--sensing positions`: the filter's acceleration std (default: the family's).
+    #[arg(long)]
+    accel_std: Option<f32>,
+    /// `--sensing positions`: the reading noise std the filter assumes (default: from
+    /// --noise and --adc-bits).
+    #[arg(long)]
+    meas_std: Option<f32>,
     /// Seed of the plant reset and sensor noise.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -140,6 +151,13 @@ fn session_config(args: &RunArgs) -> SessionConfig {
             budget_us: args.budget_us,
             seed: args.seed,
             nan_ticks: Vec::new(),
+            sensing: match args.sensing {
+                firmware_sim::Sensing::Full => firmware_sim::Sensing::Full,
+                firmware_sim::Sensing::Positions { .. } => firmware_sim::Sensing::Positions {
+                    accel_std: args.accel_std,
+                    meas_std: args.meas_std,
+                },
+            },
         },
         plant: EnvConfig {
             horizon: args.horizon,
@@ -169,6 +187,11 @@ fn demos_of<'d>(
 }
 
 fn run_cmd(args: RunArgs) -> Result<()> {
+    if args.sensing == firmware_sim::Sensing::Full
+        && (args.accel_std.is_some() || args.meas_std.is_some())
+    {
+        bail!("--accel-std and --meas-std tune the estimator: they need --sensing positions");
+    }
     let task = parse_task(args.env, &args.task)?;
     let blob =
         std::fs::read(&args.blob).with_context(|| format!("reading {}", args.blob.display()))?;

@@ -8,12 +8,14 @@ use sim::Family;
 
 use crate::control::RunReport;
 
-/// Writes the deterministic per-tick trace: time, sensed obs, z, computed and applied
-/// action, reward, metric sample, fault and overrun flags.
+/// Writes the deterministic per-tick trace: time, the policy's obs, z, computed and applied
+/// action, reward, metric sample, fault and overrun flags; with position-only sensing, then
+/// the raw readings (`meas*`).
 pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<()> {
     let mut out = String::new();
     let first = report.records.first();
     let (obs_dim, act_dim) = first.map_or((0, 0), |r| (r.sensed.len(), r.applied.len()));
+    let measured = first.map_or(0, |r| r.measured.len());
     let mut header = vec!["tick".to_string(), "time".to_string()];
     header.extend((0..obs_dim).map(|i| format!("obs{i}")));
     header.extend((0..z.len()).map(|i| format!("z{i}")));
@@ -29,6 +31,7 @@ pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<
         ]
         .map(String::from),
     );
+    header.extend((0..measured).map(|i| format!("meas{i}")));
     writeln!(out, "{}", header.join(",")).ok();
     for r in &report.records {
         let mut row = vec![r.tick.to_string(), format!("{}", r.time)];
@@ -43,6 +46,7 @@ pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<
             (r.fault as u8).to_string(),
             (r.overrun as u8).to_string(),
         ]);
+        row.extend(r.measured.iter().map(|v| format!("{v}")));
         writeln!(out, "{}", row.join(",")).ok();
     }
     crate::write_atomic(path, out.as_bytes())

@@ -6,6 +6,7 @@
 #[cfg(feature = "alloc")]
 mod equalise;
 mod error;
+pub mod estimator;
 pub mod format;
 mod kernels;
 mod model;
@@ -14,6 +15,7 @@ mod runner;
 mod writer;
 
 pub use error::{BlobError, InferError};
+pub use estimator::{Channel, Estimator, EstimatorConfig, EstimatorError, StepReport};
 pub use format::{Activation, Header, ModelKind, Quant};
 pub use model::Model;
 pub use runner::{ContextEncoder, Policy};

@@ -26,6 +26,7 @@ pub mod planar;
 pub mod point_goal;
 pub mod render;
 mod robots;
+mod sensing;
 mod task;
 
 pub use dataset::{
@@ -38,6 +39,7 @@ pub use error::SimError;
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
+pub use sensing::ObsComponent;
 pub use task::{
     Family, GOAL_RADIUS, MetricKind, Split, Task, WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE,
     WALKER_TRAIN_SEED_BASE,

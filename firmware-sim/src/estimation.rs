@@ -1,0 +1,157 @@
+//! Position-only sensing: the device's sensors deliver the plant's measured entries (positions,
+//! angles, directly measured values; see [`sim::Family::obs_components`]) and infer-core's
+//! [`Estimator`] rebuilds the observation the policy was trained on.
+
+use std::fmt;
+use std::str::FromStr;
+
+use infer_core::{Channel, Estimator, EstimatorConfig, EstimatorError};
+use sim::{Family, ObsComponent};
+
+use crate::control::{LoopConfig, LoopError, adc_lsb};
+use crate::link::MAX_DIM;
+
+/// What the device's sensors deliver.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Sensing {
+    /// Every observation entry (positions and velocities): today's default.
+    #[default]
+    Full,
+    /// Positions, angles and directly measured entries only; the device estimates the
+    /// velocities with a constant-velocity Kalman filter per position.
+    Positions {
+        /// Std of the unmodelled acceleration (filter tuning); `None`: the family's
+        /// [`default_accel_std`].
+        accel_std: Option<f32>,
+        /// Std of a reading's noise as the filter assumes it; `None`: the loop's sensor
+        /// noise and ADC step, `sqrt(noise^2 + lsb^2 / 12)`.
+        meas_std: Option<f32>,
+    },
+}
+
+impl Sensing {
+    /// Position-only sensing with the default tuning.
+    pub const POSITIONS: Sensing = Sensing::Positions {
+        accel_std: None,
+        meas_std: None,
+    };
+}
+
+impl fmt::Display for Sensing {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Sensing::Full => "full",
+            Sensing::Positions { .. } => "positions",
+        })
+    }
+}
+
+impl FromStr for Sensing {
+    type Err = String;
+
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        match s {
+            "full" => Ok(Sensing::Full),
+            "positions" => Ok(Sensing::POSITIONS),
+            other => Err(format!(
+                "unknown sensing {other:?}; expected full or positions"
+            )),
+        }
+    }
+}
+
+/// The filter's default acceleration std per family (units/s^2), from the sweep in
+/// `docs/ESTIMATOR.md`.
+pub fn default_accel_std(family: Family) -> f32 {
+    match family {
+        Family::PointGoal => 2.0,
+        // The legged robots (and any later family): joints accelerate fast.
+        _ => 50.0,
+    }
+}
+
+/// The estimator's channel for a family's observation component.
+pub fn channel(component: ObsComponent) -> Channel {
+    match component {
+        ObsComponent::Position => Channel::Position,
+        ObsComponent::Angle => Channel::Angle,
+        ObsComponent::Rate { of, scale } => Channel::Rate { of, scale },
+        ObsComponent::Direct => Channel::Direct,
+    }
+}
+
+/// The filter configuration the loop uses for `family` at `rate_hz` under `config`'s sensor
+/// model. A reading at or beyond the sensor's full scale (`adc_range`) is out of range.
+pub fn estimator_config(
+    config: &LoopConfig,
+    family: Family,
+    rate_hz: f32,
+) -> Option<EstimatorConfig> {
+    let Sensing::Positions {
+        accel_std,
+        meas_std,
+    } = config.sensing
+    else {
+        return None;
+    };
+    let lsb = config
+        .adc_bits
+        .map_or(0.0, |b| adc_lsb(b, config.adc_range));
+    Some(EstimatorConfig {
+        dt: 1.0 / rate_hz,
+        accel_std: accel_std.unwrap_or_else(|| default_accel_std(family)),
+        meas_std: meas_std
+            .unwrap_or_else(|| (config.noise_std * config.noise_std + lsb * lsb / 12.0).sqrt()),
+        limit: config.adc_range,
+        initial_rate_std: 1.0,
+    })
+}
+
+/// The device side of position-only sensing: its reading buffer and its estimator.
+pub(crate) struct SensorPath {
+    /// This tick's readings: the measured entries, in observation order.
+    pub readings: Vec<f32>,
+    measured: Vec<usize>,
+    estimator: Estimator<MAX_DIM>,
+}
+
+impl SensorPath {
+    /// `None` with full sensing.
+    pub fn new(
+        config: &LoopConfig,
+        family: Family,
+        rate_hz: f32,
+    ) -> Result<Option<Self>, LoopError> {
+        let Some(filter) = estimator_config(config, family, rate_hz) else {
+            return Ok(None);
+        };
+        let components = family.obs_components();
+        let channels: Vec<Channel> = components.iter().copied().map(channel).collect();
+        let estimator = Estimator::new(&channels, filter)?;
+        let measured: Vec<usize> = (0..components.len())
+            .filter(|&i| components[i].is_measured())
+            .collect();
+        Ok(Some(Self {
+            readings: vec![0.0; measured.len()],
+            measured,
+            estimator,
+        }))
+    }
+
+    /// Reads the measured entries of the plant's true observation through `sense`.
+    pub fn read(&mut self, truth: &[f32], mut sense: impl FnMut(f32) -> f32) {
+        for (reading, &i) in self.readings.iter_mut().zip(&self.measured) {
+            *reading = sense(truth[i]);
+        }
+    }
+
+    /// Runs the estimator on this tick's readings into `obs`. `Some(fault)` when `obs` holds
+    /// an estimate (`fault`: a reading was rejected), `None` when there is none yet.
+    pub fn estimate(&mut self, obs: &mut [f32]) -> Result<Option<bool>, LoopError> {
+        match self.estimator.step(&self.readings, obs) {
+            Ok(report) => Ok(Some(report.rejected > 0)),
+            Err(EstimatorError::NotReady { .. }) => Ok(None),
+            Err(e) => Err(e.into()),
+        }
+    }
+}

@@ -1,0 +1,195 @@
+//! What each observation component physically is, for a device that measures positions only
+//! and estimates the rest (firmware-sim's `--sensing positions`).
+//!
+//! The families own this knowledge: a velocity entry is the time derivative of a position or
+//! angle entry of the same observation, and a position-sensing device (encoders, a tracker)
+//! can reconstruct it by filtering that position over the control step. An entry that is the
+//! derivative of something the observation does not contain (the cheetah's and walker's
+//! torso forward velocity: the torso x is never observed) cannot be reconstructed from the
+//! observation's positions; such entries are [`ObsComponent::Direct`]: measured directly (a
+//! ground-speed or optical-flow sensor) and passed through with the same noise and ADC as the
+//! positions.
+
+use crate::Family;
+
+/// The physical meaning of one observation entry.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum ObsComponent {
+    /// A position (m), measured.
+    Position,
+    /// An angle (rad, wrapped to (-pi, pi]), measured.
+    Angle,
+    /// `scale` times the time derivative of the entry at index `of` (a
+    /// [`Position`](Self::Position) or [`Angle`](Self::Angle)); not measured in position-only
+    /// sensing but estimated.
+    Rate {
+        /// Index of the position or angle entry this is the derivative of.
+        of: usize,
+        /// Observed rate per unit of the position's derivative over a control step: 1 for
+        /// the legged robots; for point-goal the observed velocity is the one after the
+        /// step's damping, `1 / (1 + LINEAR_DAMPING * CONTROL_DT)` of the velocity that
+        /// moved the point.
+        scale: f32,
+    },
+    /// Neither: measured directly and passed through.
+    Direct,
+}
+
+impl ObsComponent {
+    /// Whether a position-only device receives this entry from its sensors.
+    pub fn is_measured(self) -> bool {
+        !matches!(self, ObsComponent::Rate { .. })
+    }
+}
+
+use ObsComponent::{Angle, Direct, Position};
+
+const fn rate(of: usize) -> ObsComponent {
+    ObsComponent::Rate { of, scale: 1.0 }
+}
+
+/// Rapier integrates the point's position with the velocity before the step's damping and
+/// reports the velocity after it.
+const POINT_GOAL_RATE_SCALE: f32 =
+    1.0 / (1.0 + crate::point_goal::LINEAR_DAMPING * crate::point_goal::CONTROL_DT);
+
+/// point-goal: `[x, y, vx, vy]`.
+const POINT_GOAL: [ObsComponent; 4] = [
+    Position,
+    Position,
+    ObsComponent::Rate {
+        of: 0,
+        scale: POINT_GOAL_RATE_SCALE,
+    },
+    ObsComponent::Rate {
+        of: 1,
+        scale: POINT_GOAL_RATE_SCALE,
+    },
+];
+
+/// cheetah-vel and walker-dyn: torso height, torso angle, six joint angles, torso (vx, vz,
+/// angular velocity), six joint velocities. vx is the derivative of the unobserved torso x.
+const PLANAR: [ObsComponent; 17] = [
+    Position,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Direct,
+    rate(0),
+    rate(1),
+    rate(2),
+    rate(3),
+    rate(4),
+    rate(5),
+    rate(6),
+    rate(7),
+];
+
+impl Family {
+    /// Per observation index, what the entry is: a measured position or angle, the rate of
+    /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
+    pub fn obs_components(self) -> &'static [ObsComponent] {
+        match self {
+            Family::PointGoal => &POINT_GOAL,
+            Family::CheetahVel | Family::WalkerDyn => &PLANAR,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{EnvConfig, Task, make_env};
+    use ObsComponent::Rate;
+    use std::f32::consts::{PI, TAU};
+
+    #[test]
+    fn every_rate_names_a_measured_position_of_the_same_observation() {
+        for family in Family::ALL {
+            let components = family.obs_components();
+            assert_eq!(components.len(), family.obs_dim(), "{family}");
+            for (i, c) in components.iter().enumerate() {
+                if let Rate { of, .. } = *c {
+                    assert!(
+                        matches!(components.get(of), Some(Position | Angle)),
+                        "{family}: entry {i} is the rate of {of}, not a position"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Rolls `family` out with a deterministic excitation and returns, per rate entry, the
+    /// mean |scale * finite difference of its position - declared rate| divided by the mean
+    /// |declared rate|. Steps that start or end with a clipped velocity (walker: +-10) are
+    /// left out: the finite difference is not clipped.
+    fn rate_mismatch(family: Family, task: &Task, steps: usize) -> Vec<(usize, f32)> {
+        let mut env = make_env(
+            family,
+            EnvConfig {
+                horizon: Some(steps),
+                healthy_termination: false,
+            },
+        )
+        .unwrap();
+        let dt = env.control_dt();
+        let components = family.obs_components();
+        let mut previous = env.reset(task, 3).unwrap().to_vec();
+        let mut sums = vec![(0.0f64, 0.0f64); components.len()];
+        for step in 0..steps {
+            let action: Vec<f32> = (0..family.act_dim())
+                .map(|j| 0.8 * (0.3 * step as f32 + j as f32).sin())
+                .collect();
+            let t = env.step(&action).unwrap();
+            for (i, c) in components.iter().enumerate() {
+                let Rate { of, scale } = *c else { continue };
+                let rate = t.obs[i];
+                if rate.abs().max(previous[i].abs()) >= 9.99 {
+                    continue;
+                }
+                let mut delta = t.obs[of] - previous[of];
+                if components[of] == Angle {
+                    delta = (delta + PI).rem_euclid(TAU) - PI;
+                }
+                sums[i].0 += f64::from((scale * delta / dt - rate).abs());
+                sums[i].1 += f64::from(rate.abs());
+            }
+            previous.copy_from_slice(t.obs);
+        }
+        sums.iter()
+            .enumerate()
+            .filter(|(_, s)| s.1 > 0.0)
+            .map(|(i, s)| (i, (s.0 / s.1) as f32))
+            .collect()
+    }
+
+    #[test]
+    fn declared_rates_are_the_derivatives_of_their_positions() {
+        // Point-goal integrates once per control step: exact. The legged robots integrate
+        // over substeps with contacts and implicit joint damping: the finite difference over
+        // the control step is the step's mean velocity, not the final one (measured 0.07 to
+        // 0.44 relative; an entry paired with the wrong position is above 1).
+        for (family, task, bound) in [
+            (Family::PointGoal, Task::point_goal(0.5), 1e-3),
+            (Family::CheetahVel, Task::cheetah_vel(1.0), 0.5),
+            (Family::WalkerDyn, Family::WalkerDyn.test_tasks()[0], 0.5),
+        ] {
+            let mismatch = rate_mismatch(family, &task, 200);
+            assert_eq!(
+                mismatch.len(),
+                family
+                    .obs_components()
+                    .iter()
+                    .filter(|c| !c.is_measured())
+                    .count()
+            );
+            for (i, m) in mismatch {
+                assert!(m < bound, "{family} entry {i}: relative mismatch {m}");
+            }
+        }
+    }
+}
