@@ -157,3 +157,25 @@ fn a_slow_family_is_refused_at_the_short_budget_and_runs_tiny() {
     );
     assert!(Expert::load(&out.join("expert")).is_ok());
 }
+
+#[test]
+fn the_device_stage_can_sense_positions_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("pos");
+    let cfg = QuickstartConfig {
+        out: out.clone(),
+        budget: Budget::Tiny,
+        quiet: true,
+        sensing: trainer::quickstart::DeviceSensing::Positions,
+        ..QuickstartConfig::default()
+    };
+    let summary = run(&cfg).unwrap();
+    assert_eq!(summary.device_faults, 0);
+    // The trace holds the raw position readings (meas0, meas1: x and y of point-goal) and the
+    // policy's observation, whose velocities the device estimated from them.
+    let trace = std::fs::read_to_string(out.join("device/trace.csv")).unwrap();
+    let header = trace.lines().next().unwrap();
+    assert!(header.ends_with(",meas0,meas1"), "{header}");
+    let toml = std::fs::read_to_string(out.join("quickstart.toml")).unwrap();
+    assert!(toml.contains("sensing = \"positions\""), "{toml}");
+}

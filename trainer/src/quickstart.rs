@@ -87,6 +87,22 @@ pub struct QuickstartConfig {
     /// of training an expert. Default None.
     #[serde(default)]
     pub assets: Option<PathBuf>,
+    /// What the device senses: the full observation, or positions only with its on-device
+    /// velocity estimator (firmware-sim's `--sensing positions`). Default full.
+    #[serde(default)]
+    pub sensing: DeviceSensing,
+}
+
+/// The quickstart device stage's sensing (firmware-sim's [`firmware_sim::Sensing`] with the
+/// family's default filter tuning).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DeviceSensing {
+    /// Every observation entry, as measured.
+    #[default]
+    Full,
+    /// Positions and angles only; the device estimates the velocities (Kalman filter).
+    Positions,
 }
 
 mod family_name {
@@ -115,6 +131,7 @@ impl Default for QuickstartConfig {
             subsample: 20,
             quiet: false,
             assets: None,
+            sensing: DeviceSensing::Full,
         }
     }
 }
@@ -437,6 +454,10 @@ fn device_run(
     let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
     let mut plant = sim::make_env(args.env, env_config(args))?;
     let loop_config = LoopConfig {
+        sensing: match args.sensing {
+            DeviceSensing::Full => firmware_sim::Sensing::Full,
+            DeviceSensing::Positions => firmware_sim::Sensing::POSITIONS,
+        },
         seed: args.seed,
         noise_std: 0.005,
         adc_bits: Some(12),

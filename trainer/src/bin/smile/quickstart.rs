@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 use sim::Family;
-use trainer::quickstart::{Budget, QuickstartConfig};
+use trainer::quickstart::{Budget, DeviceSensing, QuickstartConfig};
 
 /// Arguments of `smile quickstart`.
 #[derive(Args, Debug)]
@@ -34,6 +34,10 @@ pub struct QuickstartArgs {
     /// Directory of shipped experts and demos [default: the repository's assets/experts].
     #[arg(long)]
     assets: Option<std::path::PathBuf>,
+    /// What the simulated device senses: the full observation, or positions only with an
+    /// on-device velocity estimator.
+    #[arg(long, value_enum, default_value_t = DeviceSensing::Full)]
+    sensing: DeviceSensing,
 }
 
 /// Run `smile quickstart`.
@@ -47,6 +51,7 @@ pub fn run(a: QuickstartArgs) -> Result<()> {
         subsample: a.subsample,
         quiet: a.quiet,
         assets: a.assets,
+        sensing: a.sensing,
     };
     trainer::quickstart::run(&config)?;
     Ok(())
