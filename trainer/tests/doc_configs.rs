@@ -19,6 +19,7 @@ fn results_configs_parse_and_validate() {
     for (name, select_by, horizon) in [
         ("cv-bc.toml", Selection::Mse, 200),
         ("cv-bc-roll.toml", Selection::Rollouts, 200),
+        ("cv1000-bc.toml", Selection::Mse, 1000),
         ("cv1000-bc-roll.toml", Selection::Rollouts, 1000),
     ] {
         let bc: MetaBcConfig = toml::from_str(&read(name)).unwrap();
