@@ -285,3 +285,20 @@ fn slurm_array_runs_the_cells_and_the_report() {
     assert_eq!(json["rows"][0]["seeds"].as_array().unwrap().len(), 2);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// The plans behind docs/RESULTS.md expand (their files exist, their configs validate).
+#[test]
+fn the_docs_plans_load() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/plans");
+    let mut n = 0;
+    for entry in std::fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml") {
+            let sweep = trainer::sweep::Sweep::load(&path)
+                .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+            assert!(!sweep.cells.is_empty(), "{}", path.display());
+            n += 1;
+        }
+    }
+    assert!(n >= 3, "only {n} plans in {}", dir.display());
+}
