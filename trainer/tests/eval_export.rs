@@ -92,17 +92,19 @@ fn eval_report_and_blob_parity() {
             .starts_with("<svg")
     );
     // Contexts of another split's tasks are refused.
+    let err = eval::evaluate(
+        &mut mp,
+        "x",
+        fam,
+        Split::Test,
+        &train,
+        &proto,
+        &mut |_, _| {},
+    )
+    .unwrap_err();
     assert!(
-        eval::evaluate(
-            &mut mp,
-            "x",
-            fam,
-            Split::Test,
-            &train,
-            &proto,
-            &mut |_, _| {}
-        )
-        .is_err()
+        matches!(&err, trainer::Error::Data(m) if m.contains("goal_angle=0.0982")),
+        "{err:?}"
     );
 
     // Export: f32 is exact up to float association; int8 schemes stay close. The w8a8 bounds
@@ -143,6 +145,10 @@ fn eval_report_and_blob_parity() {
             );
         }
     }
-    assert!(export::parse_quant("w4").is_err());
+    let err = export::parse_quant("w4").unwrap_err();
+    assert!(
+        matches!(&err, trainer::Error::Config(m) if m.contains("\"w4\"")),
+        "{err:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
