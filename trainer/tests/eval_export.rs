@@ -1,4 +1,5 @@
-//! Evaluation outputs and blob export parity on a tiny Meta-BC policy.
+//! Evaluation outputs and blob export parity on a small Meta-BC policy (1000 steps, which
+//! reaches the test goals: a parity bound on a policy that goes nowhere would prove little).
 
 mod common;
 
@@ -16,20 +17,25 @@ fn eval_report_and_blob_parity() {
     let fam = Family::PointGoal;
     let dir = std::env::temp_dir().join(format!("smile-evalexp-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let train = demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20);
-    let test = demos(Split::Test, fam.test_tasks(), 2, 20);
+    // All 32 train goals: the w8a8 activation scales are calibrated on the train demos, and
+    // trained on only the first 8 goals (a quarter of the circle), the test goals' contexts
+    // fell outside the calibrated range (z off by up to 1.3, actions by up to 0.77); trained
+    // on 32 but calibrated on those 8, actions were off by 0.26 max / 0.018 mean.
+    let train = demos(Split::Train, fam.train_tasks(), 2, 30);
+    let test = demos(Split::Test, fam.test_tasks(), 2, 30);
     let mut cfg = MetaBcConfig {
-        policy_hidden: vec![32, 32],
+        policy_hidden: vec![64, 64],
+        lr: 1e-3,
         tasks_per_batch: 4,
         per_task: 32,
-        total_steps: 100,
+        total_steps: 1000,
         holdout_every: 4,
         eval_every: 50,
         eval_episodes: 1,
-        horizon: Some(20),
+        horizon: Some(30),
         ..MetaBcConfig::default()
     };
-    cfg.context.enc_hidden = vec![16];
+    cfg.context.enc_hidden = vec![32];
     cfg.context.z_dim = 4;
     cfg.context.r_dim = 8;
     let mut run = MetaBc::new(cfg, MetaData::from_dataset(&train, fam, 4).unwrap(), None).unwrap();
@@ -41,7 +47,7 @@ fn eval_report_and_blob_parity() {
         context_sizes: vec![1, 2],
         draws: 2,
         rollouts: 1,
-        horizon: Some(20),
+        horizon: Some(30),
     };
     let r = eval::evaluate(
         &mut mp,
@@ -86,24 +92,29 @@ fn eval_report_and_blob_parity() {
             .starts_with("<svg")
     );
     // Contexts of another split's tasks are refused.
+    let err = eval::evaluate(
+        &mut mp,
+        "x",
+        fam,
+        Split::Test,
+        &train,
+        &proto,
+        &mut |_, _| {},
+    )
+    .unwrap_err();
     assert!(
-        eval::evaluate(
-            &mut mp,
-            "x",
-            fam,
-            Split::Test,
-            &train,
-            &proto,
-            &mut |_, _| {}
-        )
-        .is_err()
+        matches!(&err, trainer::Error::Data(m) if m.contains("goal_angle=0.0982")),
+        "{err:?}"
     );
 
-    // Export: f32 is exact up to float association; int8 schemes stay close.
+    // Export: f32 is exact up to float association; int8 schemes stay close. The w8a8 bounds
+    // are docs/RESULTS.md's: action differences at the level measured for Meta-BC there (max
+    // 0.055, mean 0.010 at seed 0; measured here 0.055 / 0.010), and the test metric within 5%
+    // of the float policy's on point-goal's test protocol (measured here +3.7%).
     for (q, tol, tol_mean) in [
         ("f32", 1e-4f32, 1e-5f32),
         ("w8a32", 0.1, 0.02),
-        ("w8a8", 0.5, 0.1),
+        ("w8a8", 0.1, 0.015),
     ] {
         let blob = export::export_blob(&mp, export::parse_quant(q).unwrap(), Some(&train)).unwrap();
         let model = export::load_blob(&blob).unwrap();
@@ -119,10 +130,25 @@ fn eval_report_and_blob_parity() {
             assert_eq!(rep.parity, p);
             assert_eq!(rep.bytes, blob.len());
             assert!((rep.metric_candle - r.mean).abs() < 1e-6);
+            // The test protocol: 1-demo contexts, 3 draws x 10 rollouts per test goal.
+            let test_protocol = Protocol {
+                horizon: Some(30),
+                ..Protocol::for_family(fam)
+            };
+            let rep = export::verify(&mp, &blob, q, &test, &test_protocol).unwrap();
             let (b, c) = (rep.metric_blob, rep.metric_candle);
-            assert!((b - c).abs() < 0.25 * c.max(0.1), "blob {b} vs candle {c}");
+            assert!(c < 0.2, "the float policy does not reach the goals ({c})");
+            assert!(
+                (b - c).abs() <= 0.05 * c,
+                "w8a8 blob {b} vs float {c}: {:+.1}%",
+                100.0 * rep.metric_relative_difference
+            );
         }
     }
-    assert!(export::parse_quant("w4").is_err());
+    let err = export::parse_quant("w4").unwrap_err();
+    assert!(
+        matches!(&err, trainer::Error::Config(m) if m.contains("\"w4\"")),
+        "{err:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

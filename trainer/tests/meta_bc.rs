@@ -90,9 +90,10 @@ fn early_stopping_and_dagger_relabelling() {
     assert!(s < 2000 && run.steps() == s);
     // One 30-step relabelled rollout every 50 steps.
     assert_eq!(run.dataset_size(), before + 30 * (s as usize).div_ceil(50));
+    let err = MetaBc::new(tiny(true), run_data(), None).err().unwrap();
     assert!(
-        MetaBc::new(tiny(true), run_data(), None).is_err(),
-        "dagger needs an expert"
+        matches!(&err, trainer::Error::Config(m) if m.contains("meta-dagger needs an expert")),
+        "{err:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -1,0 +1,230 @@
+//! The `firmware-sim` binary as a user calls it: `run` with `--task N` and `--task
+//! param=VALUE` (what it prints and writes), and `compare` against an export report, with its
+//! errors' messages. (`run`'s refusals of a bad `--task` or context have their own tests.)
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use firmware_sim::reference::pd_point_goal_blob;
+use infer_core::Quant;
+use sim::{DemoDataset, EnvConfig, Family, PointGoalPdExpert, Split, TaskDemos, make_env};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fwsim-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn firmware_sim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Stdout of a successful run (panics with its stderr otherwise).
+fn ok(out: &Output) -> String {
+    assert!(
+        out.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// Stderr of a failed run; it must be a clean error exit, not a panic.
+fn fails(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "not a clean error exit: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+/// The hand-built PD blob and one PD demo for each of the first `n` test goals, in `dir`.
+fn blob_and_demos(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
+    let fam = Family::PointGoal;
+    let mut env = make_env(fam, EnvConfig::default()).unwrap();
+    let pd = PointGoalPdExpert::default();
+    let mut ds = DemoDataset::new(fam, Split::Test, "scripted-pd");
+    for (i, task) in fam.test_tasks().into_iter().take(n).enumerate() {
+        let tr = sim::record_trajectory(env.as_mut(), &task, 100 + i as u64, |o, a| {
+            pd.act(o, a).unwrap()
+        })
+        .unwrap();
+        ds.tasks.push(TaskDemos {
+            task,
+            trajectories: vec![tr],
+        });
+    }
+    let demos: Vec<_> = ds.tasks.iter().map(|t| &t.trajectories[0]).collect();
+    let blob = pd_point_goal_blob(Quant::W8A8, &demos).unwrap();
+    let (blob_path, demos_path) = (dir.join("pd.blob"), dir.join("demos.safetensors"));
+    std::fs::write(&blob_path, blob).unwrap();
+    ds.write(&demos_path).unwrap();
+    (blob_path, demos_path)
+}
+
+/// `metric          MinGoalDistance = 0.0123` -> 0.0123.
+fn summary_metric(summary: &str) -> f32 {
+    let line = summary
+        .lines()
+        .find(|l| l.starts_with("metric"))
+        .unwrap_or_else(|| panic!("no metric line: {summary}"));
+    line.rsplit("= ").next().unwrap().trim().parse().unwrap()
+}
+
+#[test]
+fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
+    let dir = tmp("run");
+    let (blob, demos) = blob_and_demos(&dir, 6);
+    let tasks = Family::PointGoal.test_tasks();
+    for (spec, task) in [
+        ("3".to_string(), tasks[3]),
+        (format!("param={}", tasks[5].value()), tasks[5]),
+    ] {
+        let out_dir = dir.join(format!("out-{}", spec.replace('=', "-")));
+        let stdout = ok(&firmware_sim(&[
+            "run",
+            "--blob",
+            s(&blob),
+            "--env",
+            "point-goal",
+            "--task",
+            &spec,
+            "--context",
+            s(&demos),
+            "--ticks",
+            "60",
+            "--link-corrupt",
+            "0.05",
+            "-o",
+            s(&out_dir),
+        ]));
+        let label = task.label();
+        assert!(
+            stdout.contains(&format!("task            {label} (point-goal)")),
+            "--task {spec}: {stdout}"
+        );
+        assert!(stdout.contains("ticks           60 "), "{stdout}");
+        assert!(stdout.contains("faults          0\n"), "{stdout}");
+        // The PD blob taught this goal's demo reaches it.
+        let metric = summary_metric(&stdout);
+        assert!(metric < 0.15, "--task {spec}: min distance {metric}");
+        // summary.txt is what was printed; trace.csv has a header and one row per tick.
+        let summary = std::fs::read_to_string(out_dir.join("summary.txt")).unwrap();
+        assert!(stdout.contains(&summary), "{summary}\nvs\n{stdout}");
+        let trace = std::fs::read_to_string(out_dir.join("trace.csv")).unwrap();
+        assert!(trace.starts_with("tick,time,obs0"), "{}", &trace[..80]);
+        assert_eq!(trace.lines().count(), 1 + 60);
+        assert!(
+            std::fs::read_to_string(out_dir.join("plot.svg"))
+                .unwrap()
+                .contains("<svg")
+        );
+    }
+
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn compare_runs_the_reports_tasks_on_the_device() {
+    let dir = tmp("compare");
+    let (blob, demos) = blob_and_demos(&dir, 3);
+    let tasks = Family::PointGoal.test_tasks();
+    // What `smile export` writes beside a blob (only the fields compare reads).
+    let report = serde_json::json!({
+        "metric": "min distance to goal",
+        "per_task_candle": [
+            {"value": tasks[0].value(), "metric": 0.5},
+            {"value": tasks[2].value(), "metric": 0.25},
+        ],
+    });
+    let mut reference = blob.clone().into_os_string();
+    reference.push(".json");
+    std::fs::write(&reference, report.to_string()).unwrap();
+    let out_dir = dir.join("cmp");
+    let stdout = ok(&firmware_sim(&[
+        "compare",
+        "--blob",
+        s(&blob),
+        "--env",
+        "point-goal",
+        "--contexts",
+        s(&demos),
+        "--episodes",
+        "2",
+        "-o",
+        s(&out_dir),
+    ]));
+    let rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("compare.json")).unwrap())
+            .unwrap();
+    assert_eq!(rep["metric"], "min distance to goal");
+    assert_eq!(rep["episodes_per_task"], 2);
+    let rows = rep["tasks"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for (row, (task, host)) in rows.iter().zip([(tasks[0], 0.5), (tasks[2], 0.25)]) {
+        assert_eq!(row["task"], task.label());
+        assert_eq!(row["host_float"].as_f64().unwrap(), host);
+        let device = row["device_blob"].as_f64().unwrap();
+        // The PD blob reaches the goal on the device.
+        assert!((0.0..0.15).contains(&device), "{row}");
+        assert!((row["difference"].as_f64().unwrap() - (device - host)).abs() < 1e-6);
+    }
+    assert!((rep["host_mean"].as_f64().unwrap() - 0.375).abs() < 1e-6);
+    // compare.md is the table printed.
+    let md = std::fs::read_to_string(out_dir.join("compare.md")).unwrap();
+    assert!(stdout.contains(&md));
+    assert!(
+        md.contains(&format!("| {} | 0.5000 |", tasks[0].label())) && md.contains("| **mean** |"),
+        "{md}"
+    );
+
+    // A report whose task has no demo in --contexts (the message names the file), a file that
+    // is not an export report, an entry without a metric, and no report at all.
+    std::fs::write(
+        &reference,
+        serde_json::json!({"per_task_candle": [{"value": tasks[7].value(), "metric": 0.1}]})
+            .to_string(),
+    )
+    .unwrap();
+    let args = [
+        "compare",
+        "--blob",
+        s(&blob),
+        "--env",
+        "point-goal",
+        "--contexts",
+        s(&demos),
+        "-o",
+        s(&out_dir),
+    ];
+    let err = fails(&firmware_sim(&args));
+    assert!(err.contains(s(&demos)), "{err}");
+    std::fs::write(&reference, "{\"bytes\": 3}").unwrap();
+    let err = fails(&firmware_sim(&args));
+    assert!(
+        err.contains("has no per_task_candle list (not a `smile export` report?)"),
+        "{err}"
+    );
+    std::fs::write(&reference, "{\"per_task_candle\": [{\"value\": 0.1}]}").unwrap();
+    let err = fails(&firmware_sim(&args));
+    assert!(
+        err.contains("a per_task_candle entry lacks value or metric"),
+        "{err}"
+    );
+    let missing = dir.join("none.json");
+    let mut with_missing = args.to_vec();
+    with_missing.extend(["--reference", s(&missing)]);
+    let err = fails(&firmware_sim(&with_missing));
+    assert!(
+        err.contains(&format!("reading {}", missing.display())),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
