@@ -149,6 +149,14 @@ pub fn run(a: ExpertArgs) -> Result<()> {
                 PathBuf::from(format!("runs/expert-{}{nominal}-s{}", cfg.env, cfg.seed))
             });
             trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
+            if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
+                // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
+                eprintln!(
+                    "--task-value {v}: a per-task expert on {} (value {})",
+                    task.label(),
+                    task.value()
+                );
+            }
             (ExpertTrainer::new(cfg)?, dir)
         }
     };
