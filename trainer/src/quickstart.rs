@@ -133,7 +133,7 @@ fn env_config(family: Family) -> EnvConfig {
 /// Refuses, before any work, a budget that cannot do what it promises on this family.
 fn check_budget(args: &QuickstartConfig) -> Result<()> {
     if args.env != Family::PointGoal && args.budget == Budget::Short {
-        return Err(Error::Config(format!(
+        return Err(Error::Usage(format!(
             "{0} has no scripted expert: the quickstart would train an SAC expert (about 1-2 \
              hours on 2 cores for cheetah-vel, 300k steps) and then SMILe (about 1 hour more). \
              Pass `--budget long` to run all of it, or `--budget tiny` to check the pipeline in \

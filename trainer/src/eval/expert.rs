@@ -71,11 +71,15 @@ impl ExpertSet {
                 Some(v) => s.per_task.push((s.family.task_named(v)?, ex, source)),
                 None if s.general.is_none() => s.general = Some((ex, source)),
                 None => {
-                    return Err(Error::Config("more than one general expert given".into()));
+                    return Err(Error::Usage(
+                        "more than one general expert given to --expert: give one, plus \
+                         per-task experts (`smile expert --task-value`)"
+                            .into(),
+                    ));
                 }
             }
         }
-        set.ok_or_else(|| Error::Config("no expert given".into()))
+        set.ok_or_else(|| Error::Usage("no expert given (--expert)".into()))
     }
 
     /// The family of every expert in the set.
