@@ -1,6 +1,7 @@
 //! What a user sees when `smile` refuses: one `error:` line that says what to do (the OS error
 //! once, no "Caused by" chain, no backtrace unless RUST_BACKTRACE is set), exit status 1;
-//! "invalid config:" only for configuration.
+//! "invalid config:" only for configuration; and plain progress lines when stderr is not a
+//! terminal.
 
 mod common;
 
@@ -194,5 +195,28 @@ fn errors_are_one_line_that_says_what_to_do() {
         err.starts_with("error: ") && err.lines().count() > 1,
         "{err}"
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_piped_run_prints_plain_progress_lines() {
+    let dir = tmp("progress");
+    let interval = [("SMILE_PROGRESS_INTERVAL_S", "0.05")];
+    let (_, _, out) = tiny_run(&dir, false, &interval);
+    let err = common::ok(&out);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("[progress] "))
+        .unwrap_or_else(|| panic!("no progress line in: {err}"));
+    assert!(
+        line.contains("/400 steps (") && line.contains("ETA "),
+        "{line}"
+    );
+    // --quiet prints none.
+    let quiet_dir = dir.join("quiet");
+    std::fs::create_dir_all(&quiet_dir).unwrap();
+    let (_, _, out) = tiny_run(&quiet_dir, true, &interval);
+    let err = common::ok(&out);
+    assert!(!err.contains("[progress]"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
