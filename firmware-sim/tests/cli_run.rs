@@ -232,3 +232,23 @@ fn refusals_are_one_line_that_says_what_to_do() {
     );
     assert!(!out.exists(), "a refused run wrote its output directory");
 }
+
+#[test]
+fn the_command_pd_blob_prints_runs_the_device() {
+    let dir = tmp("pd-blob");
+    let (blob, demos) = point_goal_files(&dir);
+    let args = reference::pd_run_args(&blob, &demos, &dir.join("device"));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let out = firmware_sim(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stdout(&out).contains("goal_angle=1.2763"),
+        "{}",
+        stdout(&out)
+    );
+    assert!(dir.join("device/summary.txt").exists());
+}
