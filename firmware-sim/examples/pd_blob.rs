@@ -40,5 +40,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         blob.len(),
         dir.join("demos.safetensors").display()
     );
+    let args = firmware_sim::reference::pd_run_args(
+        &dir.join("pd.blob"),
+        &dir.join("demos.safetensors"),
+        &dir.join("device"),
+    );
+    println!("run it on the simulated device:");
+    println!(
+        "  cargo run -p firmware-sim --release -- {}",
+        args.join(" ")
+    );
     Ok(())
 }

@@ -109,24 +109,42 @@ struct RunArgs {
     out: PathBuf,
 }
 
-fn parse_task(family: Family, spec: &str) -> Result<Task> {
+/// How `--task` named the task: a test index or a parameter value.
+#[derive(Debug, Clone, Copy)]
+enum TaskSpec {
+    Index(Task),
+    Param(f64),
+}
+
+fn parse_task(family: Family, spec: &str) -> Result<TaskSpec> {
     if let Some(value) = spec.strip_prefix("param=") {
-        let value: f64 = value
-            .parse()
-            .with_context(|| format!("--task {spec}: not a number"))?;
-        return Ok(family.task_from_value(value)?);
+        let value: f64 = value.parse().map_err(|_| {
+            anyhow::anyhow!(
+                "--task {spec}: {value:?} is not a number; give the {} of a task in --context",
+                family.value_name()
+            )
+        })?;
+        if !value.is_finite() {
+            bail!("--task {spec}: not finite");
+        }
+        return Ok(TaskSpec::Param(value));
     }
     let tasks = family.test_tasks();
-    let index: usize = spec
-        .parse()
-        .with_context(|| format!("--task {spec}: expected a test index or param=VALUE"))?;
-    tasks.get(index).copied().with_context(|| {
-        format!(
-            "--task {index}: {family} has {} test tasks (0..{}); use param=VALUE for others",
+    let last = tasks.len() - 1;
+    let bad = || {
+        anyhow::anyhow!(
+            "--task {spec}: {family} has {} test tasks; give an index in 0..={last}, or \
+             param=VALUE for a task by its {}",
             tasks.len(),
-            tasks.len()
+            family.value_name()
         )
-    })
+    };
+    let index: usize = spec.parse().map_err(|_| bad())?;
+    tasks
+        .get(index)
+        .copied()
+        .map(TaskSpec::Index)
+        .ok_or_else(bad)
 }
 
 fn session_config(args: &RunArgs) -> SessionConfig {
@@ -166,24 +184,52 @@ fn session_config(args: &RunArgs) -> SessionConfig {
     }
 }
 
+/// The demos in `demos` (read from `path`, given with `flag`) of the task `value` names, within
+/// the family's tolerance (sim's [`Family::find_task`]); errors name the file and the flag and
+/// list the file's tasks.
 fn demos_of<'d>(
     demos: &'d DemoDataset,
     path: &std::path::Path,
-    task: &Task,
+    flag: &str,
+    value: f64,
 ) -> Result<&'d TaskDemos> {
+    let index = demos
+        .family
+        .find_task(value, demos.tasks.iter().map(|t| &t.task))
+        .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
+    let found = &demos.tasks[index];
+    if found.trajectories.iter().all(|t| t.is_empty()) {
+        bail!(
+            "{flag} {}: the demos of {} are empty; record them again with `smile demos`",
+            path.display(),
+            found.task.label()
+        );
+    }
+    Ok(found)
+}
+
+/// Reads a demo file given with `flag`, checking it holds demos of `family`.
+fn read_demos(path: &std::path::Path, flag: &str, family: Family) -> Result<DemoDataset> {
+    let demos = DemoDataset::read(path).map_err(|e| match e {
+        // Its message names the path already.
+        sim::DatasetError::Io { source, .. } => {
+            anyhow::anyhow!("{flag} {}: {source}", path.display())
+        }
+        e => anyhow::anyhow!("{flag} {}: {e}", path.display()),
+    })?;
+    if demos.family != family {
+        bail!(
+            "{flag} {} holds {} demos but --env is {family}; give demos of {family} or pass \
+             --env {}",
+            path.display(),
+            demos.family,
+            demos.family
+        );
+    }
     demos
-        .tasks
-        .iter()
-        .find(|t| t.task == *task && !t.trajectories.is_empty())
-        .with_context(|| {
-            let available: Vec<String> = demos.tasks.iter().map(|t| t.task.label()).collect();
-            format!(
-                "{} has no demo for {}; it has: {}",
-                path.display(),
-                task.label(),
-                available.join(", ")
-            )
-        })
+        .ensure_family(family)
+        .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
+    Ok(demos)
 }
 
 fn run_cmd(args: RunArgs) -> Result<()> {
@@ -192,13 +238,27 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     {
         bail!("--accel-std and --meas-std tune the estimator: they need --sensing positions");
     }
-    let task = parse_task(args.env, &args.task)?;
-    let blob =
-        std::fs::read(&args.blob).with_context(|| format!("reading {}", args.blob.display()))?;
-    let demos = DemoDataset::read(&args.context)
-        .with_context(|| format!("reading {}", args.context.display()))?;
-    demos.ensure_family(args.env)?;
-    let context: Vec<_> = demos_of(&demos, &args.context, &task)?
+    let spec = parse_task(args.env, &args.task)?;
+    let blob = std::fs::read(&args.blob)
+        .with_context(|| format!("reading --blob {}", args.blob.display()))?;
+    let demos = read_demos(&args.context, "--context", args.env)?;
+    let value = match spec {
+        TaskSpec::Index(task) => task.value(),
+        TaskSpec::Param(value) => value,
+    };
+    let found = demos_of(&demos, &args.context, "--context", value)?;
+    let task = found.task;
+    let named = match spec {
+        TaskSpec::Index(_) => format!("--task {}", args.task),
+        TaskSpec::Param(v) => format!("--task param={v}"),
+    };
+    println!(
+        "task            {} ({named}; value {}), demo from {}",
+        task.label(),
+        task.value(),
+        args.context.display()
+    );
+    let context: Vec<_> = found
         .trajectories
         .iter()
         .take(args.trajectories.max(1))
@@ -299,9 +359,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     })?;
     let blob =
         std::fs::read(&args.blob).with_context(|| format!("reading {}", args.blob.display()))?;
-    let demos = DemoDataset::read(&args.contexts)
-        .with_context(|| format!("reading {}", args.contexts.display()))?;
-    demos.ensure_family(args.env)?;
+    let demos = read_demos(&args.contexts, "--contexts", args.env)?;
     let config = SessionConfig::default();
     let mut rows = Vec::new();
     for entry in host_tasks {
@@ -311,8 +369,8 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
                 reference_path.display()
             );
         };
-        let task = args.env.task_from_value(value)?;
-        let trajectories = &demos_of(&demos, &args.contexts, &task)?.trajectories;
+        let found = demos_of(&demos, &args.contexts, "--contexts", value)?;
+        let (task, trajectories) = (found.task, &found.trajectories);
         let mut metrics = Vec::with_capacity(args.episodes);
         for i in 0..args.episodes.max(1) {
             let context = [&trajectories[i % trajectories.len()]];
@@ -379,9 +437,32 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     Ok(())
 }
 
-fn main() -> Result<()> {
-    match Cli::parse().cmd {
+/// One line for an error: `<top message>: <root cause>`, the root left out when the top
+/// already says it (the OS error is not repeated down a "Caused by" chain).
+fn error_line(e: &anyhow::Error) -> String {
+    let top = e.to_string();
+    let root = e.root_cause().to_string();
+    if top.contains(&root) {
+        top
+    } else {
+        format!("{top}: {root}")
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    let result = match Cli::parse().cmd {
         Cmd::Run(args) => run_cmd(args),
         Cmd::Compare(args) => compare_cmd(args),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", error_line(&e));
+            // The full chain and a backtrace only when asked for.
+            if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
+                eprintln!("\n{e:?}");
+            }
+            std::process::ExitCode::FAILURE
+        }
     }
 }

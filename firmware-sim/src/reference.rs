@@ -73,3 +73,28 @@ pub fn pd_point_goal_blob(
         &point_goal_calibration(demos),
     )
 }
+
+/// The `firmware-sim run` arguments that run `blob` on the device, taught the demo of point-goal
+/// test task 3 from `demos`, writing to `out` (what `examples/pd_blob.rs` prints; paths are
+/// shown as given, so they must not contain spaces).
+pub fn pd_run_args(
+    blob: &std::path::Path,
+    demos: &std::path::Path,
+    out: &std::path::Path,
+) -> Vec<String> {
+    [
+        "run",
+        "--blob",
+        &blob.display().to_string(),
+        "--env",
+        "point-goal",
+        "--task",
+        "3",
+        "--context",
+        &demos.display().to_string(),
+        "-o",
+        &out.display().to_string(),
+    ]
+    .map(String::from)
+    .to_vec()
+}

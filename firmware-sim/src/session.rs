@@ -22,9 +22,7 @@ pub enum SessionError {
     #[error("plant: {0}")]
     Plant(#[from] sim::SimError),
     /// The blob's dimensions are not the plant's.
-    #[error(
-        "blob is for obs {blob_obs} / act {blob_act}; the plant has obs {plant_obs} / act {plant_act}"
-    )]
+    #[error("{}", dims_message(*blob_obs, *blob_act, *plant_obs, *plant_act))]
     Dims {
         /// Blob observation dimension.
         blob_obs: usize,
@@ -103,4 +101,24 @@ pub fn run_session(
         z,
         link: link.stats,
     })
+}
+
+/// The dimension mismatch in words, naming the families the blob fits (`--env` to pass).
+fn dims_message(blob_obs: usize, blob_act: usize, plant_obs: usize, plant_act: usize) -> String {
+    let fits: Vec<&str> = sim::Family::ALL
+        .iter()
+        .filter(|f| f.obs_dim() == blob_obs && f.act_dim() == blob_act)
+        .map(|f| f.name())
+        .collect();
+    let hint = match fits.as_slice() {
+        [] => "no task family has those dimensions".to_string(),
+        names => format!(
+            "it is a policy of another family: pass --env {}",
+            names.join(" or --env ")
+        ),
+    };
+    format!(
+        "the blob is for obs {blob_obs} / act {blob_act} but the plant has obs {plant_obs} / act \
+         {plant_act}; {hint}"
+    )
 }

@@ -56,6 +56,19 @@ pub enum SimError {
         /// What is wrong with it.
         reason: String,
     },
+    /// No task of a list is within the family's tolerance of a value
+    /// ([`Family::find_task`](crate::Family::find_task)).
+    #[error("{}", no_task_near(*family, *value, *tolerance, available))]
+    NoTaskNear {
+        /// Family of the tasks searched.
+        family: Family,
+        /// The value asked for.
+        value: f64,
+        /// The family's tolerance ([`Family::value_tolerance`](crate::Family::value_tolerance)).
+        tolerance: f64,
+        /// The values of the tasks searched, as their labels print them.
+        available: String,
+    },
     /// The simulated state became non-finite (the physics diverged).
     #[error("the {family} physics diverged at step {step} (non-finite state)")]
     PhysicsDiverged {
@@ -64,4 +77,16 @@ pub enum SimError {
         /// Step at which the state became non-finite.
         step: usize,
     },
+}
+
+fn no_task_near(family: Family, value: f64, tolerance: f64, available: &str) -> String {
+    let how = if tolerance > 0.0 {
+        format!("within {tolerance} of")
+    } else {
+        "equal to".into()
+    };
+    format!(
+        "no {family} task has a {} {how} {value}; available: {available}",
+        family.value_name()
+    )
 }

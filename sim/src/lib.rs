@@ -41,8 +41,8 @@ pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;
 pub use task::{
-    Family, GOAL_RADIUS, MetricKind, Split, Task, WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE,
-    WALKER_TRAIN_SEED_BASE,
+    Family, GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, Task, WALKER_NOMINAL_SEED,
+    WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,
 };
 
 #[cfg(test)]

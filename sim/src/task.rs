@@ -52,6 +52,15 @@ pub const WALKER_TEST_SEED_BASE: u64 = 10_000;
 /// (CLI `--task-value`, datasets, policy files) handles it unchanged.
 pub const WALKER_NOMINAL_SEED: u64 = u32::MAX as u64;
 
+/// How far (in the value's unit) a number may be from a task's value and still name that task,
+/// for the families with a continuous parameter: 1e-3 rad for point-goal goal angles and 1e-3
+/// m/s for cheetah-vel target velocities ([`Family::value_tolerance`]; walker-dyn seeds are
+/// integers and match exactly). Labels print 4 decimals for angles and 2 for velocities, so the
+/// number read off a label (`goal_angle=0.4909` for 0.490874 rad) names its task, while the
+/// closest two tasks of a family, train and test lists together, are 0.05 apart: no number
+/// names two tasks.
+pub const TASK_VALUE_TOLERANCE: f64 = 1e-3;
+
 impl Family {
     /// Every family, in CLI order.
     pub const ALL: [Family; 3] = [Family::PointGoal, Family::CheetahVel, Family::WalkerDyn];
@@ -122,6 +131,73 @@ impl Family {
                 }
                 Ok(Task::walker_dyn(value as u64))
             }
+        }
+    }
+
+    /// How far a number may be from a task's value and still name it: [`TASK_VALUE_TOLERANCE`]
+    /// for point-goal and cheetah-vel, 0 for walker-dyn (dynamics seeds are integers).
+    pub fn value_tolerance(self) -> f64 {
+        match self {
+            Family::PointGoal | Family::CheetahVel => TASK_VALUE_TOLERANCE,
+            Family::WalkerDyn => 0.0,
+        }
+    }
+
+    /// What a task value of this family is, for messages: `goal angle (rad)`, ...
+    pub fn value_name(self) -> &'static str {
+        match self {
+            Family::PointGoal => "goal angle (rad)",
+            Family::CheetahVel => "target velocity (m/s)",
+            Family::WalkerDyn => "dynamics seed",
+        }
+    }
+
+    /// The one tolerant lookup of a task by its parameter: the index in `tasks` of the task
+    /// of this family whose value is nearest `value`, when it is within
+    /// [`Family::value_tolerance`] of it. Otherwise [`SimError::NoTaskNear`], which lists the
+    /// values of `tasks`.
+    pub fn find_task<'t>(
+        self,
+        value: f64,
+        tasks: impl IntoIterator<Item = &'t Task>,
+    ) -> Result<usize, SimError> {
+        let tolerance = self.value_tolerance();
+        let mut best: Option<(usize, f64)> = None;
+        let mut available = Vec::new();
+        for (i, task) in tasks.into_iter().enumerate() {
+            if task.family() != self {
+                continue;
+            }
+            available.push(task.short_value());
+            let distance = (task.value() - value).abs();
+            if distance <= tolerance && best.is_none_or(|(_, d)| distance < d) {
+                best = Some((i, distance));
+            }
+        }
+        best.map(|(i, _)| i).ok_or_else(|| SimError::NoTaskNear {
+            family: self,
+            value,
+            tolerance,
+            available: if available.is_empty() {
+                "none".into()
+            } else {
+                available.join(", ")
+            },
+        })
+    }
+
+    /// The task `value` names: the meta-train or meta-test task (or the nominal walker) within
+    /// [`Family::value_tolerance`] of it, so that `0.4909` is test goal 0.490874 exactly; else
+    /// a new task with exactly this value ([`Family::task_from_value`]).
+    pub fn task_named(self, value: f64) -> Result<Task, SimError> {
+        let mut known = self.train_tasks();
+        known.extend(self.test_tasks());
+        if self == Family::WalkerDyn {
+            known.push(Task::walker_nominal());
+        }
+        match self.find_task(value, &known) {
+            Ok(i) => Ok(known[i]),
+            Err(_) => self.task_from_value(value),
         }
     }
 
@@ -293,6 +369,26 @@ impl Task {
         }
     }
 
+    /// Whether `value` names this task: within [`Family::value_tolerance`] of [`Task::value`].
+    pub fn is_named_by(&self, value: f64) -> bool {
+        (self.value() - value).abs() <= self.family().value_tolerance()
+    }
+
+    /// Whether `other` is this task up to the tolerance of [`Task::is_named_by`] (same family,
+    /// values within tolerance): a task read back from a file or typed by a user.
+    pub fn same_task(&self, other: &Task) -> bool {
+        self.family() == other.family() && self.is_named_by(other.value())
+    }
+
+    /// The value as a label prints it (`0.4909`, `1.25`, `10003`).
+    fn short_value(&self) -> String {
+        match *self {
+            Task::PointGoal { goal_angle } => format!("{goal_angle:.4}"),
+            Task::CheetahVel { target_velocity } => format!("{target_velocity:.2}"),
+            Task::WalkerDyn { dynamics_seed } => dynamics_seed.to_string(),
+        }
+    }
+
     /// Writes the task parameter vector (length `family().task_dim()`) that the oracle
     /// observation appends: goal (x, y); v*; or the walker's log-scale dynamics factors.
     pub fn write_parameter(&self, out: &mut [f32]) -> Result<(), SimError> {
@@ -346,94 +442,4 @@ impl fmt::Display for Task {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn splits_match_the_reference() {
-        let train = Family::PointGoal.train_tasks();
-        assert_eq!(train.len(), 32);
-        assert!((train[3].value() - 3.0 * std::f64::consts::PI / 16.0).abs() < 1e-6);
-        let test = Family::PointGoal.test_tasks();
-        assert_eq!(test.len(), 16);
-        assert!((test[1].value() - (2.0 * PI / 16.0 + PI / 32.0) as f64).abs() < 1e-6);
-        let train = Family::CheetahVel.train_tasks();
-        assert_eq!(train.len(), 31);
-        assert!((train[30].value() - 3.0).abs() < 1e-5);
-        let test = Family::CheetahVel.test_tasks();
-        assert_eq!(test.len(), 30);
-        assert!((test[0].value() - 0.05).abs() < 1e-6);
-        assert!((test[29].value() - 2.95).abs() < 1e-5);
-        assert_eq!(Family::WalkerDyn.train_tasks().len(), 50);
-        assert_eq!(Family::WalkerDyn.test_tasks().len(), 25);
-    }
-
-    #[test]
-    fn train_and_test_tasks_are_disjoint() {
-        for family in Family::ALL {
-            let train = family.train_tasks();
-            for task in family.test_tasks() {
-                assert!(!train.contains(&task), "{task} is in both splits");
-            }
-        }
-    }
-
-    #[test]
-    fn family_names_round_trip_and_unknown_names_fail() {
-        for family in Family::ALL {
-            assert_eq!(family.to_string().parse::<Family>(), Ok(family));
-        }
-        assert_eq!(
-            "ant".parse::<Family>(),
-            Err(SimError::UnknownFamily("ant".into()))
-        );
-    }
-
-    #[test]
-    fn task_from_value_round_trips() {
-        for family in Family::ALL {
-            for task in family.test_tasks() {
-                assert_eq!(family.task_from_value(task.value()), Ok(task));
-            }
-        }
-        assert!(Family::WalkerDyn.task_from_value(1.5).is_err());
-        assert!(Family::CheetahVel.task_from_value(f64::NAN).is_err());
-    }
-
-    #[test]
-    fn the_nominal_walker_seed_is_the_unmodified_robot_in_neither_split() {
-        let nominal = Task::walker_nominal();
-        assert_eq!(
-            Family::WalkerDyn.task_from_value(WALKER_NOMINAL_SEED as f64),
-            Ok(nominal)
-        );
-        assert_eq!(
-            Family::WalkerDyn.task_from_value(nominal.value()),
-            Ok(nominal)
-        );
-        assert_eq!(nominal.walker_dynamics(), Some(WalkerDynamics::nominal()));
-        assert_ne!(
-            WalkerDynamics::from_seed(WALKER_NOMINAL_SEED),
-            WalkerDynamics::nominal(),
-            "the raw draw of the reserved seed is not nominal: only Task maps it"
-        );
-        let parameter = nominal.parameter();
-        assert_eq!(parameter.len(), WalkerDynamics::VECTOR_DIM);
-        assert!(parameter.iter().all(|p| *p == 0.0), "{parameter:?}");
-        for split in [Split::Train, Split::Test] {
-            let tasks = Family::WalkerDyn.tasks(split);
-            assert!(
-                !tasks.contains(&nominal),
-                "nominal walker in the {split} split"
-            );
-            // Every split task really is randomised (non-zero parameter).
-            assert!(
-                tasks
-                    .iter()
-                    .all(|t| t.parameter().iter().any(|p| *p != 0.0))
-            );
-        }
-        assert!(nominal.label().contains("nominal"));
-        assert_eq!(Task::cheetah_vel(1.0).walker_dynamics(), None);
-    }
-}
+mod tests;

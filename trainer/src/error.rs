@@ -12,6 +12,10 @@ pub enum Error {
     /// A configuration value is invalid (a config file, a flag, a hyper-parameter).
     #[error("invalid config: {0}")]
     Config(String),
+    /// The arguments cannot do what was asked together (a missing input, a budget that does
+    /// not fit the family); the message says what to pass instead.
+    #[error("{0}")]
+    Usage(String),
     /// The input data do not fit what was asked: demos, contexts, experts or reference returns
     /// that are missing, empty, of another split or family, or inconsistent with each other.
     #[error("{0}")]

@@ -56,7 +56,8 @@ fn json<T: Serialize>(value: &T) -> Result<String> {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Budget {
-    /// Seconds: tiny nets and a few hundred updates. Proves the plumbing, not the learning.
+    /// Seconds (2-15 s on 2 cores): tiny nets and a few hundred updates. Proves the plumbing,
+    /// not the learning.
     Tiny,
     /// The default: about 10 minutes on 2 cores for point-goal.
     Short,
@@ -182,11 +183,12 @@ fn env_config(args: &QuickstartConfig) -> EnvConfig {
 /// Refuses, before any work, a budget that cannot do what it promises on this family.
 fn check_budget(args: &QuickstartConfig) -> Result<()> {
     if args.env != Family::PointGoal && args.budget == Budget::Short && shipped(args).is_none() {
-        return Err(Error::Config(format!(
+        return Err(Error::Usage(format!(
             "{0} has no scripted expert and no shipped one (assets/experts/{0}): the quickstart \
              would train an SAC expert (about 1-2 hours on 2 cores) and then SMILe (about 1 \
              hour more). Pass `--budget long` to run all of it, or `--budget tiny` to check the \
-             pipeline in a minute (nothing useful is learned). point-goal is the fast family.",
+             pipeline in about 15 seconds (nothing useful is learned). point-goal is the fast \
+             family.",
             args.env
         )));
     }

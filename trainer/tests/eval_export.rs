@@ -147,7 +147,7 @@ fn eval_report_and_blob_parity() {
     }
     let err = export::parse_quant("w4").unwrap_err();
     assert!(
-        matches!(&err, trainer::Error::Config(m) if m.contains("\"w4\"")),
+        matches!(&err, trainer::Error::Usage(m) if m.contains("\"w4\"")),
         "{err:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();

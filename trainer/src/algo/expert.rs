@@ -107,7 +107,7 @@ impl ExpertConfig {
                     "give task_index or task_value, not both".into(),
                 ));
             }
-            return Ok(vec![family.task_from_value(v)?]);
+            return Ok(vec![family.task_named(v)?]);
         }
         let all = family.train_tasks();
         match self.task_index {

@@ -263,7 +263,9 @@ impl MetaBc {
     /// Meta-DAgger: `n` deterministic rollouts relabelled by the expert.
     pub fn dagger_rollouts(&mut self, n: usize) -> Result<()> {
         let Some(expert) = self.expert.clone() else {
-            return Err(Error::Config("meta-dagger needs an expert".into()));
+            return Err(Error::Usage(
+                "meta-dagger needs an expert (--expert RUN, a `smile expert` run)".into(),
+            ));
         };
         let mp = self.meta_policy();
         for _ in 0..n {

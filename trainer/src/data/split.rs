@@ -42,7 +42,7 @@ impl MetaData {
         ds.ensure_family(family)?;
         let train_tasks = family.train_tasks();
         for td in &ds.tasks {
-            if !train_tasks.contains(&td.task) {
+            if !train_tasks.iter().any(|t| t.same_task(&td.task)) {
                 return Err(Error::Data(format!(
                     "dataset task {} is not a meta-train task of {family}; refusing to train on it",
                     td.task

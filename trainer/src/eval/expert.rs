@@ -31,15 +31,15 @@ pub fn trained_task_value(path: &Path) -> Result<Option<f64>> {
 #[derive(Debug, Clone)]
 pub struct ExpertSet {
     family: Family,
-    general: Option<Expert>,
-    per_task: Vec<(f64, Expert)>,
+    general: Option<(Expert, String)>,
+    per_task: Vec<(Task, Expert, String)>,
 }
 
 impl From<Expert> for ExpertSet {
     fn from(e: Expert) -> Self {
         Self {
             family: e.family(),
-            general: Some(e),
+            general: Some((e, "the given expert".into())),
             per_task: Vec::new(),
         }
     }
@@ -66,15 +66,21 @@ impl ExpertSet {
                     s.family
                 )));
             }
+            let source = p.display().to_string();
             match task_value {
-                Some(v) => s.per_task.push((v, ex)),
-                None if s.general.is_none() => s.general = Some(ex),
+                // The task it was trained on, as the family's tolerant lookup names it.
+                Some(v) => s.per_task.push((s.family.task_named(v)?, ex, source)),
+                None if s.general.is_none() => s.general = Some((ex, source)),
                 None => {
-                    return Err(Error::Config("more than one general expert given".into()));
+                    return Err(Error::Usage(
+                        "more than one general expert given to --expert: give one, plus \
+                         per-task experts (`smile expert --task-value`)"
+                            .into(),
+                    ));
                 }
             }
         }
-        set.ok_or_else(|| Error::Config("no expert given".into()))
+        set.ok_or_else(|| Error::Usage("no expert given (--expert)".into()))
     }
 
     /// The family of every expert in the set.
@@ -85,21 +91,38 @@ impl ExpertSet {
     /// Dataset label: the single expert's name, or `<name>-per-task`.
     pub fn name(&self) -> String {
         match (&self.general, self.per_task.first()) {
-            (Some(g), None) => g.name().to_string(),
-            (_, Some((_, e))) => format!("{}-per-task", e.name()),
+            (Some((g, _)), None) => g.name().to_string(),
+            (_, Some((_, e, _))) => format!("{}-per-task", e.name()),
             (None, None) => String::new(),
         }
     }
 
-    /// The expert to use in `task`.
+    /// The expert to use in `task`: the per-task expert trained on it (its value within the
+    /// family's tolerance, [`Task::same_task`]), else the general one.
     pub fn for_task(&self, task: &Task) -> Result<&Expert> {
-        let v = task.value();
-        self.per_task
-            .iter()
-            .find(|(tv, _)| (tv - v).abs() <= 1e-6 * (1.0 + v.abs()))
-            .map(|(_, e)| e)
-            .or(self.general.as_ref())
-            .ok_or_else(|| Error::Data(format!("no expert for task {}", task.label())))
+        self.chosen(task).map(|(e, _)| e)
+    }
+
+    /// Which expert [`ExpertSet::for_task`] uses in `task`, for messages: `runs/e7 (trained on
+    /// dynamics_seed=7)` or `runs/e (general expert)`.
+    pub fn describe_choice(&self, task: &Task) -> Result<String> {
+        self.chosen(task).map(|(_, d)| d)
+    }
+
+    fn chosen(&self, task: &Task) -> Result<(&Expert, String)> {
+        if let Some((t, e, path)) = self.per_task.iter().find(|(t, _, _)| t.same_task(task)) {
+            return Ok((e, format!("{path} (trained on {})", t.label())));
+        }
+        if let Some((e, path)) = &self.general {
+            return Ok((e, format!("{path} (general expert)")));
+        }
+        let trained: Vec<String> = self.per_task.iter().map(|(t, _, _)| t.label()).collect();
+        Err(Error::Data(format!(
+            "no expert for task {}: the per-task experts were trained on {}; add its expert or a \
+             general one to --expert",
+            task.label(),
+            trained.join(", ")
+        )))
     }
 }
 

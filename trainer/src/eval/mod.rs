@@ -263,11 +263,22 @@ pub fn contexts_for<'a>(
     tasks
         .iter()
         .map(|t| {
-            contexts
-                .tasks
-                .iter()
-                .find(|td| td.task == *t && td.trajectories.iter().any(|tr| !tr.is_empty()))
-                .ok_or_else(|| Error::Data(format!("the contexts file has no demos for task {t}")))
+            let i = family
+                .find_task(t.value(), contexts.tasks.iter().map(|td| &td.task))
+                .map_err(|e| {
+                    Error::Data(format!(
+                        "the contexts file has no demos for task {}: {e}",
+                        t.label()
+                    ))
+                })?;
+            let td = &contexts.tasks[i];
+            if td.trajectories.iter().all(|tr| tr.is_empty()) {
+                return Err(Error::Data(format!(
+                    "the contexts file's demos of task {} are empty",
+                    t.label()
+                )));
+            }
+            Ok(td)
         })
         .collect()
 }

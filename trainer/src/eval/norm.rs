@@ -59,7 +59,7 @@ impl References {
             return Err(wrong_family(base, base_expert.family()));
         }
         match trained_task_value(base)? {
-            Some(v) if Ok(nominal) == family.task_from_value(v) => {}
+            Some(v) if nominal.is_named_by(v) => {}
             trained => {
                 let on = trained.map_or("all meta-train tasks".into(), |v| format!("task {v}"));
                 return Err(Error::Data(format!(

@@ -23,7 +23,7 @@ pub fn parse_quant(s: &str) -> Result<infer_core::Quant> {
         "f32" => Ok(infer_core::Quant::F32),
         "w8a32" => Ok(infer_core::Quant::W8A32),
         "w8a8" => Ok(infer_core::Quant::W8A8),
-        other => Err(Error::Config(format!(
+        other => Err(Error::Usage(format!(
             "unknown quantization {other:?}; expected f32, w8a32 or w8a8"
         ))),
     }
@@ -107,7 +107,7 @@ pub fn export_blob(
             calibration(mp, demos)
         }
         (infer_core::Quant::W8A8, None) => {
-            return Err(Error::Config(
+            return Err(Error::Usage(
                 "w8a8 needs calibration demos (meta-train demos of the policy's family)".into(),
             ));
         }

@@ -4,7 +4,7 @@
 pub mod checkpoint;
 pub mod export;
 mod metrics;
-mod progress;
+pub mod progress;
 
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter, sac_fields};
 pub use progress::bar;

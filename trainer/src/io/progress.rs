@@ -1,9 +1,37 @@
-//! Progress bars shared by the long loops (training, evaluation, the quickstart): one style,
-//! hidden under `--quiet` so scripts get clean output.
+//! Progress bars shared by the long loops (experts, training, evaluation, the quickstart): one
+//! style, hidden under `--quiet` so scripts get clean output.
+//!
+//! When stderr is not a terminal (a background run with its output in a log file) indicatif
+//! hides its bar; a plain line then goes to stderr every [`interval`] seconds instead (5 s by
+//! default, `SMILE_PROGRESS_INTERVAL_S` to change it), so a log shows where the run is:
+//!
+//! ```text
+//! [progress] 1200/5000 updates (24%), 31/s, elapsed 0:00:38, ETA 0:02:02 sps 91 ...
+//! ```
 
-use indicatif::{ProgressBar, ProgressStyle};
+use std::time::{Duration, Instant};
 
-/// A bar over `total` units named `what` with rate and ETA; hidden when `quiet`.
+use indicatif::{ProgressBar, ProgressStyle, WeakProgressBar};
+
+/// Environment variable: seconds between plain progress lines when stderr is not a terminal.
+pub const INTERVAL_ENV: &str = "SMILE_PROGRESS_INTERVAL_S";
+
+/// Default seconds between plain progress lines.
+pub const DEFAULT_INTERVAL_S: f64 = 5.0;
+
+/// The interval between plain progress lines: `SMILE_PROGRESS_INTERVAL_S` when it is a positive
+/// number of seconds, else [`DEFAULT_INTERVAL_S`].
+pub fn interval() -> Duration {
+    std::env::var(INTERVAL_ENV)
+        .ok()
+        .and_then(|v| v.trim().parse::<f64>().ok())
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .and_then(|s| Duration::try_from_secs_f64(s).ok())
+        .unwrap_or(Duration::from_secs_f64(DEFAULT_INTERVAL_S))
+}
+
+/// A bar over `total` units named `what` with rate and ETA; hidden when `quiet`. When stderr is
+/// not a terminal, plain progress lines replace it (see the module documentation).
 pub fn bar(total: u64, quiet: bool, what: &str) -> ProgressBar {
     if quiet {
         return ProgressBar::hidden();
@@ -16,5 +44,79 @@ pub fn bar(total: u64, quiet: bool, what: &str) -> ProgressBar {
         .expect("the template is a literal and valid")
         .progress_chars("=> "),
     );
+    if pb.is_hidden() {
+        spawn_plain_lines(pb.downgrade(), what.to_string(), interval());
+    }
     pb
+}
+
+/// Prints [`plain_line`] every `every` until the bar is finished or dropped.
+fn spawn_plain_lines(bar: WeakProgressBar, what: String, every: Duration) {
+    let poll = every.min(Duration::from_millis(100));
+    let spawned = std::thread::Builder::new()
+        .name("progress-lines".into())
+        .spawn(move || {
+            let mut last = Instant::now();
+            loop {
+                std::thread::sleep(poll);
+                let Some(pb) = bar.upgrade() else { return };
+                if pb.is_finished() {
+                    return;
+                }
+                if last.elapsed() >= every {
+                    last = Instant::now();
+                    eprintln!("{}", plain_line(&pb, &what));
+                }
+            }
+        });
+    // Without a thread the run goes on without progress lines; nothing else depends on them.
+    drop(spawned);
+}
+
+fn hms(d: Duration) -> String {
+    let s = d.as_secs();
+    format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+}
+
+/// `[progress] 1200/5000 updates (24%), 31/s, elapsed 0:00:38, ETA 0:02:02 <message>`.
+pub fn plain_line(pb: &ProgressBar, what: &str) -> String {
+    let pos = pb.position();
+    let len = pb.length().unwrap_or(0);
+    let percent = if len > 0 {
+        format!(" ({:.0}%)", 100.0 * pos as f64 / len as f64)
+    } else {
+        String::new()
+    };
+    let message = pb.message();
+    let message = if message.is_empty() {
+        String::new()
+    } else {
+        format!(" {message}")
+    };
+    format!(
+        "[progress] {pos}/{len} {what}{percent}, {:.1}/s, elapsed {}, ETA {}{message}",
+        pb.per_sec(),
+        hms(pb.elapsed()),
+        hms(pb.eta()),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_plain_line_says_where_the_run_is() {
+        let pb = ProgressBar::hidden();
+        pb.set_length(200);
+        pb.set_position(50);
+        pb.set_message("smile");
+        let line = plain_line(&pb, "updates");
+        assert!(
+            line.starts_with("[progress] 50/200 updates (25%), "),
+            "{line}"
+        );
+        assert!(line.ends_with(" smile"), "{line}");
+        assert_eq!(hms(Duration::from_secs(3723)), "1:02:03");
+    }
 }

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, bail};
 use clap::Args;
-use sim::{EnvConfig, Family, Split};
+use sim::{EnvConfig, Family, Split, Task};
 use trainer::expert::ExpertSet;
 use trainer::{DemoSpec, record_demos_with};
 
@@ -43,6 +43,23 @@ pub struct DemosArgs {
     out: PathBuf,
 }
 
+/// The task a `--task-params` value names (sim's tolerant lookup: a split's task when the value
+/// is within the family's tolerance of it, else a new task), saying which when it matched one.
+fn named_task(family: Family, value: f64) -> Result<Task> {
+    let task = family.task_named(value)?;
+    if let Some(split) = [Split::Train, Split::Test]
+        .into_iter()
+        .find(|s| family.tasks(*s).contains(&task))
+    {
+        eprintln!(
+            "--task-params {value}: the {split} task {} (value {})",
+            task.label(),
+            task.value()
+        );
+    }
+    Ok(task)
+}
+
 /// Run `smile demos`.
 pub fn run(a: DemosArgs) -> Result<()> {
     let family: Family = a.env.parse()?;
@@ -54,10 +71,18 @@ pub fn run(a: DemosArgs) -> Result<()> {
     let tasks = match &a.task_params {
         Some(vs) => vs
             .iter()
-            .map(|v| family.task_from_value(*v))
-            .collect::<Result<Vec<_>, _>>()?,
+            .map(|&v| named_task(family, v))
+            .collect::<Result<Vec<_>>>()?,
         None => family.tasks(split),
     };
+    // Which expert acts in each task, when there is a choice (per-task experts); a task no
+    // expert covers fails here, before any recording.
+    for task in &tasks {
+        let choice = ex.describe_choice(task)?;
+        if a.expert.len() > 1 {
+            eprintln!("{}: expert {choice}", task.label());
+        }
+    }
     let spec = DemoSpec {
         tasks,
         split,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::ProgressBar;
-use sim::{DemoDataset, EnvConfig, Family, Split};
+use sim::{EnvConfig, Family, Split};
 use trainer::MetaPolicy;
 use trainer::eval::norm::References;
 use trainer::eval::{self, EvalReport, Protocol};
@@ -69,12 +69,13 @@ fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
 /// Run `smile eval`.
 pub fn run(a: EvalArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ctx = DemoDataset::read(&a.contexts)
-        .with_context(|| format!("reading {}", a.contexts.display()))?;
+    let ctx = crate::read_demos(&a.contexts, "--contexts", family)?;
     if ctx.split != a.split {
         bail!(
-            "{} holds {} demos but --split is {}",
+            "--contexts {} holds {} demos but --split is {}; pass --split {} or the {} demos",
             a.contexts.display(),
+            ctx.split,
+            a.split,
             ctx.split,
             a.split
         );
@@ -93,11 +94,17 @@ pub fn run(a: EvalArgs) -> Result<()> {
     for p in &a.policy {
         let mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
         if mp.family != family {
-            bail!("{} was trained on {}, not {family}", p.display(), mp.family);
+            bail!(
+                "{} was trained on {}, not {family} (--env); pass --env {}",
+                p.display(),
+                mp.family,
+                mp.family
+            );
         }
         policies.push((p, mp));
     }
-    eval::contexts_for(&ctx, family, &family.tasks(a.split))?;
+    eval::contexts_for(&ctx, family, &family.tasks(a.split))
+        .with_context(|| format!("--contexts {}", a.contexts.display()))?;
     let references = match &a.base {
         Some(base) => Some(References::load(family, base, &a.expert)?),
         None => None,

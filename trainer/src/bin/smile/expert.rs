@@ -19,7 +19,8 @@ pub enum ExpertKind {
 /// Arguments of `smile expert`.
 #[derive(Args, Debug)]
 pub struct ExpertArgs {
-    /// Task family: point-goal, cheetah-vel or walker-dyn.
+    /// Task family: point-goal, cheetah-vel or walker-dyn [default: point-goal, or the
+    /// --config file's `env`].
     #[arg(long)]
     env: Option<String>,
     /// Expert kind.
@@ -28,13 +29,15 @@ pub struct ExpertArgs {
     /// TOML file with an `ExpertConfig` (flags given here override it).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Run directory (checkpoint, metrics.jsonl, config.toml, policy.safetensors, eval.json).
+    /// Run directory (checkpoint, metrics.jsonl, config.toml, policy.safetensors, eval.json)
+    /// [default: runs/expert-<env>[-nominal]-s<seed>; runs/expert-point-goal-pd for
+    /// --kind scripted-pd].
     #[arg(short, long)]
     out: Option<PathBuf>,
     /// Continue the run in this directory from its checkpoint (its saved config is used).
     #[arg(long, conflicts_with_all = ["config", "env"])]
     resume: Option<PathBuf>,
-    /// Total environment steps.
+    /// Total environment steps [default: 30000, or the --config file's].
     #[arg(long)]
     total_steps: Option<u64>,
     /// Seed.
@@ -149,6 +152,14 @@ pub fn run(a: ExpertArgs) -> Result<()> {
                 PathBuf::from(format!("runs/expert-{}{nominal}-s{}", cfg.env, cfg.seed))
             });
             trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
+            if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
+                // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
+                eprintln!(
+                    "--task-value {v}: a per-task expert on {} (value {})",
+                    task.label(),
+                    task.value()
+                );
+            }
             (ExpertTrainer::new(cfg)?, dir)
         }
     };

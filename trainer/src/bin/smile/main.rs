@@ -36,7 +36,7 @@ struct Cli {
 enum Cmd {
     /// Train an oracle SAC expert on a family's meta-train tasks (or export the scripted one).
     #[command(
-        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
+        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env cheetah-vel --horizon 1000 --total-steps 600000 --batch-size 128 --hidden 128,128 -o runs/cv-expert\n  smile expert --env walker-dyn --task-value 10003 --hidden 128,128 --batch-size 128 --total-steps 150000 -o runs/wd-expert-10003\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
     )]
     Expert(expert::ExpertArgs),
     /// Record deterministic expert demonstrations in sim's dataset format.
@@ -81,7 +81,62 @@ enum Cmd {
     Report(report::ReportArgs),
 }
 
-fn main() -> Result<()> {
+/// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a
+/// mismatch names the file, the flag and the `--env` that fits it.
+pub(crate) fn read_demos(
+    path: &std::path::Path,
+    flag: &str,
+    family: sim::Family,
+) -> Result<sim::DemoDataset> {
+    let demos = sim::DemoDataset::read(path).map_err(|e| match e {
+        // Its message names the path already.
+        sim::DatasetError::Io { source, .. } => {
+            anyhow::anyhow!("{flag} {}: {source}", path.display())
+        }
+        e => anyhow::anyhow!("{flag} {}: {e}", path.display()),
+    })?;
+    if demos.family != family {
+        anyhow::bail!(
+            "{flag} {} holds {} demos but --env is {family}; pass --env {} or a file of {family} \
+             demos",
+            path.display(),
+            demos.family,
+            demos.family
+        );
+    }
+    demos
+        .ensure_family(family)
+        .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
+    Ok(demos)
+}
+
+/// One line for an error: `<top message>: <root cause>`, the root left out when the top
+/// already says it (the OS error is not repeated down a "Caused by" chain).
+fn error_line(e: &anyhow::Error) -> String {
+    let top = e.to_string();
+    let root = e.root_cause().to_string();
+    if top.contains(&root) {
+        top
+    } else {
+        format!("{top}: {root}")
+    }
+}
+
+fn main() -> std::process::ExitCode {
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", error_line(&e));
+            // The full chain and a backtrace only when asked for.
+            if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
+                eprintln!("\n{e:?}");
+            }
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+fn run() -> Result<()> {
     let cli = Cli::parse();
     trainer::threads::set_compute_threads(cli.threads);
     match cli.cmd {

@@ -158,8 +158,7 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
 /// Run `smile train`.
 pub fn run(mut a: TrainArgs) -> Result<()> {
     let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ds = DemoDataset::read(&a.demos)
-        .with_context(|| format!("reading demos {}", a.demos.display()))?;
+    let ds = crate::read_demos(&a.demos, "--demos", family)?;
     let algo = if a.resume {
         let rec = recorded_run(&a.out)?;
         let algo = Algo::from_str(&rec.algo, false)
@@ -224,7 +223,8 @@ fn train_smile(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Re
     if let Some(v) = a.eval_every {
         cfg.eval_every = v;
     }
-    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)?;
+    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
+        .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
         Smile::resume(&a.out, data, a.updates)?
     } else {
@@ -303,7 +303,8 @@ fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Resul
         (_, true) => bail!("meta-dagger on {family} needs --expert (a `smile expert` run)"),
         (_, false) => None,
     };
-    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)?;
+    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
+        .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
         MetaBc::resume(&a.out, data, expert, a.updates)?
     } else {

@@ -1,0 +1,222 @@
+//! What a user sees when `smile` refuses: one `error:` line that says what to do (the OS error
+//! once, no "Caused by" chain, no backtrace unless RUST_BACKTRACE is set), exit status 1;
+//! "invalid config:" only for configuration; and plain progress lines when stderr is not a
+//! terminal.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("smile-cli-msg-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `smile` with stdout and stderr piped (stderr is not a terminal), RUST_BACKTRACE unset and
+/// the extra environment `env`.
+fn smile_env(args: &[&str], env: &[(&str, &str)]) -> Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_smile"));
+    cmd.args(args).env_remove("RUST_BACKTRACE");
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    cmd.output().expect("run smile")
+}
+
+/// Asserts the run failed with status 1 and one `error:` line on stderr; returns that line.
+fn one_line_error(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "not one line: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    assert!(
+        !err.contains("Caused by") && !err.contains("backtrace"),
+        "{err}"
+    );
+    lines[0].to_string()
+}
+
+/// Cheetah-vel test-split "demos" of an open-loop action: only family, split and shapes matter.
+fn cheetah_test_demos(path: &Path) {
+    let fam = Family::CheetahVel;
+    let mut ds = DemoDataset::new(fam, Split::Test, "open-loop");
+    let cfg = EnvConfig {
+        horizon: Some(5),
+        ..EnvConfig::default()
+    };
+    let mut env = sim::make_env(fam, cfg).unwrap();
+    for task in fam.test_tasks() {
+        let tr = sim::record_trajectory(env.as_mut(), &task, 0, |_, a| a.fill(0.1)).unwrap();
+        ds.tasks.push(TaskDemos {
+            task,
+            trajectories: vec![tr],
+        });
+    }
+    ds.write(path).unwrap();
+}
+
+/// Point-goal train demos of 6 goals and a tiny Meta-BC run on them, in `dir`.
+fn tiny_run(dir: &Path, quiet: bool, env: &[(&str, &str)]) -> (PathBuf, PathBuf, Output) {
+    let train = dir.join("train.safetensors");
+    common::train_demos(6, 2, 20).write(&train).unwrap();
+    let run = dir.join("bc");
+    let mut args = vec![
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--updates",
+        "400",
+        "--eval-every",
+        "0",
+        "--hidden",
+        "16,16",
+    ];
+    if quiet {
+        args.push("--quiet");
+    }
+    let out = smile_env(&args, env);
+    (train, run, out)
+}
+
+#[test]
+fn errors_are_one_line_that_says_what_to_do() {
+    let dir = tmp("errors");
+    let missing = dir.join("missing.safetensors");
+    // A missing file: the flag, the file and the OS error once.
+    let line = one_line_error(&smile_env(
+        &["train", "--demos", s(&missing), "-o", s(&dir.join("r"))],
+        &[],
+    ));
+    assert!(line.contains(&format!("--demos {}", s(&missing))), "{line}");
+    assert_eq!(line.matches("No such file").count(), 1, "{line}");
+    assert_eq!(line.matches(s(&missing)).count(), 1, "{line}");
+
+    // Demos of another family than --env (default point-goal): the file, the flag, the --env.
+    let cheetah = dir.join("cheetah-test.safetensors");
+    cheetah_test_demos(&cheetah);
+    let line = one_line_error(&smile_env(
+        &["train", "--demos", s(&cheetah), "-o", s(&dir.join("r"))],
+        &[],
+    ));
+    assert!(
+        line.contains(&format!("--demos {} holds cheetah-vel demos", s(&cheetah)))
+            && line.contains("pass --env cheetah-vel"),
+        "{line}"
+    );
+    assert!(!dir.join("r").exists());
+
+    // A policy trained on another family than --env says which --env to pass.
+    let (_, run, out) = tiny_run(&dir, true, &[]);
+    common::ok(&out);
+    let line = one_line_error(&smile_env(
+        &[
+            "eval",
+            "--policy",
+            s(&run),
+            "--env",
+            "cheetah-vel",
+            "--contexts",
+            s(&cheetah),
+            "-o",
+            s(&dir.join("ev")),
+        ],
+        &[],
+    ));
+    assert!(
+        line.contains("was trained on point-goal") && line.contains("pass --env point-goal"),
+        "{line}"
+    );
+
+    // Not configuration: no "invalid config:".
+    let line = one_line_error(&smile_env(
+        &[
+            "quickstart",
+            "--env",
+            "walker-dyn",
+            "--out",
+            s(&dir.join("qs")),
+        ],
+        &[],
+    ));
+    assert!(
+        !line.contains("invalid config") && line.contains("--budget"),
+        "{line}"
+    );
+    let line = one_line_error(&smile_env(
+        &[
+            "export",
+            "--policy",
+            s(&run),
+            "--quant",
+            "w9",
+            "--contexts",
+            s(&cheetah),
+            "-o",
+            "x",
+        ],
+        &[],
+    ));
+    assert!(
+        !line.contains("invalid config") && line.contains("w8a8"),
+        "{line}"
+    );
+    // Configuration: "invalid config:".
+    let line = one_line_error(&smile_env(
+        &["expert", "--batch-size", "0", "-o", s(&dir.join("ex"))],
+        &[],
+    ));
+    assert!(
+        line.starts_with("error: invalid config: sac.batch_size"),
+        "{line}"
+    );
+
+    // RUST_BACKTRACE asks for the whole chain.
+    let out = smile_env(
+        &["train", "--demos", s(&missing), "-o", s(&dir.join("r"))],
+        &[("RUST_BACKTRACE", "1")],
+    );
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.starts_with("error: ") && err.lines().count() > 1,
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_piped_run_prints_plain_progress_lines() {
+    let dir = tmp("progress");
+    let interval = [("SMILE_PROGRESS_INTERVAL_S", "0.05")];
+    let (_, _, out) = tiny_run(&dir, false, &interval);
+    let err = common::ok(&out);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("[progress] "))
+        .unwrap_or_else(|| panic!("no progress line in: {err}"));
+    assert!(
+        line.contains("/400 steps (") && line.contains("ETA "),
+        "{line}"
+    );
+    // --quiet prints none.
+    let quiet_dir = dir.join("quiet");
+    std::fs::create_dir_all(&quiet_dir).unwrap();
+    let (_, _, out) = tiny_run(&quiet_dir, true, &interval);
+    let err = common::ok(&out);
+    assert!(!err.contains("[progress]"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,86 @@
+//! The README and `smile --help` agree: every flag a README `smile` command uses is one its
+//! subcommand's `--help` lists, the help's expert examples include the README's expert
+//! command, and `--help` shows the defaults of `--env` and `-o`.
+
+mod common;
+use common::{ok, smile};
+
+fn readme() -> String {
+    let path = format!("{}/../README.md", env!("CARGO_MANIFEST_DIR"));
+    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+}
+
+fn help(args: &[&str]) -> String {
+    let out = smile(args);
+    ok(&out);
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+/// The README's `smile <sub> ...` commands (code lines and inline commands), as token lists.
+fn readme_commands(text: &str) -> Vec<Vec<String>> {
+    let mut commands = Vec::new();
+    for line in text.lines() {
+        for (i, _) in line.match_indices("smile ") {
+            let rest = &line[i + "smile ".len()..];
+            let end = rest.find(['`', '#', ';']).unwrap_or(rest.len());
+            let tokens: Vec<String> = rest[..end].split_whitespace().map(String::from).collect();
+            let sub = [
+                "expert",
+                "demos",
+                "train",
+                "eval",
+                "export",
+                "quickstart",
+                "bench",
+            ];
+            if tokens.first().is_some_and(|t| sub.contains(&t.as_str())) {
+                commands.push(tokens);
+            }
+        }
+    }
+    commands
+}
+
+#[test]
+fn readme_commands_use_flags_the_help_lists() {
+    let text = readme();
+    let commands = readme_commands(&text);
+    assert!(commands.len() >= 12, "{commands:?}");
+    for tokens in &commands {
+        let sub = tokens[0].as_str();
+        let h = help(&[sub, "--help"]);
+        for flag in tokens.iter().filter(|t| t.starts_with("--")) {
+            assert!(
+                h.contains(&format!("{flag} ")) || h.contains(&format!("{flag}\n")),
+                "README: smile {} uses {flag}, which `smile {sub} --help` does not list",
+                tokens.join(" ")
+            );
+        }
+    }
+    // The README's point-goal expert command is one of the help's examples.
+    let expert = help(&["expert", "--help"]);
+    let line = "smile expert --env point-goal --total-steps 30000 -o runs/pg-expert";
+    assert!(text.contains(line) && expert.contains(line), "{expert}");
+    assert!(
+        expert.contains("smile expert --env cheetah-vel --horizon 1000"),
+        "{expert}"
+    );
+}
+
+#[test]
+fn help_shows_the_defaults_of_env_and_out() {
+    let expert = help(&["expert", "--help"]);
+    assert!(expert.contains("[default: point-goal"), "{expert}");
+    assert!(expert.contains("[default: runs/expert-<env>"), "{expert}");
+    for (sub, out) in [
+        ("train", None),
+        ("eval", Some("eval")),
+        ("quickstart", Some("runs/quickstart")),
+    ] {
+        let h = help(&[sub, "--help"]);
+        assert!(h.contains("[default: point-goal]"), "{sub}: {h}");
+        if let Some(out) = out {
+            assert!(h.contains(&format!("[default: {out}]")), "{sub}: {h}");
+        }
+    }
+}
