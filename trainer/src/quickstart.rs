@@ -8,8 +8,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use clap::ValueEnum;
-use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, trace};
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
@@ -25,6 +23,7 @@ use crate::model::MetaPolicy;
 use crate::{Error, Result};
 use indicatif::MultiProgress;
 
+mod device;
 mod report;
 
 pub use report::Summary;
@@ -425,72 +424,6 @@ fn evaluate(
     Ok(r)
 }
 
-/// Runs the blob on the simulated device, taught the first demo of test task `index`.
-fn device_run(
-    args: &QuickstartConfig,
-    blob: &[u8],
-    test: &DemoDataset,
-    dir: &Path,
-) -> Result<firmware_sim::RunReport> {
-    let task = args.env.test_tasks()[3 % args.env.test_tasks().len()];
-    let demo = eval::contexts_for(test, args.env, &[task])?[0].trajectories[0].clone();
-    let config = DeviceConfig::default();
-    let mut device = Device::new(config);
-    let mut link = SimLink::new(LinkConfig {
-        corrupt_probability: 0.01,
-        seed: args.seed,
-        ..LinkConfig::default()
-    });
-    host::upload_blob(&mut link, &mut device, blob).map_err(device_err)?;
-    let model =
-        infer_core::Model::from_bytes(device.blob().map_err(device_err)?).map_err(device_err)?;
-    let mut controller = Controller::new(&model, config).map_err(device_err)?;
-    host::teach(
-        &mut link,
-        &mut controller,
-        &[&demo],
-        test.obs_dim,
-        test.act_dim,
-    )
-    .map_err(device_err)?;
-    let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
-    let mut plant = sim::make_env(args.env, env_config(args))?;
-    let loop_config = LoopConfig {
-        sensing: match args.sensing {
-            DeviceSensing::Full => firmware_sim::Sensing::Full,
-            DeviceSensing::Positions => firmware_sim::Sensing::POSITIONS,
-        },
-        seed: args.seed,
-        noise_std: 0.005,
-        adc_bits: Some(12),
-        adc_range: 4.0,
-        ..LoopConfig::default()
-    };
-    let report = firmware_sim::run(&mut controller, plant.as_mut(), &task, &loop_config)
-        .map_err(device_err)?;
-    std::fs::create_dir_all(dir).map_err(io(dir))?;
-    let csv = dir.join("trace.csv");
-    trace::write_csv(&csv, &report, &z).map_err(io(&csv))?;
-    trace::write_plot(&dir.join("plot.svg"), &report).map_err(device_err)?;
-    let summary = trace::summary(
-        &report,
-        blob.len(),
-        config.flash_bytes,
-        ram_needed(),
-        config.ram_bytes,
-    );
-    write(&dir.join("summary.txt"), format!("{summary}\n"))?;
-    eprintln!(
-        "{}",
-        summary
-            .lines()
-            .map(|l| format!("  {l}"))
-            .collect::<Vec<_>>()
-            .join("\n")
-    );
-    Ok(report)
-}
-
 /// Runs the whole pipeline; returns what it measured (also in `out/summary.json`).
 pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
@@ -626,7 +559,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         6,
         "firmware-sim: the blob on a simulated device, taught one test demo",
     );
-    let device = device_run(args, &blob, &test, &out.join("device"))?;
+    let device = device::device_run(args, &blob, &test, &out.join("device"))?;
 
     let (_, median, p99, _) = device.compute_percentiles();
     let summary = Summary {
@@ -668,43 +601,4 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
-        let cheetah = QuickstartConfig {
-            env: Family::CheetahVel,
-            ..QuickstartConfig::default()
-        };
-        let dir = shipped(&cheetah).expect("assets/experts/cheetah-vel is in the repository");
-        assert!(dir.ends_with("assets/experts/cheetah-vel"));
-        assert_eq!(horizon(&cheetah), None, "the family's 1000 steps");
-        check_budget(&cheetah).unwrap();
-        // Elsewhere, or at the tiny budget, it trains its own expert on 200-step episodes.
-        for other in [
-            QuickstartConfig {
-                assets: Some(PathBuf::from("/nonexistent")),
-                ..cheetah.clone()
-            },
-            QuickstartConfig {
-                budget: Budget::Tiny,
-                ..cheetah.clone()
-            },
-        ] {
-            assert_eq!(shipped(&other), None);
-            assert_eq!(horizon(&other), Some(200));
-        }
-        let no_assets = QuickstartConfig {
-            assets: Some(PathBuf::from("/nonexistent")),
-            ..cheetah
-        };
-        let err = check_budget(&no_assets).unwrap_err().to_string();
-        assert!(err.contains("no shipped one"), "{err}");
-        assert_eq!(
-            shipped(&QuickstartConfig::default()),
-            None,
-            "point-goal is scripted"
-        );
-    }
-}
+mod tests;

@@ -1,0 +1,40 @@
+//! The quickstart's choice of expert, demos and horizon per family and budget.
+
+use super::*;
+
+#[test]
+fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
+    let cheetah = QuickstartConfig {
+        env: Family::CheetahVel,
+        ..QuickstartConfig::default()
+    };
+    let dir = shipped(&cheetah).expect("assets/experts/cheetah-vel is in the repository");
+    assert!(dir.ends_with("assets/experts/cheetah-vel"));
+    assert_eq!(horizon(&cheetah), None, "the family's 1000 steps");
+    check_budget(&cheetah).unwrap();
+    // Elsewhere, or at the tiny budget, it trains its own expert on 200-step episodes.
+    for other in [
+        QuickstartConfig {
+            assets: Some(PathBuf::from("/nonexistent")),
+            ..cheetah.clone()
+        },
+        QuickstartConfig {
+            budget: Budget::Tiny,
+            ..cheetah.clone()
+        },
+    ] {
+        assert_eq!(shipped(&other), None);
+        assert_eq!(horizon(&other), Some(200));
+    }
+    let no_assets = QuickstartConfig {
+        assets: Some(PathBuf::from("/nonexistent")),
+        ..cheetah
+    };
+    let err = check_budget(&no_assets).unwrap_err().to_string();
+    assert!(err.contains("no shipped one"), "{err}");
+    assert_eq!(
+        shipped(&QuickstartConfig::default()),
+        None,
+        "point-goal is scripted"
+    );
+}
