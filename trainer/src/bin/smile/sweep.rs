@@ -99,13 +99,14 @@ pub fn run(a: SweepArgs) -> Result<()> {
     };
     let sweep = Sweep::load(&plan)?;
     if a.dry_run {
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
         for c in &sweep.cells {
-            println!(
-                "{:>4}  {:<10} {}",
-                c.index,
-                format!("{:?}", sweep::status(&sweep, c)).to_lowercase(),
-                c.name
-            );
+            let status = format!("{:?}", sweep::status(&sweep, c)).to_lowercase();
+            // A closed pipe (`| head`) ends the listing quietly.
+            if writeln!(out, "{:>4}  {status:<10} {}", c.index, c.name).is_err() {
+                break;
+            }
         }
         return Ok(());
     }
