@@ -7,10 +7,7 @@ use common::{ok, smile};
 use std::path::{Path, PathBuf};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("smile-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("smile-cli", name)
 }
 
 fn last_metrics(dir: &Path) -> serde_json::Value {

@@ -11,15 +11,10 @@ use std::process::{Command, Output};
 use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("smile-cli-msg-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("smile-cli-msg", name)
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::s;
 
 /// `smile` with stdout and stderr piped (stderr is not a terminal), RUST_BACKTRACE unset and
 /// the extra environment `env`.

@@ -6,20 +6,15 @@
 mod common;
 use common::{ok, smile};
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use sim::{DemoDataset, Family, Split, Task};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("smile-cli-tasks-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("smile-cli-tasks", name)
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::s;
 
 /// Test goal 1 (0.490874 rad) as its label prints it.
 const LABEL_VALUE: &str = "0.4909";

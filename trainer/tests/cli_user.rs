@@ -11,15 +11,10 @@ use std::path::{Path, PathBuf};
 use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("smile-cli-user-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("smile-cli-user", name)
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::s;
 
 /// Cheetah-vel "demos" of a fixed open-loop action: only their family and shapes matter here.
 fn cheetah_demos(path: &Path) {

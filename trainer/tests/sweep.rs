@@ -13,10 +13,7 @@ use std::time::{Duration, Instant};
 use sim::{Family, Split};
 
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("smile-sweep-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
+    common::fresh_dir("smile-sweep", name)
 }
 
 /// Point-goal PD demos (train: 8 tasks x 2, test: all 16 x 1) and a plan over them in `dir`.

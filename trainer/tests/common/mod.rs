@@ -5,6 +5,20 @@ use std::process::{Command, Output};
 
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
+/// A new, empty directory `<temp>/<prefix>-<name>-<pid>` (removed first if a previous run left
+/// it behind).
+pub fn fresh_dir(prefix: &str, name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("{prefix}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A path as a `&str` argument.
+pub fn s(p: &std::path::Path) -> &str {
+    p.to_str().unwrap()
+}
+
 /// Runs the `smile` binary built for these tests.
 pub fn smile(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_smile"))
