@@ -8,7 +8,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+use sim::{Family, Split};
 
 fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-cli-msg", name)
@@ -44,20 +44,9 @@ fn one_line_error(out: &Output) -> String {
 /// Cheetah-vel test-split "demos" of an open-loop action: only family, split and shapes matter.
 fn cheetah_test_demos(path: &Path) {
     let fam = Family::CheetahVel;
-    let mut ds = DemoDataset::new(fam, Split::Test, "open-loop");
-    let cfg = EnvConfig {
-        horizon: Some(5),
-        ..EnvConfig::default()
-    };
-    let mut env = sim::make_env(fam, cfg).unwrap();
-    for task in fam.test_tasks() {
-        let tr = sim::record_trajectory(env.as_mut(), &task, 0, |_, a| a.fill(0.1)).unwrap();
-        ds.tasks.push(TaskDemos {
-            task,
-            trajectories: vec![tr],
-        });
-    }
-    ds.write(path).unwrap();
+    common::open_loop_demos(fam, Split::Test, fam.test_tasks(), 5)
+        .write(path)
+        .unwrap();
 }
 
 /// Point-goal train demos of 6 goals and a tiny Meta-BC run on them, in `dir`.

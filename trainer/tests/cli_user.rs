@@ -8,7 +8,7 @@ use common::{ok, smile};
 
 use std::path::{Path, PathBuf};
 
-use sim::{DemoDataset, EnvConfig, Family, Split, TaskDemos};
+use sim::{Family, Split};
 
 fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-cli-user", name)
@@ -19,20 +19,9 @@ use common::s;
 /// Cheetah-vel "demos" of a fixed open-loop action: only their family and shapes matter here.
 fn cheetah_demos(path: &Path) {
     let fam = Family::CheetahVel;
-    let mut ds = DemoDataset::new(fam, Split::Train, "open-loop");
-    let cfg = EnvConfig {
-        horizon: Some(5),
-        ..EnvConfig::default()
-    };
-    let mut env = sim::make_env(fam, cfg).unwrap();
-    for task in fam.train_tasks().into_iter().take(2) {
-        let tr = sim::record_trajectory(env.as_mut(), &task, 0, |_, a| a.fill(0.1)).unwrap();
-        ds.tasks.push(TaskDemos {
-            task,
-            trajectories: vec![tr],
-        });
-    }
-    ds.write(path).unwrap();
+    common::open_loop_demos(fam, Split::Train, fam.train_tasks()[..2].to_vec(), 5)
+        .write(path)
+        .unwrap();
 }
 
 /// A tiny Meta-BC run on point-goal demos in `dir/bc`; returns (run dir, train demos, test demos).

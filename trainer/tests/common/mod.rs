@@ -61,6 +61,30 @@ pub fn pd_demos(split: Split, tasks: Vec<Task>, per_task: usize, horizon: usize)
     ds
 }
 
+/// One `horizon`-step trajectory of a fixed open-loop action (0.1 everywhere) per task of
+/// `family`, labelled `split`: "demos" whose family, split and shapes are all that matter.
+pub fn open_loop_demos(
+    family: Family,
+    split: Split,
+    tasks: Vec<Task>,
+    horizon: usize,
+) -> DemoDataset {
+    let mut ds = DemoDataset::new(family, split, "open-loop");
+    let env_config = EnvConfig {
+        horizon: Some(horizon),
+        ..EnvConfig::default()
+    };
+    let mut env = sim::make_env(family, env_config).unwrap();
+    for task in tasks {
+        let tr = sim::record_trajectory(env.as_mut(), &task, 0, |_, a| a.fill(0.1)).unwrap();
+        ds.tasks.push(TaskDemos {
+            task,
+            trajectories: vec![tr],
+        });
+    }
+    ds
+}
+
 /// Meta-train demos of the first `tasks` point-goal train goals.
 pub fn train_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     pd_demos(
