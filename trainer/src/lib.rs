@@ -58,9 +58,9 @@ pub use optim::{Adam, AdamConfig};
 
 /// Demos, the meta-train split, task and context sampling, rollouts and replay.
 pub use data::{
-    ActFn, Batch, BatchVecs, DemoSpec, Episode, MetaData, ReplayBuffer, Step, TaskReplay, better,
-    distinct_tasks, quick_eval, record as record_demos, record_with as record_demos_with,
-    run_episode, sample_context,
+    ActFn, Batch, BatchVecs, ContextDraw, DemoSpec, Episode, MetaData, ReplayBuffer, Step,
+    TaskReplay, better, distinct_tasks, quick_eval, record as record_demos,
+    record_with as record_demos_with, run_episode, sample_context,
 };
 
 /// Checkpoints and blob export keep their namespaces (`checkpoint::load`, `export::verify`).

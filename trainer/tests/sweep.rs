@@ -88,6 +88,16 @@ fn bad_plans_are_refused_before_anything_runs() {
             out.display()
         );
     }
+    // Missing data passes only the unchecked load; a missing config never does.
+    let p = dir.join("bad.toml");
+    let no_data = good.replace("\"test.safetensors\"", "\"missing.safetensors\"");
+    std::fs::write(&p, no_data).unwrap();
+    assert!(trainer::sweep::Sweep::load(&p).is_err());
+    assert!(trainer::sweep::Sweep::load_unchecked(&p).is_ok());
+    let no_config = good.replace("[algo.smile]", "[algo.smile]\nconfig = \"nope.toml\"");
+    std::fs::write(&p, no_config).unwrap();
+    let e = trainer::sweep::Sweep::load_unchecked(&p).unwrap_err();
+    assert!(e.to_string().contains("config file"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
@@ -284,6 +294,7 @@ fn slurm_array_runs_the_cells_and_the_report() {
 }
 
 /// The plans behind docs/RESULTS.md expand (their files exist, their configs validate).
+/// Only data under `runs/` may be missing (recorded by the command in the plan's header).
 #[test]
 fn the_docs_plans_load() {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/plans");
@@ -291,9 +302,23 @@ fn the_docs_plans_load() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            let sweep = trainer::sweep::Sweep::load(&path)
+            let sweep = trainer::sweep::Sweep::load_unchecked(&path)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             assert!(!sweep.cells.is_empty(), "{}", path.display());
+            if let Err(e) = trainer::sweep::Sweep::load(&path) {
+                let (msg, text) = (e.to_string(), std::fs::read_to_string(&path).unwrap());
+                let missing = msg
+                    .split_whitespace()
+                    .find(|w| w.contains("/runs/"))
+                    .unwrap_or_else(|| panic!("{}: {msg}", path.display()));
+                let name = Path::new(missing).file_name().unwrap().to_string_lossy();
+                assert!(
+                    text.lines()
+                        .any(|l| l.contains("smile demos") && l.contains(&*name)),
+                    "{}: {name} is neither there nor recorded by a command in the plan",
+                    path.display()
+                );
+            }
             n += 1;
         }
     }

@@ -224,7 +224,7 @@ impl MetaBc {
         for &ti in &tasks {
             specs.push(sample_context(
                 &self.data.train[ti],
-                self.cfg.max_context,
+                self.cfg.context_draw(),
                 &mut self.rng,
             ));
             let p = &self.pairs[ti];
@@ -270,7 +270,7 @@ impl MetaBc {
         let mp = self.meta_policy();
         for _ in 0..n {
             let ti = self.rng.random_range(0..self.data.train.len());
-            let spec = sample_context(&self.data.train[ti], self.cfg.max_context, &mut self.rng);
+            let spec = sample_context(&self.data.train[ti], self.cfg.context_draw(), &mut self.rng);
             let ctx: Vec<_> = spec.trajectories[..spec.k].to_vec();
             let z = mp.latent(&ctx)?;
             let task = self.data.train[ti].task;

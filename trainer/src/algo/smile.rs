@@ -208,7 +208,7 @@ impl Smile {
 
     /// One rollout in training task `ti` with a sampled context and z; stored in its replay.
     pub fn rollout(&mut self, ti: usize) -> Result<()> {
-        let spec = sample_context(&self.data.train[ti], self.cfg.max_context, &mut self.rng);
+        let spec = sample_context(&self.data.train[ti], self.cfg.context_draw(), &mut self.rng);
         let b = self.encoder.batch(&self.data.norm, &[spec])?;
         let z = self
             .encoder
@@ -262,7 +262,7 @@ impl Smile {
         let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
         for &ti in &tasks {
             let demos = &self.data.train[ti];
-            specs.push(sample_context(demos, cfg.max_context, &mut self.rng));
+            specs.push(sample_context(demos, cfg.context_draw(), &mut self.rng));
             // Expert rows: uniform over the task's demo transitions.
             let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
             let total: usize = lens.iter().sum();
@@ -377,7 +377,7 @@ impl Smile {
         let n = cfg.sac_per_task;
         let specs: Vec<ContextSpec<'_>> = tasks
             .iter()
-            .map(|&ti| sample_context(&self.data.train[ti], cfg.max_context, &mut self.rng))
+            .map(|&ti| sample_context(&self.data.train[ti], cfg.context_draw(), &mut self.rng))
             .collect();
         let b = self.encoder.batch(&self.data.norm, &specs)?;
         // z from the discriminator's encoder, detached: SAC never updates the encoder.

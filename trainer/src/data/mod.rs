@@ -9,4 +9,4 @@ mod split;
 pub use demos::{DemoSpec, record, record_with};
 pub use replay::{Batch, BatchVecs, ReplayBuffer, TaskReplay};
 pub use rollout::{ActFn, Episode, Step, better, quick_eval, run_episode};
-pub use split::{MetaData, distinct_tasks, sample_context};
+pub use split::{ContextDraw, MetaData, distinct_tasks, sample_context};

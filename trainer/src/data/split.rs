@@ -78,18 +78,54 @@ impl MetaData {
     }
 }
 
-/// A context of up to `max` distinct trajectories of `demos` in random order, with `k` drawn
-/// uniformly from `1..=n` (the reference's few-shot mask).
-pub fn sample_context<'a>(demos: &'a TaskDemos, max: usize, rng: &mut impl Rng) -> ContextSpec<'a> {
+/// How training draws a context from a task's demos.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ContextDraw {
+    /// Most trajectories per context (`k` is uniform in `1..=` the number drawn).
+    pub max_trajectories: usize,
+    /// Most transitions encoded per trajectory, drawn at random without replacement each time
+    /// (an unbiased estimate of the per-trajectory mean the encoder takes); 0 = all of them.
+    pub max_steps: usize,
+}
+
+/// A context of up to `draw.max_trajectories` distinct trajectories of `demos` in random
+/// order, with `k` drawn uniformly from `1..=n` (the reference's few-shot mask), and, when
+/// `draw.max_steps > 0`, that many random transitions of each unmasked trajectory longer
+/// than it. With `max_steps == 0` the random draws are exactly those of earlier versions.
+pub fn sample_context<'a>(
+    demos: &'a TaskDemos,
+    draw: ContextDraw,
+    rng: &mut impl Rng,
+) -> ContextSpec<'a> {
     let mut trajectories: Vec<&Trajectory> = demos
         .trajectories
         .iter()
         .filter(|t| !t.is_empty())
         .collect();
     trajectories.shuffle(rng);
-    trajectories.truncate(max.max(1));
+    trajectories.truncate(draw.max_trajectories.max(1));
     let k = rng.random_range(1..=trajectories.len());
-    ContextSpec { trajectories, k }
+    let mut steps = Vec::new();
+    if draw.max_steps > 0 && trajectories[..k].iter().any(|t| t.len() > draw.max_steps) {
+        steps = trajectories[..k]
+            .iter()
+            .map(|t| {
+                let n = t.len();
+                if n <= draw.max_steps {
+                    (0..n).collect()
+                } else {
+                    let mut idx = rand::seq::index::sample(rng, n, draw.max_steps).into_vec();
+                    idx.sort_unstable();
+                    idx
+                }
+            })
+            .collect();
+    }
+    ContextSpec {
+        trajectories,
+        k,
+        steps,
+    }
 }
 
 /// `n` distinct task indices out of `0..len` (all of them, shuffled, if `n >= len`).
@@ -148,5 +184,42 @@ mod tests {
         let md = MetaData::from_dataset(&ok, fam, 4).unwrap();
         assert_eq!((md.train.len(), md.val.len()), (6, 2));
         assert_eq!(md.val[0].task, fam.train_tasks()[3]);
+    }
+
+    #[test]
+    fn context_draws_cap_the_steps_of_unmasked_trajectories() {
+        use rand::SeedableRng;
+        let fam = Family::PointGoal;
+        let mut ds = dataset(Split::Train, fam.train_tasks()[..1].to_vec());
+        let tr = ds.tasks[0].trajectories[0].clone();
+        ds.tasks[0].trajectories = vec![tr.clone(), tr.clone(), tr];
+        let demos = &ds.tasks[0];
+        let draw = |max_steps| ContextDraw {
+            max_trajectories: 2,
+            max_steps,
+        };
+        // 0 = every step: no step lists and the same draws as a cap that never bites.
+        let mut a = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let mut b = a.clone();
+        for _ in 0..20 {
+            let (x, y) = (
+                sample_context(demos, draw(0), &mut a),
+                sample_context(demos, draw(5), &mut b),
+            );
+            assert!(x.steps.is_empty() && y.steps.is_empty());
+            assert_eq!((x.k, x.trajectories.len()), (y.k, 2));
+        }
+        // A cap of 3 of 5 steps: one sorted list of 3 distinct steps per unmasked trajectory.
+        let mut seen = std::collections::BTreeSet::new();
+        for _ in 0..50 {
+            let c = sample_context(demos, draw(3), &mut a);
+            assert_eq!(c.steps.len(), c.k);
+            for idx in &c.steps {
+                assert_eq!(idx.len(), 3);
+                assert!(idx.windows(2).all(|w| w[0] < w[1]) && idx[2] < 5);
+                seen.insert(idx.clone());
+            }
+        }
+        assert!(seen.len() > 3, "the steps are redrawn: {seen:?}");
     }
 }

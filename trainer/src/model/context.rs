@@ -137,13 +137,24 @@ pub struct ContextSpec<'a> {
     pub trajectories: Vec<&'a Trajectory>,
     /// How many of them are unmasked.
     pub k: usize,
+    /// Either empty (every transition of the unmasked trajectories is encoded) or, per unmasked
+    /// trajectory, the indices of the transitions that stand for it.
+    pub steps: Vec<Vec<usize>>,
 }
 
 impl<'a> ContextSpec<'a> {
-    /// All of `trajectories`, unmasked.
+    /// All of `trajectories`, unmasked, every transition.
     pub fn all(trajectories: Vec<&'a Trajectory>) -> Self {
-        let k = trajectories.len();
-        Self { trajectories, k }
+        Self::first(trajectories.len(), trajectories)
+    }
+
+    /// The first `k` of `trajectories` unmasked, every transition.
+    pub fn first(k: usize, trajectories: Vec<&'a Trajectory>) -> Self {
+        Self {
+            trajectories,
+            k,
+            steps: Vec::new(),
+        }
     }
 }
 
@@ -238,14 +249,34 @@ impl ContextEncoder {
         let mut rows = Vec::new();
         let mut owner: Vec<(usize, f32)> = Vec::new(); // (context, weight) per row
         for (c, spec) in contexts.iter().enumerate() {
-            for (j, t) in spec.trajectories.iter().enumerate() {
-                let n = t.len();
-                let w = if j < spec.k && n > 0 {
-                    1.0 / n as f32
-                } else {
-                    0.0
+            if !spec.steps.is_empty() && spec.steps.len() != spec.k.min(spec.trajectories.len()) {
+                return Err(Error::Data(format!(
+                    "context {c}: {} step lists for {} unmasked trajectories",
+                    spec.steps.len(),
+                    spec.k
+                )));
+            }
+            // Masked trajectories (j >= k) weigh 0 in the sum: they are not encoded at all.
+            for (j, t) in spec.trajectories.iter().take(spec.k).enumerate() {
+                let all: Vec<usize>;
+                let idx = match spec.steps.get(j) {
+                    Some(idx) => idx,
+                    None => {
+                        all = (0..t.len()).collect();
+                        &all
+                    }
                 };
-                for i in 0..n {
+                if idx.is_empty() {
+                    continue;
+                }
+                let w = 1.0 / idx.len() as f32;
+                for &i in idx {
+                    if i >= t.len() {
+                        return Err(Error::Data(format!(
+                            "context {c}: step {i} of a {}-step trajectory",
+                            t.len()
+                        )));
+                    }
                     self.push_row(norm, t, i, &mut rows);
                     owner.push((c, w));
                 }
@@ -435,15 +466,9 @@ pub(crate) mod tests {
             .batch(
                 &norm,
                 &[
-                    ContextSpec {
-                        trajectories: vec![&trajs[0], &trajs[1], &junk, &trajs[3]],
-                        k: 2,
-                    },
+                    ContextSpec::first(2, vec![&trajs[0], &trajs[1], &junk, &trajs[3]]),
                     ContextSpec::all(two.clone()),
-                    ContextSpec {
-                        trajectories: vec![&trajs[0], &trajs[1]],
-                        k: 1,
-                    },
+                    ContextSpec::first(1, vec![&trajs[0], &trajs[1]]),
                 ],
             )
             .unwrap();
@@ -463,5 +488,51 @@ pub(crate) mod tests {
         let twice = enc.latent(&norm, &[&trajs[0], &trajs[0]]).unwrap();
         let doubled: Vec<f32> = once.iter().map(|v| 2.0 * v).collect();
         assert!(close(&twice, &doubled, 1e-5));
+    }
+
+    #[test]
+    fn step_lists_encode_exactly_those_transitions() {
+        let (enc, norm, trajs) = setup(false);
+        let (t0, t1) = (&trajs[3], &trajs[1]); // 6 and 4 steps
+        let every = |t: &Trajectory| (0..t.len()).collect::<Vec<usize>>();
+        // Every index listed: the same latent as the whole trajectories.
+        let full = enc.latent(&norm, &[t0, t1]).unwrap();
+        let listed = ContextSpec {
+            trajectories: vec![t0, t1],
+            k: 2,
+            steps: vec![every(t0), every(t1)],
+        };
+        let (mu, _) = enc
+            .posterior(&enc.batch(&norm, &[listed]).unwrap())
+            .unwrap();
+        assert!(close(&mu.to_vec2::<f32>().unwrap()[0], &full, 1e-5));
+        // A subset: the same latent as a trajectory made of just those transitions.
+        let pick = [0usize, 2, 3];
+        let mut sub = Trajectory::new(0);
+        for &i in &pick {
+            sub.push(i as u32, t0.transition(i, 4, 2).unwrap());
+        }
+        let spec = ContextSpec {
+            trajectories: vec![t0],
+            k: 1,
+            steps: vec![pick.to_vec()],
+        };
+        let (mu, _) = enc.posterior(&enc.batch(&norm, &[spec]).unwrap()).unwrap();
+        let want = enc.latent(&norm, &[&sub]).unwrap();
+        assert!(close(&mu.to_vec2::<f32>().unwrap()[0], &want, 1e-5));
+        assert!(!close(&want, &enc.latent(&norm, &[t0]).unwrap(), 1e-4));
+        // Out-of-range indices and mismatched lists are errors, not panics.
+        let bad = ContextSpec {
+            trajectories: vec![t0],
+            k: 1,
+            steps: vec![vec![t0.len()]],
+        };
+        assert!(enc.batch(&norm, &[bad]).is_err());
+        let bad = ContextSpec {
+            trajectories: vec![t0, t1],
+            k: 2,
+            steps: vec![vec![0]],
+        };
+        assert!(enc.batch(&norm, &[bad]).is_err());
     }
 }

@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
+use crate::data::ContextDraw;
 use crate::model::ContextConfig;
 use crate::{Error, Result};
 
@@ -37,6 +38,12 @@ pub struct MetaBcConfig {
     pub per_task: usize,
     /// Most context trajectories. Default 4.
     pub max_context: usize,
+    /// Most transitions encoded per context trajectory during training, drawn at random
+    /// without replacement at every draw (an unbiased estimate of the encoder's per-trajectory
+    /// mean); 0 = all of them, as the paper. A CPU-budget knob for unsubsampled demos (a
+    /// 1000-step trajectory costs 20x a subsampled one); evaluation always encodes whole
+    /// trajectories. Default 0.
+    pub context_steps: usize,
     /// Maximum gradient steps. Default 20 000.
     pub total_steps: u64,
     /// Hold out every n-th meta-train task for validation. Default 8.
@@ -73,6 +80,7 @@ impl Default for MetaBcConfig {
             tasks_per_batch: 8,
             per_task: 128,
             max_context: 4,
+            context_steps: 0,
             total_steps: 20_000,
             holdout_every: 8,
             eval_every: 250,
@@ -96,6 +104,14 @@ impl MetaBcConfig {
             "meta-dagger"
         } else {
             "meta-bc"
+        }
+    }
+
+    /// How training draws contexts.
+    pub fn context_draw(&self) -> ContextDraw {
+        ContextDraw {
+            max_trajectories: self.max_context,
+            max_steps: self.context_steps,
         }
     }
 

@@ -4,6 +4,7 @@ use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
 use crate::algo::sac::SacConfig;
+use crate::data::ContextDraw;
 use crate::model::ContextConfig;
 use crate::{Error, Result};
 
@@ -38,6 +39,12 @@ pub struct SmileConfig {
     pub sac_per_task: usize,
     /// Most context trajectories (contexts use k in 1..=this). Default 4.
     pub max_context: usize,
+    /// Most transitions encoded per context trajectory during training, drawn at random
+    /// without replacement at every draw (an unbiased estimate of the encoder's per-trajectory
+    /// mean); 0 = all of them, as the paper. A CPU-budget knob for unsubsampled demos (a
+    /// 1000-step trajectory costs 20x a subsampled one); evaluation always encodes whole
+    /// trajectories. Default 0.
+    pub context_steps: usize,
     /// Rollouts per iteration, the paper's `m` (section 3.5, Algorithm 1). Default 5 (ref).
     pub rollouts_per_iter: usize,
     /// Update pairs (1 discriminator + 1 SAC step) per iteration, the paper's `d`. Default
@@ -85,6 +92,7 @@ impl Default for SmileConfig {
             disc_per_task: 64,
             sac_per_task: 64,
             max_context: 4,
+            context_steps: 0,
             rollouts_per_iter: 5,
             updates_per_iter: 100,
             total_updates: 30_000,
@@ -106,6 +114,14 @@ impl SmileConfig {
         self.env
             .parse::<Family>()
             .map_err(|e| Error::Config(e.to_string()))
+    }
+
+    /// How training draws contexts.
+    pub fn context_draw(&self) -> ContextDraw {
+        ContextDraw {
+            max_trajectories: self.max_context,
+            max_steps: self.context_steps,
+        }
     }
 
     /// Episode options.
