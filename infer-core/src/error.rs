@@ -22,6 +22,11 @@ pub enum BlobError {
         /// Version found in the envelope.
         found: u16,
     },
+    /// An older format version that this build no longer reads: re-export the policy.
+    OutdatedVersion {
+        /// Version found in the envelope.
+        found: u16,
+    },
     /// The envelope's payload length disagrees with the bytes given (truncated or extended).
     LengthMismatch {
         /// Payload length declared in the envelope.
@@ -36,7 +41,7 @@ pub enum BlobError {
         /// CRC-32 computed over the payload.
         computed: u32,
     },
-    /// The payload does not decode as blob format v1.
+    /// The payload does not decode as the blob format.
     Decode,
     /// The payload decodes but leaves bytes unread.
     TrailingBytes,
@@ -106,6 +111,12 @@ impl fmt::Display for BlobError {
                 "unsupported blob format version {found} (this build reads {})",
                 crate::format::FORMAT_VERSION
             ),
+            Self::OutdatedVersion { found } => write!(
+                f,
+                "blob format v{found} is no longer read (this build reads v{}): re-export the \
+                 policy with `smile export`",
+                crate::format::FORMAT_VERSION
+            ),
             Self::LengthMismatch { declared, actual } => write!(
                 f,
                 "blob payload is {actual} bytes but the header declares {declared} (truncated or extended)"
@@ -114,7 +125,11 @@ impl fmt::Display for BlobError {
                 f,
                 "blob checksum mismatch (declared {declared:#010x}, computed {computed:#010x}): corrupt blob"
             ),
-            Self::Decode => f.write_str("blob payload does not decode as format v1"),
+            Self::Decode => write!(
+                f,
+                "blob payload does not decode as format v{}",
+                crate::format::FORMAT_VERSION
+            ),
             Self::TrailingBytes => f.write_str("blob payload has trailing bytes after the model"),
             Self::DimMismatch {
                 part,

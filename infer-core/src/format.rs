@@ -1,9 +1,9 @@
-//! Blob format v1: the one definition of the bytes a trained policy travels in.
+//! Blob format v2: the one definition of the bytes a trained policy travels in.
 //!
 //! ```text
 //! offset  size  field
 //! 0       4     magic  b"SMLB"
-//! 4       2     format version, u16 little-endian (= 1)
+//! 4       2     format version, u16 little-endian (= 2)
 //! 6       4     payload length in bytes, u32 little-endian
 //! 10      4     CRC-32 (IEEE) of the payload, u32 little-endian
 //! 14      n     payload: postcard encoding of `Payload`
@@ -13,13 +13,19 @@
 //! loaded [`Model`](crate::Model) borrows its weights from the blob in place: `f32` values are
 //! little-endian and read with `f32::from_le_bytes` (no alignment needed), `i8` weights are
 //! the bytes themselves. Weight matrices are row-major `[out][in]`.
+//!
+//! Version 2 (v1 blobs are refused with [`BlobError::OutdatedVersion`](crate::BlobError)):
+//! a `w8a8` layer quantizes each input channel with its own scale (folded into the stored
+//! weights, so the integer dot product is unchanged), and a layer whose input follows a ReLU
+//! quantizes it as unsigned 8-bit (0..=255), twice the resolution of a signed byte for a
+//! non-negative value.
 
 use serde::{Deserialize, Serialize};
 
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"SMLB";
 /// The blob format version this crate reads and writes.
-pub const FORMAT_VERSION: u16 = 1;
+pub const FORMAT_VERSION: u16 = 2;
 /// Bytes before the payload: magic, version, length, checksum.
 pub const ENVELOPE_LEN: usize = 14;
 /// Most layers one MLP of a blob may have.
@@ -41,8 +47,8 @@ pub enum Quant {
     F32,
     /// `i8` weights, symmetric per output channel with an `f32` scale; `f32` activations.
     W8A32,
-    /// `i8` weights and activations, `i32` accumulation; one calibrated `f32` scale per layer
-    /// input.
+    /// `i8` weights and 8-bit activations, `i32` accumulation; one calibrated `f32` scale
+    /// per input channel, unsigned activations after a ReLU.
     W8A8,
 }
 
@@ -147,11 +153,17 @@ pub(crate) struct LayerRecord<'a> {
     /// `[out]` biases, `f32` LE.
     #[serde(borrow)]
     pub bias: Bytes<'a>,
-    /// `[out]` per-channel weight scales, `f32` LE; empty for F32.
+    /// `[out]` per-channel weight scales, `f32` LE; empty for F32. For W8A8 they include the
+    /// input scales: `y_o = act(ws_o * sum_i w_oi q_i + b_o)`.
     #[serde(borrow)]
     pub weight_scale: Bytes<'a>,
-    /// Input activation scale (W8A8 only; 0 otherwise).
-    pub input_scale: f32,
+    /// `[in]` input activation scales, `f32` LE (W8A8 only; empty otherwise): input `i` is
+    /// quantized as `q_i = round(x_i / s_i)`; a single value is the scale of every input.
+    #[serde(borrow)]
+    pub input_scale: Bytes<'a>,
+    /// W8A8: the input is non-negative (it follows a ReLU) and quantized to `0..=255` instead
+    /// of `-127..=127`. Always false otherwise.
+    pub unsigned_input: bool,
 }
 
 /// The layers of one MLP: at most [`MAX_LAYERS`] are kept. A stored list that is longer is

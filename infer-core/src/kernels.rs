@@ -62,9 +62,30 @@ fn dot_i8_f32(w: &[u8], x: &[f32]) -> f32 {
 /// Integer lanes: 16 int8 products per step map onto one `pmaddwd`-style instruction pair.
 const INT_LANES: usize = 16;
 
-/// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely).
+/// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely);
+/// `x` holds `i8` values as their bytes.
 #[inline]
-fn dot_i8_i8(w: &[u8], x: &[i8]) -> i32 {
+fn dot_i8_i8(w: &[u8], x: &[u8]) -> i32 {
+    let mut acc = [0i32; INT_LANES];
+    let (w_chunks, w_rest) = w.as_chunks::<INT_LANES>();
+    let (x_chunks, x_rest) = x.as_chunks::<INT_LANES>();
+    for (wc, xc) in w_chunks.iter().zip(x_chunks) {
+        for k in 0..INT_LANES {
+            acc[k] += (wc[k] as i8 as i16 * xc[k] as i8 as i16) as i32;
+        }
+    }
+    let tail: i32 = w_rest
+        .iter()
+        .zip(x_rest)
+        .map(|(&wv, &xv)| (wv as i8) as i32 * (xv as i8) as i32)
+        .sum();
+    acc.iter().sum::<i32>() + tail
+}
+
+/// `sum_i w[i] * x[i]` with `i8` weights and unsigned 8-bit inputs, exact in integers
+/// (`|w x| <= 127 * 255` fits an `i16` product before widening).
+#[inline]
+fn dot_i8_u8(w: &[u8], x: &[u8]) -> i32 {
     let mut acc = [0i32; INT_LANES];
     let (w_chunks, w_rest) = w.as_chunks::<INT_LANES>();
     let (x_chunks, x_rest) = x.as_chunks::<INT_LANES>();
@@ -81,6 +102,13 @@ fn dot_i8_i8(w: &[u8], x: &[i8]) -> i32 {
     acc.iter().sum::<i32>() + tail
 }
 
+/// Unsigned 8-bit quantization of one non-negative activation: `x / scale` clamped to
+/// `0..=255` and rounded half up (a negative input, impossible after a ReLU, becomes 0).
+#[inline]
+pub(crate) fn quantize_u8(x: f32, scale: f32) -> u8 {
+    ((x / scale).clamp(0.0, 255.0) + 0.5) as u8
+}
+
 /// Symmetric int8 quantization of one activation: `x / scale` clamped to +-127 and rounded
 /// half away from zero (the cast truncates toward zero; clamping first keeps it in range).
 #[inline]
@@ -91,7 +119,7 @@ pub(crate) fn quantize(x: f32, scale: f32) -> i8 {
 
 /// One dense layer: `y = act(W x + b)`. `x` has `in_dim` values, `y` gets `out_dim`;
 /// `q` is scratch for the quantized input (W8A8 only). Shapes were validated at load time.
-pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f32], q: &mut [i8]) {
+pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f32], q: &mut [u8]) {
     let (n_in, n_out) = (layer.in_dim as usize, layer.out_dim as usize);
     let x = &x[..n_in];
     let bias = F32s(layer.bias.0);
@@ -113,18 +141,31 @@ pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f
             }
         }
         Quant::W8A8 => {
-            let s_in = layer.input_scale;
+            // One scale per input channel, or one for the whole input (a single value).
+            let s_in = F32s(layer.input_scale.0);
+            let per_channel = s_in.len() > 1;
+            let scale_of = |i: usize| s_in.get(if per_channel { i } else { 0 });
             let q = &mut q[..n_in];
-            for (qv, &xv) in q.iter_mut().zip(x) {
-                *qv = quantize(xv, s_in);
+            if layer.unsigned_input {
+                for (i, (qv, &xv)) in q.iter_mut().zip(x).enumerate() {
+                    *qv = quantize_u8(xv, scale_of(i));
+                }
+            } else {
+                for (i, (qv, &xv)) in q.iter_mut().zip(x).enumerate() {
+                    *qv = quantize(xv, scale_of(i)) as u8;
+                }
             }
             let scale = F32s(layer.weight_scale.0);
             for (o, y_o) in y[..n_out].iter_mut().enumerate() {
                 let row = &w[o * n_in..(o + 1) * n_in];
-                let acc = dot_i8_i8(row, q);
+                let acc = if layer.unsigned_input {
+                    dot_i8_u8(row, q)
+                } else {
+                    dot_i8_i8(row, q)
+                };
                 *y_o = layer
                     .activation
-                    .apply(acc as f32 * (scale.get(o) * s_in) + bias.get(o));
+                    .apply(acc as f32 * scale.get(o) + bias.get(o));
             }
         }
     }
@@ -137,7 +178,7 @@ pub(crate) fn mlp(
     quant: Quant,
     a: &mut [f32],
     b: &mut [f32],
-    q: &mut [i8],
+    q: &mut [u8],
 ) -> bool {
     let mut in_b = false;
     for layer in layers {
@@ -149,4 +190,33 @@ pub(crate) fn mlp(
         in_b = !in_b;
     }
     in_b
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unsigned_quantization_rounds_half_up_and_clamps() {
+        assert_eq!(quantize_u8(0.0, 0.5), 0);
+        assert_eq!(quantize_u8(0.24, 0.5), 0);
+        assert_eq!(quantize_u8(0.25, 0.5), 1);
+        assert_eq!(quantize_u8(127.4, 0.5), 255);
+        assert_eq!(quantize_u8(1e9, 0.5), 255);
+        assert_eq!(quantize_u8(-3.0, 0.5), 0);
+    }
+
+    #[test]
+    fn integer_dots_are_exact_at_the_extremes() {
+        // 40 products of -127 * 255 (tail included): no i16 overflow, exact i32 sum.
+        let w = [(-127i8) as u8; 40];
+        let x = [255u8; 40];
+        assert_eq!(dot_i8_u8(&w, &x), -127 * 255 * 40);
+        let xs = [(-127i8) as u8; 40];
+        assert_eq!(dot_i8_i8(&w, &xs), 127 * 127 * 40);
+        // Unsigned bytes above 127 are not read as negative.
+        let w1 = [1u8; 3];
+        assert_eq!(dot_i8_u8(&w1, &[200, 128, 0]), 328);
+        assert_eq!(dot_i8_i8(&w1, &[200, 128, 0]), -56 - 128);
+    }
 }

@@ -3,8 +3,6 @@
 #![warn(missing_docs)]
 #![forbid(unsafe_code)]
 
-#[cfg(feature = "alloc")]
-mod equalise;
 mod error;
 pub mod estimator;
 pub mod format;

@@ -49,6 +49,9 @@ impl<'a> Model<'a> {
             return Err(BlobError::BadMagic);
         }
         let version = u16::from_le_bytes([bytes[4], bytes[5]]);
+        if (1..FORMAT_VERSION).contains(&version) {
+            return Err(BlobError::OutdatedVersion { found: version });
+        }
         if version != FORMAT_VERSION {
             return Err(BlobError::UnsupportedVersion { found: version });
         }
@@ -258,8 +261,17 @@ fn check_layer(part: &'static str, l: &LayerRecord<'_>, quant: Quant) -> Result<
         }
         Quant::W8A32 | Quant::W8A8 => check_vector(part, l.weight_scale.0, o, true)?,
     }
-    if quant == Quant::W8A8 && !(l.input_scale.is_finite() && l.input_scale > 0.0) {
-        return Err(BlobError::NonPositiveScale { part });
+    if quant == Quant::W8A8 {
+        // One scale per input channel, or a single one for all of them.
+        let n = if l.input_scale.0.len() == 4 { 1 } else { i };
+        check_vector(part, l.input_scale.0, n, true)?;
+    } else if !l.input_scale.0.is_empty() || l.unsigned_input {
+        // Canonical form: one encoding per model, so equal models have equal bytes.
+        return Err(BlobError::TensorLength {
+            part,
+            expected: 0,
+            found: l.input_scale.0.len(),
+        });
     }
     Ok(())
 }

@@ -56,7 +56,7 @@ pub struct Policy<'m, 'a, const W: usize> {
     model: &'m Model<'a>,
     a: [f32; W],
     b: [f32; W],
-    q: [i8; W],
+    q: [u8; W],
 }
 
 impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
@@ -134,7 +134,7 @@ pub struct ContextEncoder<'m, 'a, const W: usize> {
     model: &'m Model<'a>,
     a: [f32; W],
     b: [f32; W],
-    q: [i8; W],
+    q: [u8; W],
     trajectory_sum: [f32; W],
     trajectory_steps: u32,
     context_sum: [f32; W],

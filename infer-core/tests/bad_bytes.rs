@@ -121,10 +121,26 @@ fn each_envelope_error_is_named() {
     bad[0] = b'X';
     assert_eq!(Model::from_bytes(&bad).err(), Some(BlobError::BadMagic));
     let mut bad = good.clone();
-    bad[4] = 2;
+    bad[4] = 3;
     assert_eq!(
         Model::from_bytes(&bad).err(),
-        Some(BlobError::UnsupportedVersion { found: 2 })
+        Some(BlobError::UnsupportedVersion { found: 3 })
+    );
+    // A v1 blob (per-layer activation scales) is refused by name, with what to do.
+    let mut old = good.clone();
+    old[4] = 1;
+    let e = Model::from_bytes(&old).unwrap_err();
+    assert_eq!(e, BlobError::OutdatedVersion { found: 1 });
+    assert!(e.to_string().contains("re-export"), "{e}");
+    // The same for a real v1 blob, kept from the v1 golden vectors.
+    let v1 = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/v1-w8a8.blob"
+    ))
+    .unwrap();
+    assert_eq!(
+        Model::from_bytes(&v1).err(),
+        Some(BlobError::OutdatedVersion { found: 1 })
     );
     let mut bad = good.clone();
     let last = bad.len() - 1;

@@ -1,6 +1,6 @@
 //! The writer's answer to inputs that do not fit the model: a named `WriteError` saying
 //! what was expected and what came, never a panic (a user once got "range end index 17 out
-//! of range for slice of length 10" from the equaliser for point-goal calibration rows given
+//! of range for slice of length 10" from the (since removed) equaliser for point-goal calibration rows given
 //! to a cheetah-sized model).
 
 use infer_core::{

@@ -136,15 +136,41 @@ fn non_positive_scales_are_refused_naming_the_part() {
         );
     }
     let a8 = blob(&float(), Quant::W8A8);
-    for input_scale in [0.0, -1.0, f32::NAN] {
+    // The policy's first layer has one scale per input, its hidden layer a single one.
+    let in_dim = decode(&a8).policy[0].in_dim as usize;
+    assert_eq!(decode(&a8).policy[0].input_scale.0.len(), 4 * in_dim);
+    assert_eq!(decode(&a8).policy[1].input_scale.0.len(), 4);
+    for (bad, want) in [
+        (0.0, BlobError::NonPositiveScale { part: "policy" }),
+        (-1.0, BlobError::NonPositiveScale { part: "policy" }),
+        (f32::NAN, BlobError::NonFinite { part: "policy" }),
+    ] {
+        let mut scales = decode(&a8).policy[0].input_scale.0.to_vec();
+        scales[4 * (in_dim - 1)..].copy_from_slice(&bad.to_le_bytes());
         let mut p = decode(&a8);
-        p.policy[1].input_scale = input_scale;
-        assert_eq!(
-            reload(&p),
-            Err(BlobError::NonPositiveScale { part: "policy" }),
-            "input scale {input_scale}"
-        );
+        p.policy[0].input_scale = Bytes(&scales);
+        assert_eq!(reload(&p), Err(want), "input scale {bad}");
     }
+    // One input scale per input channel or a single one; any other count is refused.
+    let two = f32_bytes(&[0.1, 0.2]);
+    let mut p = decode(&a8);
+    p.policy[0].input_scale = Bytes(&two);
+    let first_in = decode(&a8).policy[0].in_dim as usize;
+    assert_eq!(
+        reload(&p),
+        Err(BlobError::TensorLength {
+            part: "policy",
+            expected: 4 * first_in,
+            found: 8
+        })
+    );
+    // Unsigned inputs exist only in w8a8 blobs.
+    let mut p = decode(&q8);
+    p.policy[1].unsigned_input = true;
+    assert!(matches!(
+        reload(&p),
+        Err(BlobError::TensorLength { part: "policy", .. })
+    ));
 }
 
 #[test]

@@ -199,6 +199,10 @@ pub struct Parity {
     pub action_max_abs_diff: f32,
     /// Mean abs difference of actions.
     pub action_mean_abs_diff: f32,
+    /// Mean abs difference of actions when the blob's policy is given the candle z: the
+    /// policy's own share of the error (the rest comes from the blob's z).
+    #[serde(default)]
+    pub action_mean_abs_diff_same_z: f32,
 }
 
 /// Compares the blob with the candle policy on every task of `contexts` (context = the
@@ -211,7 +215,8 @@ pub fn parity(
     let mut mp = mp.clone();
     let ad = contexts.act_dim;
     let (mut zmax, mut amax, mut asum, mut n, mut c) = (0.0f32, 0.0f32, 0.0f64, 0usize, 0usize);
-    let (mut a1, mut a2) = (vec![0.0f32; ad], vec![0.0f32; ad]);
+    let mut same_z_sum = 0.0f64;
+    let (mut a1, mut a2, mut a3) = (vec![0.0f32; ad], vec![0.0f32; ad], vec![0.0f32; ad]);
     for td in &contexts.tasks {
         let Some(first) = td.trajectories.iter().find(|t| !t.is_empty()) else {
             continue;
@@ -227,10 +232,12 @@ pub fn parity(
             for o in t.obs.chunks_exact(contexts.obs_dim) {
                 ConditionedActor::act(&mut mp, o, &zc, &mut a1)?;
                 blob.act(o, &zb, &mut a2)?;
-                for (x, y) in a1.iter().zip(&a2) {
+                blob.act(o, &zc, &mut a3)?;
+                for ((x, y), w) in a1.iter().zip(&a2).zip(&a3) {
                     let d = (x - y).abs();
                     amax = amax.max(d);
                     asum += d as f64;
+                    same_z_sum += (x - w).abs() as f64;
                     n += 1;
                 }
             }
@@ -242,6 +249,7 @@ pub fn parity(
         z_max_abs_diff: zmax,
         action_max_abs_diff: amax,
         action_mean_abs_diff: (asum / n.max(1) as f64) as f32,
+        action_mean_abs_diff_same_z: (same_z_sum / n.max(1) as f64) as f32,
     })
 }
 

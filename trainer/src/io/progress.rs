@@ -93,11 +93,23 @@ pub fn plain_line(pb: &ProgressBar, what: &str) -> String {
     } else {
         format!(" {message}")
     };
+    // The average since the start, not indicatif's decaying estimate: between slow units
+    // (sweep cells of minutes) that one falls to 0/s and its ETA to centuries.
+    let elapsed = pb.elapsed();
+    let rate = pos as f64 / elapsed.as_secs_f64().max(1e-9);
+    let eta = if pos == 0 || len < pos {
+        "?".to_string()
+    } else {
+        hms(Duration::from_secs_f64((len - pos) as f64 / rate))
+    };
     format!(
-        "[progress] {pos}/{len} {what}{percent}, {:.1}/s, elapsed {}, ETA {}{message}",
-        pb.per_sec(),
-        hms(pb.elapsed()),
-        hms(pb.eta()),
+        "[progress] {pos}/{len} {what}{percent}, {}/s, elapsed {}, ETA {eta}{message}",
+        if rate < 0.1 && pos > 0 {
+            format!("{:.4}", rate)
+        } else {
+            format!("{rate:.1}")
+        },
+        hms(elapsed),
     )
 }
 
@@ -117,6 +129,9 @@ mod tests {
             "{line}"
         );
         assert!(line.ends_with(" smile"), "{line}");
+        // Nothing done yet: no made-up ETA.
+        pb.set_position(0);
+        assert!(plain_line(&pb, "cells").contains("ETA ? smile"));
         assert_eq!(hms(Duration::from_secs(3723)), "1:02:03");
     }
 }

@@ -87,8 +87,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let report = export::verify(&mp, &blob, &a.quant, &ctx, &protocol)?;
     let p = &report.parity;
     eprintln!(
-        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}",
-        p.contexts, p.actions, p.action_max_abs_diff, p.action_mean_abs_diff, p.z_max_abs_diff
+        "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}; mean with the float z {:.3e}",
+        p.contexts,
+        p.actions,
+        p.action_max_abs_diff,
+        p.action_mean_abs_diff,
+        p.z_max_abs_diff,
+        p.action_mean_abs_diff_same_z
     );
     eprintln!(
         "{} on {} {} tasks: blob {:.4}, candle {:.4} (relative difference {:+.2}%)",
