@@ -1,7 +1,13 @@
-//! Learner micro-benchmarks, matching `../shared/bench/torch_reference.py` workload `sac`:
-//! one SAC-v2 update (critic, actor, temperature, targets) on a fixed random batch, obs 20 +
-//! z 16, act 6, two hidden layers of width H, batch 256; each update timed on its own and the
-//! median reported. Plus a phase breakdown of one update for profiling.
+//! Learner micro-benchmarks, matching `../shared/bench/torch_reference.py`'s workloads, each
+//! update timed on its own and the median reported:
+//! - `sac`: one SAC-v2 update (critic, actor, temperature, targets) on a fixed random batch,
+//!   obs 20 + z 16, act 6, two hidden layers of width H, batch 256.
+//! - `disc`: one context-encoder + discriminator update, SMILe's own code
+//!   ([`crate::algo::smile`]): 8 tasks, each a context of 4 trajectories x 16 transitions
+//!   `[s, a, s']` through the encoder MLP (H, H) -> r 32, mean over time, sum over
+//!   trajectories, linear head -> z 16 (deterministic); discriminator MLP (H, H) on `[s, a, z]`
+//!   for 128 expert + 128 policy rows per task; BCE with logits + 10 x gradient penalty on
+//!   interpolated `(s, a)`; Adam. (Our head also outputs log-sigma: 32 instead of 16 outputs.)
 
 use std::time::Instant;
 
@@ -11,7 +17,10 @@ use serde::Serialize;
 
 use crate::Result;
 use crate::algo::sac::{Sac, SacConfig};
+use crate::algo::smile::{DiscBatch, DiscLearner, disc_update};
 use crate::data::BatchVecs;
+use crate::model::{ContextConfig, ContextEncoder, ContextSpec, DiscInput, Discriminator, ObsNorm};
+use crate::optim::{Adam, AdamConfig};
 
 /// Shape of the benchmarked SAC update.
 #[derive(Debug, Clone, Copy, Serialize)]
@@ -126,4 +135,196 @@ pub fn sac_fixture(
 pub fn bench_sac_update(shape: SacBenchShape, warmup: usize, iters: usize) -> Result<Timing> {
     let (mut sac, batch, mut rng) = sac_fixture(shape, 0)?;
     time_it(warmup, iters, || sac.update(&batch, &mut rng).map(|_| ()))
+}
+
+/// Shape of the benchmarked discriminator + encoder update (torch_reference's `disc`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct DiscBenchShape {
+    /// Hidden width H of the encoder and discriminator MLPs (two hidden layers each).
+    pub hidden: usize,
+    /// Tasks per batch.
+    pub tasks: usize,
+    /// Context trajectories per task.
+    pub ctx_trajs: usize,
+    /// Transitions per context trajectory.
+    pub ctx_len: usize,
+    /// Expert (and as many policy) rows per task.
+    pub samples: usize,
+    /// Observation dimension.
+    pub obs_dim: usize,
+    /// Action dimension.
+    pub act_dim: usize,
+    /// Per-transition representation dimension.
+    pub r_dim: usize,
+    /// Latent dimension.
+    pub z_dim: usize,
+    /// Gradient-penalty weight.
+    pub gp_weight: f32,
+}
+
+impl DiscBenchShape {
+    /// torch_reference's defaults at width `hidden`: 8 tasks x 4 trajectories x 16 steps,
+    /// 128 samples, obs 20, act 6, r 32, z 16, gradient penalty 10.
+    pub fn reference(hidden: usize) -> Self {
+        Self {
+            hidden,
+            tasks: 8,
+            ctx_trajs: 4,
+            ctx_len: 16,
+            samples: 128,
+            obs_dim: 20,
+            act_dim: 6,
+            r_dim: 32,
+            z_dim: 16,
+            gp_weight: 10.0,
+        }
+    }
+}
+
+/// Median time of one discriminator + encoder update at `shape` on a fixed random batch.
+pub fn bench_disc_step(shape: DiscBenchShape, warmup: usize, iters: usize) -> Result<Timing> {
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let (od, ad, h) = (shape.obs_dim, shape.act_dim, shape.hidden);
+    let cfg = ContextConfig {
+        enc_hidden: vec![h, h],
+        r_dim: shape.r_dim,
+        z_dim: shape.z_dim,
+        head_hidden: vec![],
+        stochastic_z: false,
+        ..ContextConfig::default()
+    };
+    let encoder = ContextEncoder::new(od, ad, cfg, &mut rng)?;
+    let disc = Discriminator::new(
+        od,
+        ad,
+        shape.z_dim,
+        &[h, h],
+        DiscInput::StateAction,
+        10.0,
+        &mut rng,
+    )?;
+    let mut disc_opt = Adam::new(
+        disc.vars().to_vec(),
+        AdamConfig {
+            beta1: 0.0,
+            ..AdamConfig::with_lr(3e-4)
+        },
+    );
+    let mut enc_opt = Adam::new(encoder.vars(), AdamConfig::with_lr(3e-4));
+    let normal = |rng: &mut ChaCha8Rng, n: usize| -> Vec<f32> {
+        (0..n)
+            .map(|_| rng.sample::<f32, _>(rand_distr::StandardNormal))
+            .collect()
+    };
+    let trajectories: Vec<sim::Trajectory> = (0..shape.tasks * shape.ctx_trajs)
+        .map(|_| {
+            let mut t = sim::Trajectory::new(0);
+            for i in 0..shape.ctx_len {
+                let (o, a, n) = (
+                    normal(&mut rng, od),
+                    normal(&mut rng, ad),
+                    normal(&mut rng, od),
+                );
+                t.push(
+                    i as u32,
+                    sim::TransitionRef {
+                        obs: &o,
+                        action: &a,
+                        reward: 0.0,
+                        next_obs: &n,
+                        done: false,
+                    },
+                );
+            }
+            t
+        })
+        .collect();
+    let specs: Vec<ContextSpec<'_>> = trajectories
+        .chunks(shape.ctx_trajs)
+        .map(|c| ContextSpec::all(c.iter().collect()))
+        .collect();
+    let context = encoder.batch(&ObsNorm::identity(od), &specs)?;
+    let rows = shape.tasks * shape.samples;
+    let batch = DiscBatch::new(
+        context,
+        normal(&mut rng, rows * (od + ad)),
+        normal(&mut rng, rows * (od + ad)),
+        shape.tasks,
+        shape.samples,
+    )?;
+    time_it(warmup, iters, || {
+        let learner = DiscLearner {
+            encoder: &encoder,
+            disc: &disc,
+            disc_opt: &mut disc_opt,
+            enc_opt: &mut enc_opt,
+            gp_weight: shape.gp_weight,
+        };
+        disc_update(learner, &batch, 0, &mut rng).map(|_| ())
+    })
+}
+
+/// Per-pair timing of whole SMILe iterations (`smile bench --workload pair`).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct PairTiming {
+    /// Median wall time of one iteration (rollouts + update pairs) divided by its pairs: what
+    /// `charts/sps` measures in training (`1e6 / per_pair_us` pairs per second).
+    pub per_pair_us: f64,
+    /// Median wall time of the iteration's update pairs alone, per pair: what the PyTorch
+    /// prototype's `ms_per_upd` measures.
+    pub updates_only_per_pair_us: f64,
+    /// `1e6 / per_pair_us`.
+    pub pairs_per_s: f64,
+    /// Timed iterations.
+    pub iterations: usize,
+}
+
+/// Times whole SMILe iterations of `cfg` on `demos` after a warm start and `warmup` untimed
+/// iterations: `cfg.rollouts_per_iter` rollouts in random training tasks, then
+/// `cfg.updates_per_iter` update pairs (one discriminator + encoder step, one SAC step).
+pub fn bench_smile_pairs(
+    cfg: crate::algo::smile::SmileConfig,
+    demos: &sim::DemoDataset,
+    warmup: usize,
+    iters: usize,
+) -> Result<PairTiming> {
+    let family = cfg.family()?;
+    let data = crate::data::MetaData::from_dataset(demos, family, cfg.holdout_every)?;
+    let tasks = data.train.len();
+    let (rollouts, pairs) = (cfg.rollouts_per_iter, cfg.updates_per_iter.max(1));
+    let mut run = crate::algo::smile::Smile::new(cfg, data)?;
+    run.warm_start()?;
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let mut iteration = |run: &mut crate::algo::smile::Smile| -> Result<(f64, f64)> {
+        let t0 = Instant::now();
+        for _ in 0..rollouts {
+            run.rollout(rng.random_range(0..tasks))?;
+        }
+        let t1 = Instant::now();
+        for _ in 0..pairs {
+            run.disc_step()?;
+            run.sac_step()?;
+        }
+        Ok((t0.elapsed().as_secs_f64(), t1.elapsed().as_secs_f64()))
+    };
+    for _ in 0..warmup {
+        iteration(&mut run)?;
+    }
+    let (mut all, mut upd) = (Vec::new(), Vec::new());
+    for _ in 0..iters.max(1) {
+        let (a, u) = iteration(&mut run)?;
+        all.push(a);
+        upd.push(u);
+    }
+    let median = |v: &mut Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let per_pair_us = median(&mut all) * 1e6 / pairs as f64;
+    Ok(PairTiming {
+        per_pair_us,
+        updates_only_per_pair_us: median(&mut upd) * 1e6 / pairs as f64,
+        pairs_per_s: 1e6 / per_pair_us,
+        iterations: all.len(),
+    })
 }

@@ -359,6 +359,54 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
         );
     }
 
+    // The discriminator step and whole SMILe iterations, one tiny timing each.
+    let demos = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/experts/point-goal/demos-train-4x-sub20.safetensors"
+    );
+    let out = smile(&[
+        "bench",
+        "--workload",
+        "disc",
+        "pair",
+        "--hidden",
+        "8",
+        "--iters",
+        "1",
+        "--warmup",
+        "0",
+        "--demos",
+        demos,
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    ok(&out);
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    assert_eq!(rows[0]["workload"], "disc");
+    assert!(rows[0]["timing"]["median_us"].as_f64().unwrap() > 0.0);
+    assert_eq!(rows[1]["workload"], "pair");
+    let t = &rows[1]["timing"];
+    let (all, upd) = (
+        t["per_pair_us"].as_f64().unwrap(),
+        t["updates_only_per_pair_us"].as_f64().unwrap(),
+    );
+    assert!(upd > 0.0 && all >= upd, "{t}");
+    let out = smile(&[
+        "bench",
+        "--workload",
+        "pair",
+        "--demos",
+        "/nonexistent.safetensors",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("reading the demos /nonexistent"),
+        "{err}"
+    );
+
     // Errors name the flag or the value.
     let out = smile(&["bench", "--hidden", "0", "--iters", "1", "--warmup", "0"]);
     let err = String::from_utf8_lossy(&out.stderr);
