@@ -138,6 +138,7 @@ fn main() -> std::process::ExitCode {
 
 fn run() -> Result<()> {
     let cli = Cli::parse();
+    trainer::threads::keep_freed_memory();
     trainer::threads::set_compute_threads(cli.threads);
     match cli.cmd {
         Cmd::Bench(a) => bench::run(a),
