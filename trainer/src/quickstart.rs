@@ -445,10 +445,10 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     if args.budget == Budget::Short && args.env == Family::PointGoal {
-        eprintln!("expected time on 2 cores: 5-12 minutes");
+        eprintln!("expected time on 2 cores: 5-8 minutes");
     } else if let Some(assets) = shipped(args) {
         eprintln!(
-            "from the shipped expert and demos in {}; expected time on 2 cores: 15-25 minutes \
+            "from the shipped expert and demos in {}; expected time on 2 cores: 13-20 minutes \
              (SMILe, 40k update pairs on 1000-step episodes, is the long stage)",
             assets.display()
         );
