@@ -89,11 +89,19 @@ fn errors_are_one_line_that_says_what_to_do() {
     assert_eq!(line.matches("No such file").count(), 1, "{line}");
     assert_eq!(line.matches(s(&missing)).count(), 1, "{line}");
 
-    // Demos of another family than --env (default point-goal): the file, the flag, the --env.
+    // Demos of another family than --env: the file, the flag, the --env.
     let cheetah = dir.join("cheetah-test.safetensors");
     cheetah_test_demos(&cheetah);
     let line = one_line_error(&smile_env(
-        &["train", "--demos", s(&cheetah), "-o", s(&dir.join("r"))],
+        &[
+            "train",
+            "--env",
+            "point-goal",
+            "--demos",
+            s(&cheetah),
+            "-o",
+            s(&dir.join("r")),
+        ],
         &[],
     ));
     assert!(
@@ -101,6 +109,13 @@ fn errors_are_one_line_that_says_what_to_do() {
             && line.contains("pass --env cheetah-vel"),
         "{line}"
     );
+    assert!(!dir.join("r").exists());
+    // Without --env the family is the file's: here a meta-test file, refused as such.
+    let line = one_line_error(&smile_env(
+        &["train", "--demos", s(&cheetah), "-o", s(&dir.join("r"))],
+        &[],
+    ));
+    assert!(line.contains("meta-test"), "{line}");
     assert!(!dir.join("r").exists());
 
     // A policy trained on another family than --env says which --env to pass.

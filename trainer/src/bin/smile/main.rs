@@ -88,13 +88,7 @@ pub(crate) fn read_demos(
     flag: &str,
     family: sim::Family,
 ) -> Result<sim::DemoDataset> {
-    let demos = sim::DemoDataset::read(path).map_err(|e| match e {
-        // Its message names the path already.
-        sim::DatasetError::Io { source, .. } => {
-            anyhow::anyhow!("{flag} {}: {source}", path.display())
-        }
-        e => anyhow::anyhow!("{flag} {}: {e}", path.display()),
-    })?;
+    let demos = read_any_demos(path, flag)?;
     if demos.family != family {
         anyhow::bail!(
             "{flag} {} holds {} demos but --env is {family}; pass --env {} or a file of {family} \
@@ -108,6 +102,17 @@ pub(crate) fn read_demos(
         .ensure_family(family)
         .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
     Ok(demos)
+}
+
+/// Reads a demo file of any family, errors naming `flag` and the path.
+pub(crate) fn read_any_demos(path: &std::path::Path, flag: &str) -> Result<sim::DemoDataset> {
+    sim::DemoDataset::read(path).map_err(|e| match e {
+        // Its message names the path already.
+        sim::DatasetError::Io { source, .. } => {
+            anyhow::anyhow!("{flag} {}: {source}", path.display())
+        }
+        e => anyhow::anyhow!("{flag} {}: {e}", path.display()),
+    })
 }
 
 /// One line for an error: `<top message>: <root cause>`, the root left out when the top

@@ -57,9 +57,9 @@ pub struct TrainArgs {
     /// Algorithm [default: smile]; `--resume` reads it from the run directory.
     #[arg(long, value_enum)]
     algo: Option<Algo>,
-    /// Task family: point-goal, cheetah-vel or walker-dyn.
-    #[arg(long, default_value = "point-goal")]
-    env: String,
+    /// Task family: point-goal, cheetah-vel or walker-dyn [default: the demo file's].
+    #[arg(long)]
+    env: Option<String>,
     /// Meta-train demos (`smile demos --split train`); a meta-test file is refused.
     #[arg(long)]
     demos: PathBuf,
@@ -157,8 +157,16 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
 
 /// Run `smile train`.
 pub fn run(mut a: TrainArgs) -> Result<()> {
-    let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ds = crate::read_demos(&a.demos, "--demos", family)?;
+    let (family, ds) = match &a.env {
+        Some(env) => {
+            let family: Family = env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+            (family, crate::read_demos(&a.demos, "--demos", family)?)
+        }
+        None => {
+            let ds = crate::read_any_demos(&a.demos, "--demos")?;
+            (ds.family, ds)
+        }
+    };
     let algo = if a.resume {
         let rec = recorded_run(&a.out)?;
         let algo = Algo::from_str(&rec.algo, false)
