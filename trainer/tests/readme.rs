@@ -72,8 +72,10 @@ fn help_shows_the_defaults_of_env_and_out() {
     let expert = help(&["expert", "--help"]);
     assert!(expert.contains("[default: point-goal"), "{expert}");
     assert!(expert.contains("[default: runs/expert-<env>"), "{expert}");
+    // `smile train` takes the family of its demo file unless --env says otherwise.
+    let train = help(&["train", "--help"]);
+    assert!(train.contains("[default: the demo file's]"), "{train}");
     for (sub, out) in [
-        ("train", None),
         ("eval", Some("eval")),
         ("quickstart", Some("runs/quickstart")),
     ] {
