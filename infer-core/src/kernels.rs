@@ -62,44 +62,38 @@ fn dot_i8_f32(w: &[u8], x: &[f32]) -> f32 {
 /// Integer lanes: 16 int8 products per step map onto one `pmaddwd`-style instruction pair.
 const INT_LANES: usize = 16;
 
-/// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely);
-/// `x` holds `i8` values as their bytes.
+/// `sum_i w[i] * x[i]` in exact integer arithmetic (order-free, so it vectorises freely):
+/// `i8` weights, inputs read as `i8` (`SIGNED`) or as unsigned 8-bit values. Every product
+/// fits an `i16` (`|w x| <= 127 * 255`) before widening.
 #[inline]
-fn dot_i8_i8(w: &[u8], x: &[u8]) -> i32 {
+fn dot_i8<const SIGNED: bool>(w: &[u8], x: &[u8]) -> i32 {
+    let input = |v: u8| if SIGNED { v as i8 as i16 } else { v as i16 };
     let mut acc = [0i32; INT_LANES];
     let (w_chunks, w_rest) = w.as_chunks::<INT_LANES>();
     let (x_chunks, x_rest) = x.as_chunks::<INT_LANES>();
     for (wc, xc) in w_chunks.iter().zip(x_chunks) {
         for k in 0..INT_LANES {
-            acc[k] += (wc[k] as i8 as i16 * xc[k] as i8 as i16) as i32;
+            acc[k] += (wc[k] as i8 as i16 * input(xc[k])) as i32;
         }
     }
     let tail: i32 = w_rest
         .iter()
         .zip(x_rest)
-        .map(|(&wv, &xv)| (wv as i8) as i32 * (xv as i8) as i32)
+        .map(|(&wv, &xv)| (wv as i8) as i32 * input(xv) as i32)
         .sum();
     acc.iter().sum::<i32>() + tail
 }
 
-/// `sum_i w[i] * x[i]` with `i8` weights and unsigned 8-bit inputs, exact in integers
-/// (`|w x| <= 127 * 255` fits an `i16` product before widening).
+/// [`dot_i8`] with `i8` inputs stored as their bytes.
+#[inline]
+fn dot_i8_i8(w: &[u8], x: &[u8]) -> i32 {
+    dot_i8::<true>(w, x)
+}
+
+/// [`dot_i8`] with unsigned 8-bit inputs.
 #[inline]
 fn dot_i8_u8(w: &[u8], x: &[u8]) -> i32 {
-    let mut acc = [0i32; INT_LANES];
-    let (w_chunks, w_rest) = w.as_chunks::<INT_LANES>();
-    let (x_chunks, x_rest) = x.as_chunks::<INT_LANES>();
-    for (wc, xc) in w_chunks.iter().zip(x_chunks) {
-        for k in 0..INT_LANES {
-            acc[k] += (wc[k] as i8 as i16 * xc[k] as i16) as i32;
-        }
-    }
-    let tail: i32 = w_rest
-        .iter()
-        .zip(x_rest)
-        .map(|(&wv, &xv)| (wv as i8) as i32 * xv as i32)
-        .sum();
-    acc.iter().sum::<i32>() + tail
+    dot_i8::<false>(w, x)
 }
 
 /// Unsigned 8-bit quantization of one non-negative activation: `x / scale` clamped to
