@@ -76,6 +76,44 @@ fn resumed_run_equals_uninterrupted_run() {
 }
 
 #[test]
+fn keep_best_ships_the_better_of_the_best_evaluation_and_the_final_weights() {
+    trainer::threads::set_compute_threads(1);
+    let d = tmp("keep-best");
+    let cfg = ExpertConfig {
+        keep_best: true,
+        ..tiny(200)
+    };
+    let mut run = ExpertTrainer::new(cfg.clone()).unwrap();
+    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    let best = run.best_eval().expect("evaluations ran every 40 steps");
+    assert!(best.env_steps >= 40 && best.env_steps <= 200);
+    let best_file = d.join(expert::BEST_POLICY_FILE);
+    assert!(best_file.exists());
+    // The shipped weights evaluate at least as well as the best periodic evaluation (point-goal:
+    // lower min-distance is better), on the same tasks and episodes.
+    let eval = |p: &std::path::Path| {
+        let ex = Expert::load(p).unwrap();
+        let env = EnvConfig {
+            horizon: cfg.horizon,
+            ..EnvConfig::default()
+        };
+        expert::evaluate(&ex, &Family::PointGoal.test_tasks(), 1, env)
+            .unwrap()
+            .mean
+    };
+    let (shipped, best_again) = (eval(&d), eval(&best_file));
+    assert_eq!(
+        best_again, best.metric,
+        "the best file holds the best weights"
+    );
+    assert!(shipped <= best.metric, "{shipped} > best {}", best.metric);
+    // The best evaluation survives a resume.
+    let resumed = ExpertTrainer::resume(&d, Some(240)).unwrap();
+    assert_eq!(resumed.best_eval(), Some(best));
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
 fn corrupt_or_foreign_checkpoint_is_a_clear_error() {
     trainer::threads::set_compute_threads(1);
     let d = tmp("corrupt");

@@ -55,6 +55,11 @@ pub struct ExpertConfig {
     pub eval_every: u64,
     /// Episodes per task in those evaluations. Default 1.
     pub eval_episodes: usize,
+    /// Ship the best-evaluated weights, not the last: every evaluation that beats the best so
+    /// far writes `policy-best.safetensors`, and at the end `policy.safetensors` is whichever
+    /// of it and the final weights evaluates better (SAC oscillates: a walker that walked at
+    /// 150k steps can fall at 300k). Needs `eval_every` > 0. Default false.
+    pub keep_best: bool,
     /// Episode length override; `None` uses the family's horizon. Default None.
     pub horizon: Option<usize>,
     /// Seed of everything (weights, task draws, noise, reset seeds). Default 0.
@@ -76,6 +81,7 @@ impl Default for ExpertConfig {
             checkpoint_every: 10_000,
             eval_every: 10_000,
             eval_episodes: 1,
+            keep_best: false,
             horizon: None,
             seed: 0,
             sac: SacConfig::default(),
@@ -148,6 +154,30 @@ pub struct ExpertTrainer {
     rng: ChaCha8Rng,
     env_steps: u64,
     episodes: u64,
+    /// The best periodic evaluation so far (with `keep_best`).
+    best: Option<BestEval>,
+}
+
+/// The best evaluation of a run with `keep_best`: its metric and when it was taken; the
+/// weights are in `policy-best.safetensors`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BestEval {
+    /// The family's metric, mean over the evaluation tasks.
+    pub metric: f32,
+    /// Env steps at the evaluation.
+    pub env_steps: u64,
+}
+
+/// File the best-evaluated weights of a `keep_best` run are written to.
+pub const BEST_POLICY_FILE: &str = "policy-best.safetensors";
+
+/// True if metric `a` is better than `b` for `family` (lower distances and velocity errors,
+/// higher returns).
+fn better(family: Family, a: f32, b: f32) -> bool {
+    match family.metric_kind() {
+        sim::MetricKind::Return => a > b,
+        sim::MetricKind::MinGoalDistance | sim::MetricKind::MeanVelocityError => a < b,
+    }
 }
 
 impl ExpertTrainer {
@@ -170,6 +200,7 @@ impl ExpertTrainer {
             rng,
             env_steps: 0,
             episodes: 0,
+            best: None,
         })
     }
 
@@ -252,6 +283,7 @@ impl ExpertTrainer {
             "env_steps": self.env_steps,
             "episodes": self.episodes,
             "rng": rng_state(&self.rng),
+            "best_eval": self.best,
         });
         checkpoint::save(dir, &tensors, &meta)?;
         Ok(())
@@ -284,11 +316,26 @@ impl ExpertTrainer {
         run.env_steps = ck.meta_field("env_steps")?;
         run.episodes = ck.meta_field("episodes")?;
         run.rng = ck.meta_rng("rng")?;
+        // Checkpoints written before `keep_best` existed have no entry.
+        run.best = match ck.meta.get("best_eval") {
+            Some(v) if !v.is_null() => ck.meta_field("best_eval")?,
+            _ => None,
+        };
         Ok(run)
+    }
+
+    /// The best periodic evaluation so far (runs with `keep_best`).
+    pub fn best_eval(&self) -> Option<BestEval> {
+        self.best
     }
 
     /// Export the deterministic policy (actor weights + metadata) to `dir/policy.safetensors`.
     pub fn export_policy(&self, dir: &Path) -> Result<()> {
+        self.export_policy_as(dir, POLICY_FILE)
+    }
+
+    /// Export the deterministic policy to `dir/file` (atomic).
+    fn export_policy_as(&self, dir: &Path, file: &str) -> Result<()> {
         let net = self.sac.actor.net();
         let tensors: Vec<(String, Tensor)> = net
             .vars()
@@ -305,18 +352,23 @@ impl ExpertTrainer {
             "env_steps": self.env_steps,
             "task_value": (self.tasks.len() == 1).then(|| self.tasks[0].value()),
         });
-        write_policy(dir, &tensors, &meta)
+        write_policy(dir, file, &tensors, &meta)
     }
 }
 
-fn write_policy(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) -> Result<()> {
+fn write_policy(
+    dir: &Path,
+    file: &str,
+    tensors: &[(String, Tensor)],
+    meta: &serde_json::Value,
+) -> Result<()> {
     let tmp = dir.join(".policy-export");
     checkpoint::save(&tmp, tensors, meta)?;
     let io = |e: std::io::Error| Error::Io {
-        path: dir.join(POLICY_FILE),
+        path: dir.join(file),
         source: e,
     };
-    std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), dir.join(POLICY_FILE)).map_err(io)?;
+    std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), dir.join(file)).map_err(io)?;
     std::fs::remove_dir_all(&tmp).map_err(io)?;
     Ok(())
 }
@@ -328,7 +380,7 @@ pub fn export_scripted_pd(dir: &Path) -> Result<()> {
         "kind": "expert-policy", "expert": "scripted-pd", "env": Family::PointGoal.name(),
         "kp": pd.kp, "kd": pd.kd,
     });
-    write_policy(dir, &[], &meta)
+    write_policy(dir, POLICY_FILE, &[], &meta)
 }
 
 /// An expert that acts on oracle observations.
@@ -482,6 +534,17 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
             ];
             log.log(rep.env_steps, &fields)?;
             next_eval = (rep.env_steps / eval_every + 1) * eval_every;
+            if run.cfg.keep_best
+                && run
+                    .best
+                    .is_none_or(|b| better(run.family, ev.mean, b.metric))
+            {
+                run.export_policy_as(dir, BEST_POLICY_FILE)?;
+                run.best = Some(BestEval {
+                    metric: ev.mean,
+                    env_steps: rep.env_steps,
+                });
+            }
         }
         if rep.env_steps >= next_ckpt || run.finished() {
             run.save_checkpoint(dir)?;
@@ -489,5 +552,39 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
             next_ckpt = (rep.env_steps / every + 1) * every;
         }
     }
-    run.export_policy(dir)
+    finish_policy(run, dir, &eval_tasks, &mut log)
+}
+
+/// Export `policy.safetensors`: the final weights, or with `keep_best` the best-evaluated
+/// ones if the final weights evaluate worse (same tasks and episodes as the periodic
+/// evaluations).
+fn finish_policy(
+    run: &ExpertTrainer,
+    dir: &Path,
+    eval_tasks: &[Task],
+    log: &mut crate::io::MetricsLog,
+) -> Result<()> {
+    let best_file = dir.join(BEST_POLICY_FILE);
+    let best = match run.best {
+        Some(b) if run.cfg.keep_best && best_file.exists() => b,
+        _ => return run.export_policy(dir),
+    };
+    let last = evaluate(
+        &run.expert(),
+        eval_tasks,
+        run.cfg.eval_episodes,
+        run.cfg.env_config(),
+    )?;
+    log.log(run.env_steps, &[("eval/metric", last.mean as f64)])?;
+    if better(run.family, best.metric, last.mean) {
+        let io = |e: std::io::Error| Error::Io {
+            path: dir.join(POLICY_FILE),
+            source: e,
+        };
+        let tmp = dir.join(".policy-best-copy");
+        std::fs::copy(&best_file, &tmp).map_err(io)?;
+        std::fs::rename(&tmp, dir.join(POLICY_FILE)).map_err(io)
+    } else {
+        run.export_policy(dir)
+    }
 }

@@ -72,6 +72,11 @@ pub struct ExpertArgs {
     /// Evaluate deterministically every N env steps (0 = never), logged as eval/metric.
     #[arg(long)]
     eval_every: Option<u64>,
+    /// Ship the best-evaluated weights instead of the last (every --eval-every steps the
+    /// weights are evaluated; the best go to policy-best.safetensors and, if the final weights
+    /// do worse, to policy.safetensors).
+    #[arg(long)]
+    keep_best: bool,
     /// Deterministic evaluation episodes per meta-test task at the end.
     #[arg(long, default_value_t = 2)]
     eval_episodes: usize,
@@ -109,6 +114,12 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     }
     if a.task_value.is_some() {
         cfg.task_value = a.task_value;
+    }
+    if a.keep_best {
+        cfg.keep_best = true;
+    }
+    if cfg.keep_best && cfg.eval_every == 0 {
+        bail!("--keep-best needs evaluations: set --eval-every above 0");
     }
     if a.nominal {
         if cfg.family()? != Family::WalkerDyn {
@@ -179,6 +190,15 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         Event::Checkpoint(s) => pb.println(format!("checkpoint at step {s}")),
     });
     pb.finish_and_clear();
+    if result.is_ok()
+        && let Some(b) = run.best_eval()
+    {
+        println!(
+            "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
+             policy.safetensors holds whichever of it and the final weights evaluated better",
+            b.metric, b.env_steps
+        );
+    }
     if let Err(e) = result {
         let ck = dir.join(trainer::checkpoint::CHECKPOINT_FILE);
         let kept = if ck.exists() {
