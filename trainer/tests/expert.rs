@@ -114,6 +114,60 @@ fn keep_best_ships_the_better_of_the_best_evaluation_and_the_final_weights() {
 }
 
 #[test]
+fn warm_start_begins_from_the_source_run_and_resumes_without_it() {
+    trainer::threads::set_compute_threads(1);
+    let (src, dst) = (tmp("warm-src"), tmp("warm-dst"));
+    let mut source = ExpertTrainer::new(tiny(60)).unwrap();
+    expert::train(&mut source, &src, &mut |_| {}).unwrap();
+    let actor = |run: &ExpertTrainer| {
+        let (tensors, _) = run.sac.state_tensors().unwrap();
+        tensors
+            .iter()
+            .filter(|(n, _)| n.starts_with("actor") || n.starts_with("q1"))
+            .map(|(_, t)| t.flatten_all().unwrap().to_vec1::<f32>().unwrap())
+            .collect::<Vec<_>>()
+    };
+    let warm_cfg = ExpertConfig {
+        init_from: Some(src.clone()),
+        task_index: Some(3),
+        ..tiny(40)
+    };
+    let mut warm = ExpertTrainer::new(warm_cfg.clone()).unwrap();
+    assert_eq!(
+        actor(&warm),
+        actor(&source),
+        "starts from the source's weights"
+    );
+    assert_eq!(
+        warm.env_steps(),
+        0,
+        "a new run: its own counters and buffer"
+    );
+    assert_ne!(
+        actor(&ExpertTrainer::new(tiny(40)).unwrap()),
+        actor(&source)
+    );
+    expert::train(&mut warm, &dst, &mut |_| {}).unwrap();
+    // The warm start lives in the run's own checkpoint: resuming needs no source.
+    std::fs::remove_dir_all(&src).unwrap();
+    let resumed = ExpertTrainer::resume(&dst, Some(80)).unwrap();
+    assert_eq!(actor(&resumed), actor(&warm));
+    // A source of another width is refused by name.
+    let wide = ExpertConfig {
+        sac: SacConfig {
+            hidden: vec![8, 8],
+            batch_size: 16,
+            ..Default::default()
+        },
+        init_from: Some(dst.clone()),
+        ..tiny(40)
+    };
+    let e = ExpertTrainer::new(wide).err().unwrap().to_string();
+    assert!(e.contains("hidden [16, 16]") && e.contains("[8, 8]"), "{e}");
+    std::fs::remove_dir_all(&dst).ok();
+}
+
+#[test]
 fn corrupt_or_foreign_checkpoint_is_a_clear_error() {
     trainer::threads::set_compute_threads(1);
     let d = tmp("corrupt");

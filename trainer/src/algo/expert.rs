@@ -55,6 +55,12 @@ pub struct ExpertConfig {
     pub eval_every: u64,
     /// Episodes per task in those evaluations. Default 1.
     pub eval_episodes: usize,
+    /// Warm start: begin from the SAC state (actor, critics, target critics, temperature and
+    /// their optimisers) of this expert run's checkpoint, e.g. per-task walker experts
+    /// fine-tuned from the walker trained on the unmodified dynamics. The replay buffer starts
+    /// empty and the first `learning_starts` steps act with the loaded policy (sampled), not at
+    /// random. Same family and widths required. Default None (from scratch).
+    pub init_from: Option<std::path::PathBuf>,
     /// Ship the best-evaluated weights, not the last: every evaluation that beats the best so
     /// far writes `policy-best.safetensors`, and at the end `policy.safetensors` is whichever
     /// of it and the final weights evaluates better (SAC oscillates: a walker that walked at
@@ -81,6 +87,7 @@ impl Default for ExpertConfig {
             checkpoint_every: 10_000,
             eval_every: 10_000,
             eval_episodes: 1,
+            init_from: None,
             keep_best: false,
             horizon: None,
             seed: 0,
@@ -181,8 +188,42 @@ fn better(family: Family, a: f32, b: f32) -> bool {
 }
 
 impl ExpertTrainer {
-    /// A fresh run.
+    /// A fresh run (warm-started from `cfg.init_from` if set).
     pub fn new(cfg: ExpertConfig) -> Result<Self> {
+        let init = cfg.init_from.clone();
+        let mut run = Self::build(cfg)?;
+        if let Some(dir) = init {
+            run.warm_start(&dir)?;
+        }
+        Ok(run)
+    }
+
+    /// Load the SAC state of another expert run's checkpoint (see `ExpertConfig::init_from`).
+    fn warm_start(&mut self, dir: &Path) -> Result<()> {
+        let ck = checkpoint::load(dir)?;
+        let foreign = |reason: String| Error::CheckpointState {
+            path: ck.path().to_path_buf(),
+            reason,
+        };
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-run") {
+            return Err(foreign(
+                "--init-from needs an expert training checkpoint (`smile expert -o DIR`)".into(),
+            ));
+        }
+        let source: ExpertConfig = ck.meta_field("config")?;
+        if source.env != self.cfg.env || source.sac.hidden != self.cfg.sac.hidden {
+            return Err(foreign(format!(
+                "a {} expert with hidden {:?} cannot start a {} expert with hidden {:?}",
+                source.env, source.sac.hidden, self.cfg.env, self.cfg.sac.hidden
+            )));
+        }
+        let counters: SacCounters = ck.meta_field("sac_counters")?;
+        self.sac
+            .load_state(&|n| ck.get(n), counters)
+            .map_err(|e| foreign(format!("does not match this configuration: {e}")))
+    }
+
+    fn build(cfg: ExpertConfig) -> Result<Self> {
         let family = cfg.family()?;
         let tasks = cfg.tasks()?;
         let env = sim::make_env(family, cfg.env_config())?;
@@ -235,7 +276,8 @@ impl ExpertTrainer {
         let mut metric = EpisodeMetric::new(self.family);
         let (mut ret, mut last_update) = (0.0f32, None);
         loop {
-            let action: Vec<f32> = if self.env_steps < self.cfg.learning_starts {
+            let explore = self.cfg.init_from.is_none() && self.env_steps < self.cfg.learning_starts;
+            let action: Vec<f32> = if explore {
                 (0..ad)
                     .map(|_| self.rng.random_range(-1.0f32..1.0))
                     .collect()
@@ -303,7 +345,8 @@ impl ExpertTrainer {
         if let Some(t) = total_steps {
             cfg.total_steps = t;
         }
-        let mut run = Self::new(cfg)?;
+        // Not `new`: the warm start, if any, is already in the checkpoint.
+        let mut run = Self::build(cfg)?;
         let counters: SacCounters = ck.meta_field("sac_counters")?;
         let wrap = |e: Error| Error::CheckpointState {
             path: ck.path().to_path_buf(),

@@ -72,6 +72,11 @@ pub struct ExpertArgs {
     /// Evaluate deterministically every N env steps (0 = never), logged as eval/metric.
     #[arg(long)]
     eval_every: Option<u64>,
+    /// Warm start from another expert run's checkpoint (a run directory of `smile expert`):
+    /// its actor, critics and temperature; fresh replay buffer; the first --learning-starts
+    /// steps act with the loaded policy instead of at random.
+    #[arg(long, conflicts_with = "resume")]
+    init_from: Option<PathBuf>,
     /// Ship the best-evaluated weights instead of the last (every --eval-every steps the
     /// weights are evaluated; the best go to policy-best.safetensors and, if the final weights
     /// do worse, to policy.safetensors).
@@ -117,6 +122,9 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     }
     if a.keep_best {
         cfg.keep_best = true;
+    }
+    if a.init_from.is_some() {
+        cfg.init_from = a.init_from.clone();
     }
     if cfg.keep_best && cfg.eval_every == 0 {
         bail!("--keep-best needs evaluations: set --eval-every above 0");

@@ -36,7 +36,7 @@ struct Cli {
 enum Cmd {
     /// Train an oracle SAC expert on a family's meta-train tasks (or export the scripted one).
     #[command(
-        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env cheetah-vel --horizon 1000 --total-steps 600000 --batch-size 128 --hidden 128,128 -o runs/cv-expert\n  smile expert --env walker-dyn --task-value 10003 --hidden 128,128 --batch-size 128 --total-steps 150000 -o runs/wd-expert-10003\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
+        after_help = "Examples:\n  smile expert --env point-goal --total-steps 30000 -o runs/pg-expert\n  smile expert --env point-goal --kind scripted-pd -o runs/pg-pd\n  smile expert --env cheetah-vel --horizon 1000 --total-steps 600000 --batch-size 128 --hidden 128,128 -o runs/cv-expert\n  smile expert --env walker-dyn --task-value 10003 --hidden 128,128 --batch-size 128 --total-steps 150000 -o runs/wd-expert-10003\n  smile expert --env walker-dyn --nominal -o runs/walker-base\n  smile expert --env walker-dyn --task-value 10003 --init-from runs/walker-base --total-steps 50000 -o runs/wd-10003\n  smile expert --resume runs/pg-expert --total-steps 60000\n  smile expert --config expert.toml --quiet"
     )]
     Expert(expert::ExpertArgs),
     /// Record deterministic expert demonstrations in sim's dataset format.
