@@ -74,6 +74,17 @@ fn bad_plans_are_refused_before_anything_runs() {
             good.replace("[algo.smile]", "[algo.smile]\nalgo = \"smiley\""),
             "unknown algo \"smiley\"",
         ),
+        (
+            good.replace("rollouts = 2", "rollouts = 2\nbase = \"b\""),
+            "`base` and `experts` go together",
+        ),
+        (
+            good.replace(
+                "rollouts = 2",
+                "rollouts = 2\nbase = \"b\"\nexperts = [\"e\"]",
+            ),
+            "normalised metric, not point-goal",
+        ),
     ];
     for (plan, want) in cases {
         let p = dir.join("bad.toml");

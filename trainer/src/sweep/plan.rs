@@ -17,6 +17,10 @@
 //! contexts = "runs/pg-test.safetensors"
 //! horizon = 1000                          # optional episode length
 //! context_sizes = [1, 2, 3, 4]            # optional (default: the family's protocol)
+//! # walker-dyn only, optional: the normalised metric's base policy and experts (smile eval
+//! # --base/--expert)
+//! # base = "runs/walker/base"
+//! # experts = ["runs/walker/expert-10000", "runs/walker/expert-10001"]
 //! ```
 //!
 //! Cells are the product of methods x demo files x each method's config axes x seeds, in that
@@ -93,6 +97,13 @@ pub struct EvalPlan {
     /// Rollouts per context draw override.
     #[serde(default)]
     pub rollouts: Option<usize>,
+    /// walker-dyn normalised metric: the base policy (`smile eval --base`). Needs `experts`.
+    #[serde(default)]
+    pub base: Option<PathBuf>,
+    /// walker-dyn normalised metric: the experts (`smile eval --expert`: per-task experts
+    /// and/or one general expert). Needs `base`.
+    #[serde(default)]
+    pub experts: Vec<PathBuf>,
 }
 
 /// One cell: a training run and its evaluation.
@@ -254,6 +265,25 @@ impl Sweep {
         let mut files: Vec<(&str, PathBuf)> =
             plan.demos.iter().map(|d| ("demos", rel(d))).collect();
         files.push(("contexts", rel(&plan.eval.contexts)));
+        if plan.eval.base.is_some() != !plan.eval.experts.is_empty() {
+            return Err(err(
+                Some(if plan.eval.base.is_some() {
+                    "base"
+                } else {
+                    "experts"
+                }),
+                "[eval] `base` and `experts` go together (the walker-dyn normalised metric)".into(),
+            ));
+        }
+        if plan.eval.base.is_some() && family != Family::WalkerDyn {
+            return Err(err(
+                Some("base"),
+                format!("[eval] `base` is for walker-dyn's normalised metric, not {family}"),
+            ));
+        }
+        for p in plan.eval.base.iter().chain(&plan.eval.experts) {
+            files.push(("expert", rel(p)));
+        }
         for (name, m) in &plan.algo {
             if let Some(c) = &m.config {
                 files.push(("config", rel(c)));
@@ -365,6 +395,8 @@ impl Sweep {
         }
         let mut plan = plan;
         plan.eval.contexts = rel(&plan.eval.contexts);
+        plan.eval.base = plan.eval.base.as_deref().map(rel);
+        plan.eval.experts = plan.eval.experts.iter().map(|p| rel(p)).collect();
         Ok(Self {
             path: path.to_path_buf(),
             plan,

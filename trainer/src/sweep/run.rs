@@ -220,6 +220,15 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
         let k: Vec<String> = e.context_sizes.iter().map(usize::to_string).collect();
         args.extend(["--context-sizes".into(), k.join(",")]);
     }
+    if let Some(base) = &e.base {
+        let experts: Vec<String> = e.experts.iter().map(|p| s(p)).collect();
+        args.extend([
+            "--base".into(),
+            s(base),
+            "--expert".into(),
+            experts.join(","),
+        ]);
+    }
     child(exe, &args, &log_path)
 }
 
