@@ -265,7 +265,7 @@ impl Sweep {
         let mut files: Vec<(&str, PathBuf)> =
             plan.demos.iter().map(|d| ("demos", rel(d))).collect();
         files.push(("contexts", rel(&plan.eval.contexts)));
-        if plan.eval.base.is_some() != !plan.eval.experts.is_empty() {
+        if plan.eval.base.is_some() == plan.eval.experts.is_empty() {
             return Err(err(
                 Some(if plan.eval.base.is_some() {
                     "base"
