@@ -302,8 +302,7 @@ pub fn bench_smile_pairs(
         }
         let t1 = Instant::now();
         for _ in 0..pairs {
-            run.disc_step()?;
-            run.sac_step()?;
+            run.update_pair()?;
         }
         Ok((t0.elapsed().as_secs_f64(), t1.elapsed().as_secs_f64()))
     };

@@ -340,6 +340,48 @@ impl Smile {
     /// One SAC step on fresh tasks and contexts with the discriminator's reward (Algorithm 1's
     /// inner loop, second half).
     pub fn sac_step(&mut self) -> Result<(SacStats, f32)> {
+        let (batch, reward_mean) = self.sac_batch()?;
+        let stats = self.sac.update(&batch, &mut self.rng)?;
+        Ok((stats, reward_mean))
+    }
+
+    /// One update pair: a discriminator (+ encoder) step and a SAC step, one after the other
+    /// (`learner_threads = 1`) or at the same time on two threads (2; SAC's reward then comes
+    /// from the discriminator before this pair's update).
+    pub fn update_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
+        if self.cfg.learner_threads < 2 {
+            let ds = self.disc_step()?;
+            let (ss, r) = self.sac_step()?;
+            return Ok((ds, ss, r));
+        }
+        // Everything that reads the discriminator or draws from the run's RNG happens here,
+        // in a fixed order; then the two updates touch disjoint weights and optimisers.
+        let disc_batch = self.sample_disc_batch()?;
+        let (sac_batch, reward_mean) = self.sac_batch()?;
+        let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
+        let learner = DiscLearner {
+            encoder: &self.encoder,
+            disc: &self.disc,
+            disc_opt: &mut self.disc_opt,
+            enc_opt: &mut self.enc_opt,
+            gp_weight: self.cfg.gp_weight,
+        };
+        let (sac, rng, updates) = (&mut self.sac, &mut self.rng, self.updates);
+        let (ds, ss) = std::thread::scope(|s| {
+            // The process-wide compute-thread setting (1) holds in this thread too.
+            let disc = s.spawn(move || disc_update(learner, &disc_batch, updates, &mut disc_rng));
+            let ss = sac.update(&sac_batch, rng);
+            let ds = disc
+                .join()
+                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+            (ds, ss)
+        });
+        Ok((ds?, ss?, reward_mean))
+    }
+
+    /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's
+    /// reward; returns it with the reward's mean.
+    fn sac_batch(&mut self) -> Result<(Batch, f32)> {
         let cfg = &self.cfg;
         let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
         let n = cfg.sac_per_task;
@@ -394,8 +436,7 @@ impl Smile {
             next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
             done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
         };
-        let stats = self.sac.update(&batch, &mut self.rng)?;
-        Ok((stats, reward_mean))
+        Ok((batch, reward_mean))
     }
 
     /// Deterministic evaluation on the held-out train tasks (one-trajectory contexts).
@@ -521,10 +562,8 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             if run.updates >= cfg.total_updates {
                 break;
             }
-            ds = run.disc_step()?;
-            let (s, r) = run.sac_step()?;
-            ss = Some(s);
-            rm = r;
+            let (d, s, r) = run.update_pair()?;
+            (ds, ss, rm) = (d, Some(s), r);
             run.updates += 1;
             on(Event::Updates(run.updates));
         }

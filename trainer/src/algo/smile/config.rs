@@ -65,6 +65,13 @@ pub struct SmileConfig {
     pub eval_contexts: usize,
     /// Deterministic episodes per held-out task and context in that evaluation. Default 3.
     pub eval_episodes: usize,
+    /// Learner threads: 1 runs each update pair as Algorithm 1 does (discriminator step, then
+    /// the SAC step on the updated discriminator's reward); 2 runs the discriminator step on a
+    /// second thread *while* the SAC step runs, so SAC's reward comes from the discriminator
+    /// before this pair's update (one update older). Deterministic either way (the second
+    /// thread has its own RNG drawn from the run's). 2 pays only with a free core: do not use
+    /// it in `smile sweep --jobs 2` or beside other work. Default 1.
+    pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
     /// Episode length override. Default None.
@@ -101,6 +108,7 @@ impl Default for SmileConfig {
             eval_every: 1000,
             eval_contexts: 4,
             eval_episodes: 3,
+            learner_threads: 1,
             checkpoint_every: 2000,
             horizon: None,
             seed: 0,
@@ -145,6 +153,12 @@ impl SmileConfig {
             return Err(Error::Config(
                 "smile batch sizes and counts must be positive".into(),
             ));
+        }
+        if !(1..=2).contains(&self.learner_threads) {
+            return Err(Error::Config(format!(
+                "learner_threads must be 1 or 2, not {}",
+                self.learner_threads
+            )));
         }
         if self.gp_weight < 0.0 || self.logit_clamp <= 0.0 {
             return Err(Error::Config(

@@ -41,6 +41,10 @@ pub struct BenchArgs {
         default_value = "assets/experts/point-goal/demos-train-4x-sub20.safetensors"
     )]
     demos: PathBuf,
+    /// For `pair`: SMILe's `learner_threads` (2 overlaps the discriminator and SAC steps of
+    /// each pair on two threads).
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u8).range(1..=2))]
+    learner_threads: u8,
     /// Also write the results as one JSON array to this file.
     #[arg(long)]
     json: Option<PathBuf>,
@@ -96,9 +100,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 let demos = sim::DemoDataset::read(&a.demos)
                     .with_context(|| format!("reading the demos {}", a.demos.display()))?;
                 println!(
-                    "SMILe iterations on {} ({}): 4 rollouts + 100 pairs, candle threads {threads}",
+                    "SMILe iterations on {} ({}): 4 rollouts + 100 pairs, candle threads {threads}, \
+                     learner threads {}",
                     demos.family,
-                    a.demos.display()
+                    a.demos.display(),
+                    a.learner_threads
                 );
                 println!(
                     "{:>5} {:>14} {:>22} {:>10}",
@@ -111,6 +117,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         updates_per_iter: 100,
                         sac_per_task: 32,
                         disc_hidden: vec![h, h],
+                        learner_threads: a.learner_threads.into(),
                         ..Default::default()
                     };
                     cfg.sac.hidden = vec![h, h];
@@ -124,7 +131,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         "{h:>5} {:>14.1} {:>22.1} {:>10.1}",
                         t.per_pair_us, t.updates_only_per_pair_us, t.pairs_per_s
                     );
-                    rows.push(serde_json::json!({"workload": "pair", "H": h, "threads": threads, "timing": t}));
+                    rows.push(serde_json::json!({"workload": "pair", "H": h, "threads": threads, "learner_threads": a.learner_threads, "timing": t}));
                 }
             }
         }
