@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
-# Train walker-dyn per-task SAC experts, one after the other, as one "lane" of a queue that
+# Train walker-dyn per-task SAC experts (each fine-tuned from the base walker in OUT_DIR/base,
+# trained on the unmodified dynamics), one after the other, as one "lane" of a queue that
 # several lanes (one per core) share: each task is claimed with an atomic mkdir, so two lanes
 # never train the same task, and a finished expert (its eval.json exists) is skipped, so the
 # script can be re-run after an interruption (an unfinished run resumes from its checkpoint).
 #
 #   docs/scripts/walker-experts.sh BIN OUT_DIR LANE [SEEDS...]
 #
-# SEEDS default to the 25 meta-test then the 50 meta-train dynamics seeds. A lane stops
+# SEEDS default to the 25 meta-test then the 50 meta-train dynamics seeds; STEPS (env steps
+# per expert) defaults to 50000. A lane stops
 # before its next task while OUT_DIR/pause-LANE exists (e.g. to free a core for a build).
 # After an interruption, `rm -r OUT_DIR/claims` before starting the lanes again.
 set -euo pipefail
@@ -27,8 +29,8 @@ for seed in "${seeds[@]}"; do
   else
     rm -rf "$dir"
     "$bin" expert --env walker-dyn --task-value "$seed" --hidden 128,128 --batch-size 128 \
-      --total-steps 150000 --learning-starts 5000 --checkpoint-every 25000 \
-      --eval-every 25000 --keep-best --quiet -o "$dir"
+      --init-from "$out/base" --total-steps "${STEPS:-50000}" --learning-starts 2000 \
+      --checkpoint-every 12500 --eval-every 12500 --keep-best --quiet -o "$dir"
   fi
 done
 echo "lane $lane: done ($(date +%T))"
