@@ -166,3 +166,30 @@ fn two_learner_threads_are_deterministic_and_use_the_older_reward() {
     let e = Smile::new(bad, data).err().unwrap().to_string();
     assert!(e.contains("learner_threads must be 1 or 2"), "{e}");
 }
+
+#[test]
+fn walker_training_rollouts_run_to_the_horizon_unless_termination_is_asked_for() {
+    trainer::threads::set_compute_threads(1);
+    let tasks: Vec<_> = Family::WalkerDyn
+        .train_tasks()
+        .into_iter()
+        .take(4)
+        .collect();
+    let ds = common::open_loop_demos(Family::WalkerDyn, sim::Split::Train, tasks, 60);
+    let data = MetaData::from_dataset(&ds, Family::WalkerDyn, 0).unwrap();
+    let steps = |rollout_termination: bool| {
+        let cfg = SmileConfig {
+            env: "walker-dyn".into(),
+            rollout_termination,
+            horizon: Some(300),
+            ..tiny(false)
+        };
+        let mut run = Smile::new(cfg, data.clone()).unwrap();
+        run.warm_start().unwrap(); // one rollout per task with the untrained policy
+        run.env_steps()
+    };
+    // The untrained walker falls within a few dozen steps (healthy height 0.8 m).
+    assert_eq!(steps(false), 4 * 300);
+    let terminated = steps(true);
+    assert!(terminated < 4 * 300 / 2, "{terminated} steps");
+}

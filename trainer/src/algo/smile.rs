@@ -148,7 +148,7 @@ impl Smile {
                 data.family
             )));
         }
-        let env = sim::make_env(family, cfg.env_config())?;
+        let env = sim::make_env(family, cfg.rollout_env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.obs_dim(), family.act_dim());
         let encoder = ContextEncoder::new(od, ad, cfg.context.clone(), &mut rng)?;

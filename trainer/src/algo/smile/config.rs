@@ -74,6 +74,13 @@ pub struct SmileConfig {
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
+    /// walker-dyn: end the *training* rollouts when the walker falls. AIRL's reward is signed
+    /// (log D - log(1 - D)): early in training the policy's transitions score below zero, and
+    /// with termination the quickest way to stop losing reward is to fall. Without it a fallen
+    /// walker keeps collecting the discriminator's verdict on lying on the ground. Evaluation
+    /// always ends episodes as the family defines (a fall ends a walker-dyn episode). Not in
+    /// the reference. Default false.
+    pub rollout_termination: bool,
     /// Episode length override. Default None.
     pub horizon: Option<usize>,
     /// Seed of everything. Default 0.
@@ -110,6 +117,7 @@ impl Default for SmileConfig {
             eval_episodes: 3,
             learner_threads: 1,
             checkpoint_every: 2000,
+            rollout_termination: false,
             horizon: None,
             seed: 0,
         }
@@ -132,11 +140,19 @@ impl SmileConfig {
         }
     }
 
-    /// Episode options.
+    /// Episode options of the evaluations (the family's own termination).
     pub fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
             ..EnvConfig::default()
+        }
+    }
+
+    /// Episode options of the training rollouts (`rollout_termination`).
+    pub fn rollout_env_config(&self) -> EnvConfig {
+        EnvConfig {
+            healthy_termination: self.rollout_termination,
+            ..self.env_config()
         }
     }
 
