@@ -254,6 +254,81 @@ fn per_task_experts_make_demos_for_their_tasks() {
     ]);
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no expert for task"));
+    // A folder of policy files stands for its experts: the same demos as the list.
+    let folder = d.join("per-task");
+    std::fs::create_dir_all(&folder).unwrap();
+    for v in ["0.3", "-1.2"] {
+        std::fs::copy(
+            d.join(format!("task{v}")).join("policy.safetensors"),
+            folder.join(format!("goal{v}.safetensors")),
+        )
+        .unwrap();
+    }
+    let from_folder = d.join("demos-folder.safetensors");
+    let demos_with = |expert: &str, out: &std::path::Path| {
+        ok(&smile(&[
+            "demos",
+            "--env",
+            "point-goal",
+            "--task-params",
+            "0.3,-1.2",
+            "--per-task",
+            "1",
+            "--horizon",
+            "20",
+            "--expert",
+            expert,
+            "-o",
+            out.to_str().unwrap(),
+        ]))
+    };
+    demos_with(folder.to_str().unwrap(), &from_folder);
+    // (safetensors' JSON header has no fixed key order: compare the data, not the bytes)
+    let (a, b) = (
+        sim::DemoDataset::read(&from_folder).unwrap(),
+        sim::DemoDataset::read(&demos).unwrap(),
+    );
+    assert_eq!((a.tasks, a.expert), (b.tasks, b.expert));
+    // Meta-DAgger checks up front that every meta-train task has its relabelling expert (the
+    // shipped demos cover all 32 goals, the folder two other ones).
+    let train = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../assets/experts/point-goal/demos-train-4x-sub20.safetensors"
+    );
+    let out = smile(&[
+        "train",
+        "--algo",
+        "meta-dagger",
+        "--demos",
+        train,
+        "--expert",
+        folder.to_str().unwrap(),
+        "--updates",
+        "10",
+        "-o",
+        d.join("dagger").to_str().unwrap(),
+        "--quiet",
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "trained with missing experts");
+    assert!(err.contains("no expert for task"), "{err}");
+    let empty = d.join("empty");
+    std::fs::create_dir_all(&empty).unwrap();
+    let to = d.join("none.safetensors");
+    let out = smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--expert",
+        empty.to_str().unwrap(),
+        "-o",
+        to.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("holds no expert"),
+        "{err}"
+    );
     std::fs::remove_dir_all(&d).ok();
 }
 

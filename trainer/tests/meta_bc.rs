@@ -77,7 +77,7 @@ fn early_stopping_and_dagger_relabelling() {
     cfg.lr = 0.3; // diverging steps: the validation MSE stops improving quickly
     cfg.total_steps = 2000;
     let expert = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
-    let mut run = MetaBc::new(cfg, run_data(), Some(expert)).unwrap();
+    let mut run = MetaBc::new(cfg, run_data(), Some(expert.into())).unwrap();
     let before = run.dataset_size();
     let mut stopped = None;
     meta_bc::train(&mut run, &dir, &mut |e| {
@@ -134,7 +134,7 @@ fn dagger_relabels_the_visited_states_with_the_experts_actions() {
     let mut run = MetaBc::new(
         tiny(true),
         data.clone(),
-        Some(Expert::ScriptedPd(sim::PointGoalPdExpert::default())),
+        Some(Expert::ScriptedPd(sim::PointGoalPdExpert::default()).into()),
     )
     .unwrap();
     let (od, ad) = (4, 2);

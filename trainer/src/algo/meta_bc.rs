@@ -27,7 +27,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim::{Environment, Family, TaskDemos};
 
-use crate::algo::expert::Expert;
+use crate::algo::expert::ExpertSet;
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
 use crate::io::MetricsLog;
 use crate::io::checkpoint;
@@ -71,7 +71,7 @@ struct Pairs {
 pub struct MetaBc {
     cfg: MetaBcConfig,
     data: MetaData,
-    expert: Option<Expert>,
+    expert: Option<ExpertSet>,
     env: Box<dyn Environment>,
     /// The context encoder.
     pub encoder: ContextEncoder,
@@ -89,8 +89,9 @@ pub struct MetaBc {
 }
 
 impl MetaBc {
-    /// A fresh run; Meta-DAgger needs `expert`.
-    pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<Expert>) -> Result<Self> {
+    /// A fresh run; Meta-DAgger needs `expert` (one expert, or per-task experts covering the
+    /// meta-train tasks: `Some(expert.into())` for one).
+    pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
         let family: Family = cfg
             .env
             .parse()
@@ -105,6 +106,12 @@ impl MetaBc {
             return Err(Error::Config(format!(
                 "meta-dagger needs an expert for {family}"
             )));
+        }
+        if let Some(set) = expert.as_ref().filter(|_| cfg.dagger) {
+            // Every meta-train task needs its relabelling expert: fail now, not mid-run.
+            for t in &data.train {
+                set.for_task(&t.task)?;
+            }
         }
         cfg.validate()?;
         let env = sim::make_env(family, cfg.env_config())?;
@@ -274,6 +281,7 @@ impl MetaBc {
             let ctx: Vec<_> = spec.trajectories[..spec.k].to_vec();
             let z = mp.latent(&ctx)?;
             let task = self.data.train[ti].task;
+            let expert = expert.for_task(&task)?;
             let seed = 5_000_000 + self.episodes;
             let (rng, pairs) = (&mut self.rng, &mut self.pairs[ti]);
             let mut a_exp = vec![0.0f32; self.data.family.act_dim()];
@@ -348,7 +356,7 @@ impl MetaBc {
     pub fn resume(
         dir: &Path,
         data: MetaData,
-        expert: Option<Expert>,
+        expert: Option<ExpertSet>,
         total_steps: Option<u64>,
     ) -> Result<Self> {
         let ck = checkpoint::load(dir)?;

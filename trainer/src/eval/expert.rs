@@ -46,11 +46,18 @@ impl From<Expert> for ExpertSet {
 }
 
 impl ExpertSet {
-    /// Load every path (run directories or policy files) as in [`Expert::load`].
+    /// Load every path (run directories or policy files) as in [`Expert::load`]. A directory
+    /// without a policy file of its own stands for every expert in it (its `*.safetensors`
+    /// policy files and run directories, in name order): a folder of per-task experts, e.g.
+    /// `assets/experts/walker-dyn/per-task`.
     pub fn load(paths: &[impl AsRef<Path>]) -> Result<Self> {
         let mut set: Option<Self> = None;
+        let mut expanded = Vec::new();
         for p in paths {
-            let p = p.as_ref();
+            expanded.extend(expand_expert_folder(p.as_ref())?);
+        }
+        for p in &expanded {
+            let p = p.as_path();
             let ex = Expert::load(p)?;
             let task_value = trained_task_value(p)?;
             let s = set.get_or_insert_with(|| Self {
@@ -124,6 +131,35 @@ impl ExpertSet {
             trained.join(", ")
         )))
     }
+}
+
+/// `path` itself, or for a folder of experts (a directory without `policy.safetensors`) the
+/// experts in it, sorted by name; an empty folder is an error.
+fn expand_expert_folder(path: &Path) -> Result<Vec<std::path::PathBuf>> {
+    if !path.is_dir() || path.join(POLICY_FILE).exists() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    let io = |e: std::io::Error| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    };
+    let mut found = Vec::new();
+    for entry in std::fs::read_dir(path).map_err(io)? {
+        let p = entry.map_err(io)?.path();
+        let policy_file = p.is_file() && p.extension().is_some_and(|e| e == "safetensors");
+        if policy_file || p.join(POLICY_FILE).is_file() {
+            found.push(p);
+        }
+    }
+    if found.is_empty() {
+        return Err(Error::Usage(format!(
+            "{} holds no expert: give a `smile expert` run directory, its {POLICY_FILE}, or a \
+             folder of them",
+            path.display()
+        )));
+    }
+    found.sort();
+    Ok(found)
 }
 
 /// Result of [`evaluate`].

@@ -88,8 +88,9 @@ pub struct TrainArgs {
     /// Reward scale (SMILe).
     #[arg(long)]
     reward_scale: Option<f32>,
-    /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file
-    /// (point-goal: the scripted PD expert if omitted; `--resume` reuses the run's expert).
+    /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file, or a
+    /// folder of per-task experts (point-goal: the scripted PD expert if omitted; `--resume`
+    /// reuses the run's expert).
     #[arg(long)]
     expert: Option<PathBuf>,
     /// Evaluate on the held-out train tasks every N updates.
@@ -298,15 +299,13 @@ fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Resul
         (Some(p), true) if !scripted => {
             eprintln!("meta-dagger: relabelling with the expert {}", p.display());
             Some(
-                trainer::expert::Expert::load(p)
+                trainer::expert::ExpertSet::load(&[p])
                     .with_context(|| format!("loading expert {}", p.display()))?,
             )
         }
         (_, true) if family == Family::PointGoal => {
             eprintln!("meta-dagger: relabelling with the scripted point-goal PD expert");
-            Some(trainer::expert::Expert::ScriptedPd(
-                sim::PointGoalPdExpert::default(),
-            ))
+            Some(trainer::expert::Expert::ScriptedPd(sim::PointGoalPdExpert::default()).into())
         }
         (_, true) => bail!("meta-dagger on {family} needs --expert (a `smile expert` run)"),
         (_, false) => None,
