@@ -141,6 +141,13 @@ pub struct ReferenceReturns {
     /// The task parameters, in the same order (checked against the methods' tasks).
     #[serde(default)]
     pub task_values: Vec<f64>,
+    /// Mean episode length of the base per task (a walker's survival: a fall ends the
+    /// episode before the horizon).
+    #[serde(default)]
+    pub base_steps: Vec<f32>,
+    /// Mean episode length of the expert per task.
+    #[serde(default)]
+    pub expert_steps: Vec<f32>,
 }
 
 impl ReferenceReturns {

@@ -109,12 +109,17 @@ impl References {
         let mut env = sim::make_env(self.family, env_cfg)?;
         let nominal = self.nominal.parameter();
         let (mut base_returns, mut expert_returns) = (Vec::new(), Vec::new());
+        let (mut base_steps, mut expert_steps) = (Vec::new(), Vec::new());
         for (i, (task, expert)) in tasks.iter().zip(experts).enumerate() {
             let mean = |env: &mut dyn Environment, policy: &Expert, parameter: &[f32]| {
                 mean_return(env, policy, task, parameter, protocol)
             };
-            base_returns.push(mean(env.as_mut(), &self.base, &nominal)?);
-            expert_returns.push(mean(env.as_mut(), expert, &task.parameter())?);
+            let (r, n) = mean(env.as_mut(), &self.base, &nominal)?;
+            base_returns.push(r);
+            base_steps.push(n);
+            let (r, n) = mean(env.as_mut(), expert, &task.parameter())?;
+            expert_returns.push(r);
+            expert_steps.push(n);
             on_task(i + 1, tasks.len());
         }
         Ok(ReferenceReturns {
@@ -123,22 +128,26 @@ impl References {
             base_returns,
             expert_returns,
             task_values: tasks.iter().map(|t| t.value()).collect(),
+            base_steps,
+            expert_steps,
         })
     }
 }
 
-/// Mean episode return of `policy` acting on the observation followed by `parameter`.
+/// Mean episode return and length of `policy` acting on the observation followed by
+/// `parameter`.
 fn mean_return(
     env: &mut dyn Environment,
     policy: &Expert,
     task: &Task,
     parameter: &[f32],
     protocol: &Protocol,
-) -> Result<f32> {
+) -> Result<(f32, f32)> {
     let od = env.obs_dim();
     let mut input = vec![0.0f32; od + parameter.len()];
     input[od..].copy_from_slice(parameter);
     let mut returns = Vec::with_capacity(protocol.draws * protocol.rollouts);
+    let mut steps = Vec::with_capacity(returns.capacity());
     for d in 0..protocol.draws {
         for r in 0..protocol.rollouts {
             let mut act = |obs: &[f32], action: &mut [f32]| {
@@ -150,9 +159,10 @@ fn mean_return(
             })?;
             // The family's metric, exactly what the methods' R_pi is (the return here).
             returns.push(ep.metric);
+            steps.push(ep.steps as f32);
         }
     }
-    Ok(eval::mean_std(&returns).0)
+    Ok((eval::mean_std(&returns).0, eval::mean_std(&steps).0))
 }
 
 #[cfg(test)]

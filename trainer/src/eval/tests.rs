@@ -71,6 +71,8 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
         base_returns: vec![10.0, 5.0],
         expert_returns: vec![50.0, 1.0],
         task_values: vec![0.0, 1.0],
+        base_steps: vec![300.0, 1000.0],
+        expert_steps: vec![1000.0, 20.0],
     };
     let report = plain.clone().with_reference(reference.clone()).unwrap();
     let n = report.methods[0].normalised.as_ref().unwrap();
