@@ -218,21 +218,24 @@ fn per_task_experts_make_demos_for_their_tasks() {
     );
     let experts = dirs.join(",");
     let demos = d.join("demos.safetensors");
-    ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--task-params",
-        "0.3,-1.2",
-        "--per-task",
-        "1",
-        "--horizon",
-        "20",
-        "--expert",
-        &experts,
-        "-o",
-        demos.to_str().unwrap(),
-    ]));
+    let demos_with = |expert: &str, out: &std::path::Path| {
+        ok(&smile(&[
+            "demos",
+            "--env",
+            "point-goal",
+            "--task-params",
+            "0.3,-1.2",
+            "--per-task",
+            "1",
+            "--horizon",
+            "20",
+            "--expert",
+            expert,
+            "-o",
+            out.to_str().unwrap(),
+        ]))
+    };
+    demos_with(&experts, &demos);
     let ds = sim::DemoDataset::read(&demos).unwrap();
     assert_eq!(
         (ds.tasks.len(), ds.expert.as_str()),
@@ -265,23 +268,6 @@ fn per_task_experts_make_demos_for_their_tasks() {
         .unwrap();
     }
     let from_folder = d.join("demos-folder.safetensors");
-    let demos_with = |expert: &str, out: &std::path::Path| {
-        ok(&smile(&[
-            "demos",
-            "--env",
-            "point-goal",
-            "--task-params",
-            "0.3,-1.2",
-            "--per-task",
-            "1",
-            "--horizon",
-            "20",
-            "--expert",
-            expert,
-            "-o",
-            out.to_str().unwrap(),
-        ]))
-    };
     demos_with(folder.to_str().unwrap(), &from_folder);
     // (safetensors' JSON header has no fixed key order: compare the data, not the bytes)
     let (a, b) = (
