@@ -377,7 +377,12 @@ impl AntRobot {
     pub fn top_view_shapes(&self) -> Vec<Shape> {
         let mut shapes = Vec::new();
         for (_, collider) in self.world.colliders.iter() {
-            let pose = collider.position();
+            // From the bodies, not the colliders' own poses: those follow the bodies only at
+            // the next physics step, so right after a reset they would show the built pose.
+            let pose = &match (collider.parent(), collider.position_wrt_parent()) {
+                (Some(body), Some(local)) => *self.world.bodies[body].position() * *local,
+                _ => *collider.position(),
+            };
             if let Some(ball) = collider.shape().as_ball() {
                 let c = pose.translation;
                 shapes.push(Shape::Circle {

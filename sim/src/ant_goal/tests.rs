@@ -195,6 +195,17 @@ fn frames_are_top_views_with_goal_path_torso_and_twelve_capsules() {
     assert_eq!(robot(Role::Guide).count(), 1 + 5);
     let svg = frame_to_svg(&frame);
     assert!(svg.contains("t = 0.25 s"));
+    // Right after a reset the frame shows the reset pose: the torso disc at the torso.
+    let start = env.reset(&task, 3).unwrap().to_vec();
+    let torso = env.frame().shapes.into_iter().find_map(|s| match s {
+        Shape::Circle {
+            center,
+            role: Role::Robot,
+            ..
+        } => Some(center),
+        _ => None,
+    });
+    assert_eq!(torso, Some([start[obs::XY], start[obs::XY + 1]]));
 }
 
 fn shape_role(shape: &Shape) -> Role {
