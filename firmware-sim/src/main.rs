@@ -42,7 +42,7 @@ struct RunArgs {
     /// The policy blob (from `smile export`).
     #[arg(long)]
     blob: PathBuf,
-    /// Task family of the plant.
+    /// Task family of the plant: point-goal, cheetah-vel, walker-dyn or ant-goal.
     #[arg(long)]
     env: Family,
     /// Test-split index, or `param=VALUE` for an explicit task parameter.
@@ -305,7 +305,7 @@ struct CompareArgs {
     /// `<blob>.json`; default: that file).
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// Task family.
+    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal.
     #[arg(long)]
     env: Family,
     /// Demos of the reference's tasks (the `--contexts` file given to `smile export`).

@@ -52,8 +52,8 @@ pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<
     crate::write_atomic(path, out.as_bytes())
 }
 
-/// Plots the run: the xy path to the goal (point-goal) or forward velocity against the
-/// target over time (cheetah-vel, walker-dyn).
+/// Plots the run: the xy path to the goal (point-goal, ant-goal) or forward velocity against
+/// the target over time (cheetah-vel, walker-dyn).
 pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::error::Error>> {
     let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
     root.fill(&WHITE)?;
@@ -65,8 +65,13 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
         report.metric
     );
     match family {
-        Family::PointGoal => {
+        Family::PointGoal | Family::AntGoal => {
             let goal = report.task.goal().unwrap_or_default();
+            // Where the family observes its (x, y): point-goal first, the ant's torso last.
+            let xy = match family {
+                Family::AntGoal => sim::ant::obs::XY,
+                _ => 0,
+            };
             let mut chart = ChartBuilder::on(&root)
                 .caption(title, ("sans-serif", 18))
                 .margin(10)
@@ -81,7 +86,7 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
             let path_xy = report
                 .records
                 .iter()
-                .map(|r| (r.plant_obs[0], r.plant_obs[1]));
+                .map(|r| (r.plant_obs[xy], r.plant_obs[xy + 1]));
             chart
                 .draw_series(LineSeries::new(path_xy, BLUE.stroke_width(2)))?
                 .label("device path")

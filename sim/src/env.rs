@@ -33,7 +33,8 @@ pub struct StepInfo {
     /// This step's sample of the family's metric (see [`Family::metric_kind`]): distance to
     /// the goal, |v - v*|, or the reward.
     pub metric_sample: f32,
-    /// Forward (x) velocity of the robot's torso after the step, m/s (0 for point-goal).
+    /// Forward (x) velocity of the robot's torso after the step, m/s (0 for point-goal; the
+    /// world-frame x velocity for ant-goal).
     pub forward_velocity: f32,
 }
 
@@ -106,6 +107,7 @@ pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment
         Family::PointGoal => Ok(Box::new(crate::PointGoalEnv::new(config))),
         Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config))),
         Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config))),
+        Family::AntGoal => Ok(Box::new(crate::AntGoalEnv::new(config))),
     }
 }
 

@@ -46,7 +46,9 @@ pub enum SimError {
         got: usize,
     },
     /// A task family name that is not one of the known CLI names.
-    #[error("unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn")]
+    #[error(
+        "unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn, ant-goal"
+    )]
     UnknownFamily(String),
     /// A task parameter that is out of range or not finite.
     #[error("invalid task parameter for {family}: {reason}")]

@@ -1,8 +1,8 @@
-//! Planar (and later 3-D) Rapier task families for meta-imitation learning, their paper splits,
+//! Planar and 3-D Rapier task families for meta-imitation learning, their paper splits,
 //! scripted experts where honest, and the demo dataset format.
 //!
-//! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`) and gives its
-//!   meta-train / meta-test [`Task`] lists exactly as in the SMILe reference.
+//! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`) and
+//!   gives its meta-train / meta-test [`Task`] lists exactly as in the SMILe reference.
 //! - [`make_env`] builds a `Box<dyn` [`Environment`]`>`; `reset(task, seed)` then `step(action)`
 //!   returning a [`Transition`]. Environments are `Send`, deterministic, and never let a
 //!   non-finite action reach the physics ([`SimError`]).
@@ -14,9 +14,12 @@
 //!
 //! Robots: [`PointGoalEnv`] (a damped point mass, with the scripted [`PointGoalPdExpert`]) and
 //! [`PlanarLeggedEnv`] (HalfCheetah and Walker2d analogues as Rapier multibodies with
-//! torque motors, joint limits, damping and ground contact).
+//! torque motors, joint limits, damping and ground contact) use rapier2d; [`AntGoalEnv`]
+//! (Gymnasium's Ant quadruped, [`ant`], walking to a goal) is a rapier3d multibody.
 #![warn(missing_docs)]
 
+pub mod ant;
+pub mod ant_goal;
 mod dataset;
 mod dynamics;
 mod env;
@@ -29,6 +32,7 @@ mod robots;
 mod sensing;
 mod task;
 
+pub use ant_goal::AntGoalEnv;
 pub use dataset::{
     DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, TransitionRef,
     record_trajectory,
@@ -56,5 +60,6 @@ mod api_tests {
         assert_send::<Box<dyn Environment>>();
         assert_send::<PointGoalEnv>();
         assert_send::<PlanarLeggedEnv>();
+        assert_send::<AntGoalEnv>();
     }
 }

@@ -4,7 +4,7 @@
 /// Which plane a frame shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum View {
-    /// Looking down on the x-y plane (point-goal, and the Ant families later).
+    /// Looking down on the x-y plane (point-goal, ant-goal).
     Top,
     /// Looking at the x-z plane from the side, ground at height 0 (cheetah, walker).
     Side,

@@ -89,6 +89,42 @@ const PLANAR: [ObsComponent; 17] = [
     rate(7),
 ];
 
+/// ant-goal ([`crate::ant::obs`]): torso z, orientation quaternion (an IMU's attitude:
+/// direct), eight joint angles, torso linear velocity (world frame: the rates of x, y, z),
+/// angular velocity (a gyro's: direct, not the derivative of the quaternion entries), eight
+/// joint velocities, torso x and y.
+const ANT: [ObsComponent; 29] = [
+    Position,
+    Direct,
+    Direct,
+    Direct,
+    Direct,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    Angle,
+    rate(27),
+    rate(28),
+    rate(0),
+    Direct,
+    Direct,
+    Direct,
+    rate(5),
+    rate(6),
+    rate(7),
+    rate(8),
+    rate(9),
+    rate(10),
+    rate(11),
+    rate(12),
+    Position,
+    Position,
+];
+
 impl Family {
     /// Per observation index, what the entry is: a measured position or angle, the rate of
     /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
@@ -96,6 +132,7 @@ impl Family {
         match self {
             Family::PointGoal => &POINT_GOAL,
             Family::CheetahVel | Family::WalkerDyn => &PLANAR,
+            Family::AntGoal => &ANT,
         }
     }
 }
@@ -177,6 +214,7 @@ mod tests {
             (Family::PointGoal, Task::point_goal(0.5), 1e-3),
             (Family::CheetahVel, Task::cheetah_vel(1.0), 0.5),
             (Family::WalkerDyn, Family::WalkerDyn.test_tasks()[0], 0.5),
+            (Family::AntGoal, Family::AntGoal.test_tasks()[0], 0.5),
         ] {
             let mismatch = rate_mismatch(family, &task, 200);
             assert_eq!(

@@ -7,7 +7,8 @@ use std::str::FromStr;
 use crate::SimError;
 use crate::dynamics::WalkerDynamics;
 
-/// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`, `walker-dyn`.
+/// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
+/// `walker-dyn`, `ant-goal`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[non_exhaustive]
 pub enum Family {
@@ -17,6 +18,9 @@ pub enum Family {
     CheetahVel,
     /// Planar Walker2d analogue under randomised body dynamics.
     WalkerDyn,
+    /// 3-D Ant (Gymnasium's quadruped) walking to a goal on the circle of radius 2; the same
+    /// goal angles as point-goal.
+    AntGoal,
 }
 
 /// Meta-train or meta-test half of a family's task list.
@@ -53,8 +57,8 @@ pub const WALKER_TEST_SEED_BASE: u64 = 10_000;
 pub const WALKER_NOMINAL_SEED: u64 = u32::MAX as u64;
 
 /// How far (in the value's unit) a number may be from a task's value and still name that task,
-/// for the families with a continuous parameter: 1e-3 rad for point-goal goal angles and 1e-3
-/// m/s for cheetah-vel target velocities ([`Family::value_tolerance`]; walker-dyn seeds are
+/// for the families with a continuous parameter: 1e-3 rad for point-goal and ant-goal goal
+/// angles and 1e-3 m/s for cheetah-vel target velocities ([`Family::value_tolerance`]; walker-dyn seeds are
 /// integers and match exactly). Labels print 4 decimals for angles and 2 for velocities, so the
 /// number read off a label (`goal_angle=0.4909` for 0.490874 rad) names its task, while the
 /// closest two tasks of a family, train and test lists together, are 0.05 apart: no number
@@ -63,7 +67,12 @@ pub const TASK_VALUE_TOLERANCE: f64 = 1e-3;
 
 impl Family {
     /// Every family, in CLI order.
-    pub const ALL: [Family; 3] = [Family::PointGoal, Family::CheetahVel, Family::WalkerDyn];
+    pub const ALL: [Family; 4] = [
+        Family::PointGoal,
+        Family::CheetahVel,
+        Family::WalkerDyn,
+        Family::AntGoal,
+    ];
 
     /// The CLI name of the family.
     pub fn name(self) -> &'static str {
@@ -71,6 +80,7 @@ impl Family {
             Family::PointGoal => "point-goal",
             Family::CheetahVel => "cheetah-vel",
             Family::WalkerDyn => "walker-dyn",
+            Family::AntGoal => "ant-goal",
         }
     }
 
@@ -82,11 +92,12 @@ impl Family {
         }
     }
 
-    /// Meta-train tasks: 32 goals at k*pi/16; 31 velocities 0.0..=3.0 step 0.1; 50 dynamics seeds.
+    /// Meta-train tasks: 32 goals at k*pi/16 (point-goal, ant-goal); 31 velocities 0.0..=3.0
+    /// step 0.1; 50 dynamics seeds.
     pub fn train_tasks(self) -> Vec<Task> {
         match self {
-            Family::PointGoal => (0..32)
-                .map(|k| Task::point_goal(k as f32 * PI / 16.0))
+            Family::PointGoal | Family::AntGoal => (0..32)
+                .map(|k| self.goal_task(k as f32 * PI / 16.0))
                 .collect(),
             Family::CheetahVel => (0..=30)
                 .map(|k| Task::cheetah_vel(k as f32 * 0.1))
@@ -97,11 +108,12 @@ impl Family {
         }
     }
 
-    /// Meta-test tasks: 16 goals at 2n*pi/16 + pi/32; 30 velocities 0.05..=2.95 step 0.1; 25 seeds.
+    /// Meta-test tasks: 16 goals at 2n*pi/16 + pi/32 (point-goal, ant-goal); 30 velocities
+    /// 0.05..=2.95 step 0.1; 25 seeds.
     pub fn test_tasks(self) -> Vec<Task> {
         match self {
-            Family::PointGoal => (0..16)
-                .map(|n| Task::point_goal(2.0 * n as f32 * PI / 16.0 + PI / 32.0))
+            Family::PointGoal | Family::AntGoal => (0..16)
+                .map(|n| self.goal_task(2.0 * n as f32 * PI / 16.0 + PI / 32.0))
                 .collect(),
             Family::CheetahVel => (0..30)
                 .map(|k| Task::cheetah_vel(0.05 + k as f32 * 0.1))
@@ -123,7 +135,7 @@ impl Family {
             return Err(invalid("not finite"));
         }
         match self {
-            Family::PointGoal => Ok(Task::point_goal(value as f32)),
+            Family::PointGoal | Family::AntGoal => Ok(self.goal_task(value as f32)),
             Family::CheetahVel => Ok(Task::cheetah_vel(value as f32)),
             Family::WalkerDyn => {
                 if value < 0.0 || value.fract() != 0.0 || value > u32::MAX as f64 {
@@ -135,10 +147,10 @@ impl Family {
     }
 
     /// How far a number may be from a task's value and still name it: [`TASK_VALUE_TOLERANCE`]
-    /// for point-goal and cheetah-vel, 0 for walker-dyn (dynamics seeds are integers).
+    /// for point-goal, ant-goal and cheetah-vel, 0 for walker-dyn (dynamics seeds are integers).
     pub fn value_tolerance(self) -> f64 {
         match self {
-            Family::PointGoal | Family::CheetahVel => TASK_VALUE_TOLERANCE,
+            Family::PointGoal | Family::CheetahVel | Family::AntGoal => TASK_VALUE_TOLERANCE,
             Family::WalkerDyn => 0.0,
         }
     }
@@ -146,7 +158,7 @@ impl Family {
     /// What a task value of this family is, for messages: `goal angle (rad)`, ...
     pub fn value_name(self) -> &'static str {
         match self {
-            Family::PointGoal => "goal angle (rad)",
+            Family::PointGoal | Family::AntGoal => "goal angle (rad)",
             Family::CheetahVel => "target velocity (m/s)",
             Family::WalkerDyn => "dynamics seed",
         }
@@ -206,6 +218,7 @@ impl Family {
         match self {
             Family::PointGoal => crate::point_goal::OBS_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::OBS_DIM,
+            Family::AntGoal => crate::ant::OBS_DIM,
         }
     }
 
@@ -214,13 +227,14 @@ impl Family {
         match self {
             Family::PointGoal => crate::point_goal::ACT_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::ACT_DIM,
+            Family::AntGoal => crate::ant::ACT_DIM,
         }
     }
 
     /// Dimension of the task parameter vector appended in the oracle observation.
     pub fn task_dim(self) -> usize {
         match self {
-            Family::PointGoal => 2,
+            Family::PointGoal | Family::AntGoal => 2,
             Family::CheetahVel => 1,
             Family::WalkerDyn => WalkerDynamics::VECTOR_DIM,
         }
@@ -234,9 +248,18 @@ impl Family {
     /// The paper's evaluation metric of this family.
     pub fn metric_kind(self) -> MetricKind {
         match self {
-            Family::PointGoal => MetricKind::MinGoalDistance,
+            Family::PointGoal | Family::AntGoal => MetricKind::MinGoalDistance,
             Family::CheetahVel => MetricKind::MeanVelocityError,
             Family::WalkerDyn => MetricKind::Return,
+        }
+    }
+
+    /// The goal task at `goal_angle` of a goal family (point-goal or ant-goal); the other
+    /// families never call it.
+    fn goal_task(self, goal_angle: f32) -> Task {
+        match self {
+            Family::AntGoal => Task::ant_goal(goal_angle),
+            _ => Task::point_goal(goal_angle),
         }
     }
 }
@@ -299,15 +322,26 @@ pub enum Task {
         /// [`WALKER_NOMINAL_SEED`] means the unmodified robot.
         dynamics_seed: u64,
     },
+    /// ant-goal: walk the ant's torso to the goal at this angle (radians) on the circle of
+    /// radius 2.
+    AntGoal {
+        /// Angle of the goal on the circle, radians.
+        goal_angle: f32,
+    },
 }
 
-/// Radius of the circle the point-goal goals lie on.
+/// Radius of the circle the point-goal and ant-goal goals lie on.
 pub const GOAL_RADIUS: f32 = 2.0;
 
 impl Task {
     /// A point-goal task with its goal at `goal_angle` radians on the radius-2 circle.
     pub fn point_goal(goal_angle: f32) -> Task {
         Task::PointGoal { goal_angle }
+    }
+
+    /// An ant-goal task with its goal at `goal_angle` radians on the radius-2 circle.
+    pub fn ant_goal(goal_angle: f32) -> Task {
+        Task::AntGoal { goal_angle }
     }
 
     /// A cheetah-vel task with target velocity `target_velocity` m/s.
@@ -345,13 +379,14 @@ impl Task {
             Task::PointGoal { .. } => Family::PointGoal,
             Task::CheetahVel { .. } => Family::CheetahVel,
             Task::WalkerDyn { .. } => Family::WalkerDyn,
+            Task::AntGoal { .. } => Family::AntGoal,
         }
     }
 
-    /// The goal position of a point-goal task.
+    /// The goal position of a point-goal or ant-goal task.
     pub fn goal(&self) -> Option<[f32; 2]> {
         match *self {
-            Task::PointGoal { goal_angle } => Some([
+            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => Some([
                 GOAL_RADIUS * goal_angle.cos(),
                 GOAL_RADIUS * goal_angle.sin(),
             ]),
@@ -363,7 +398,7 @@ impl Task {
     /// `family.task_from_value(task.value())` gives the task back.
     pub fn value(&self) -> f64 {
         match *self {
-            Task::PointGoal { goal_angle } => goal_angle as f64,
+            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => goal_angle as f64,
             Task::CheetahVel { target_velocity } => target_velocity as f64,
             Task::WalkerDyn { dynamics_seed } => dynamics_seed as f64,
         }
@@ -383,14 +418,17 @@ impl Task {
     /// The value as a label prints it (`0.4909`, `1.25`, `10003`).
     fn short_value(&self) -> String {
         match *self {
-            Task::PointGoal { goal_angle } => format!("{goal_angle:.4}"),
+            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => {
+                format!("{goal_angle:.4}")
+            }
             Task::CheetahVel { target_velocity } => format!("{target_velocity:.2}"),
             Task::WalkerDyn { dynamics_seed } => dynamics_seed.to_string(),
         }
     }
 
     /// Writes the task parameter vector (length `family().task_dim()`) that the oracle
-    /// observation appends: goal (x, y); v*; or the walker's log-scale dynamics factors.
+    /// observation appends: goal (x, y) (point-goal, ant-goal); v*; or the walker's log-scale
+    /// dynamics factors.
     pub fn write_parameter(&self, out: &mut [f32]) -> Result<(), SimError> {
         let expected = self.family().task_dim();
         if out.len() != expected {
@@ -400,7 +438,7 @@ impl Task {
             });
         }
         match *self {
-            Task::PointGoal { .. } => {
+            Task::PointGoal { .. } | Task::AntGoal { .. } => {
                 out.copy_from_slice(&self.goal().unwrap_or_default());
             }
             Task::CheetahVel { target_velocity } => out[0] = target_velocity,
@@ -425,7 +463,9 @@ impl Task {
     /// A short human-readable label, e.g. `goal_angle=0.1963`.
     pub fn label(&self) -> String {
         match *self {
-            Task::PointGoal { goal_angle } => format!("goal_angle={goal_angle:.4}"),
+            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => {
+                format!("goal_angle={goal_angle:.4}")
+            }
             Task::CheetahVel { target_velocity } => format!("target_velocity={target_velocity:.2}"),
             Task::WalkerDyn {
                 dynamics_seed: WALKER_NOMINAL_SEED,

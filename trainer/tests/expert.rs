@@ -247,3 +247,38 @@ fn demos_round_trip_and_are_deterministic() {
     assert_eq!(record(&ex, &spec).unwrap(), ds);
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
+    trainer::threads::set_compute_threads(1);
+    let d = tmp("ant-goal");
+    let cfg = ExpertConfig {
+        env: Family::AntGoal.name().into(),
+        ..tiny(60)
+    };
+    let mut run = ExpertTrainer::new(cfg.clone()).unwrap();
+    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    let ex = Expert::load(&d).unwrap();
+    assert_eq!(ex.family(), Family::AntGoal);
+    let env = EnvConfig {
+        horizon: cfg.horizon,
+        ..EnvConfig::default()
+    };
+    let tasks = Family::AntGoal.test_tasks()[..2].to_vec();
+    let eval = expert::evaluate(&ex, &tasks, 1, env).unwrap();
+    // Min distance to a goal 2 m away after 20 steps of an untrained policy.
+    assert!(eval.mean.is_finite() && eval.mean > 0.5, "{}", eval.mean);
+    let spec = DemoSpec {
+        tasks,
+        split: Split::Test,
+        per_task: 1,
+        subsample: 1,
+        seed: 0,
+        env,
+    };
+    let ds = record(&ex, &spec).unwrap();
+    assert_eq!(ds.family, Family::AntGoal);
+    assert_eq!((ds.obs_dim, ds.act_dim), (29, 8));
+    assert_eq!(ds.transition_count(), 2 * 20);
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -17,6 +17,12 @@ fn splits_match_the_reference() {
     assert_eq!(test.len(), 30);
     assert!((test[0].value() - 0.05).abs() < 1e-6);
     assert!((test[29].value() - 2.95).abs() < 1e-5);
+    assert_eq!(Family::AntGoal.train_tasks().len(), 32);
+    assert_eq!(Family::AntGoal.test_tasks().len(), 16);
+    assert_eq!(
+        Family::AntGoal.tasks(Split::Test)[1].value(),
+        Family::PointGoal.test_tasks()[1].value()
+    );
     assert_eq!(Family::WalkerDyn.train_tasks().len(), 50);
     assert_eq!(Family::WalkerDyn.test_tasks().len(), 25);
 }

@@ -30,7 +30,7 @@ use crate::{Error, Result};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ExpertConfig {
-    /// Task family (`point-goal`, `cheetah-vel`, `walker-dyn`). Default `point-goal`.
+    /// Task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`). Default `point-goal`.
     pub env: String,
     /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
     pub task_index: Option<usize>,

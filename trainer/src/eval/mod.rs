@@ -6,6 +6,7 @@
 //! | point-goal | 1 | 3 x 10 | min distance to the goal |
 //! | cheetah-vel | 1, 2, 3, 4 | 3 x 5 | mean over steps of abs(v - v*) |
 //! | walker-dyn | 1 | 3 x 1 | return; with a base and expert(s) also the normalised metric |
+//! | ant-goal | 1 | 3 x 10 | min distance of the torso to the goal |
 //!
 //! Draw `d` of size `k` for task `i` uses `k` distinct trajectories chosen by a seeded RNG
 //! (seed from `(i, k, d)`), so every method sees the same contexts; rollout `r` of draw `d`
@@ -81,6 +82,7 @@ impl Protocol {
                 rollouts: 1,
                 horizon: None,
             },
+            // point-goal and ant-goal (the paper's Figure 2 protocol).
             _ => Self {
                 context_sizes: vec![1],
                 draws: 3,
@@ -547,7 +549,7 @@ impl EvalReport {
         let root = SVGBackend::new(path, (760, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
         let x_desc = match self.env.as_str() {
-            "point-goal" => "goal angle (rad)",
+            "point-goal" | "ant-goal" => "goal angle (rad)",
             "cheetah-vel" => "target velocity (m/s)",
             _ => "task",
         };

@@ -101,3 +101,13 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
     };
     assert!(plain.with_reference(other).is_err());
 }
+
+#[test]
+fn ant_goal_is_evaluated_with_the_papers_figure_2_protocol_and_metric() {
+    let p = Protocol::for_family(Family::AntGoal);
+    assert_eq!((p.context_sizes, p.draws, p.rollouts), (vec![1], 3, 10));
+    assert_eq!(
+        metric_name(Family::AntGoal.metric_kind()),
+        "min distance to goal"
+    );
+}

@@ -16,7 +16,7 @@ pub struct EvalArgs {
     /// Trained run directories (or meta_policy.safetensors files); one line per method.
     #[arg(long, required = true, num_args = 1..)]
     policy: Vec<PathBuf>,
-    /// Task family.
+    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal.
     #[arg(long, default_value = "point-goal")]
     env: String,
     /// Which tasks to evaluate on.

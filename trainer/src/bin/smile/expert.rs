@@ -19,7 +19,7 @@ pub enum ExpertKind {
 /// Arguments of `smile expert`.
 #[derive(Args, Debug)]
 pub struct ExpertArgs {
-    /// Task family: point-goal, cheetah-vel or walker-dyn [default: point-goal, or the
+    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal [default: point-goal, or the
     /// --config file's `env`].
     #[arg(long)]
     env: Option<String>,
