@@ -247,6 +247,24 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
         );
     }
 
+    // `smile report` carries the score over seeds (here one seed), and the survival lengths
+    // are in the references.
+    let steps = floats(&rep["reference"]["expert_steps"]);
+    assert!(steps.len() == 25 && steps.iter().all(|&n| (1.0..=20.0).contains(&n)));
+    ok(&smile(&[
+        "report",
+        &s(&dir.join("ev")),
+        "-o",
+        &s(&dir.join("report")),
+    ]));
+    let report = std::fs::read_to_string(dir.join("report/report.md")).unwrap();
+    if let Some(score) = n["score"].as_f64() {
+        assert!(
+            report.contains("normalised score") && report.contains(&format!("{score:.3} +- 0.000")),
+            "{report}"
+        );
+    }
+
     // Without --base / --expert: the same method numbers and no normalised fields.
     ok(&eval(&dir.join("plain"), &[]));
     let plain: serde_json::Value =

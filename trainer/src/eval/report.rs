@@ -50,6 +50,23 @@ pub struct Row {
     pub task_mean: Vec<f32>,
     /// Per task: sample std over seeds.
     pub task_std: Vec<f32>,
+    /// walker-dyn's normalised score per seed, when every seed's evaluation has it (`smile
+    /// eval --base --expert`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub normalised: Option<NormalisedRow>,
+}
+
+/// The normalised score of a row over its seeds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NormalisedRow {
+    /// Each seed's score.
+    pub per_seed: Vec<f32>,
+    /// Mean over seeds.
+    pub mean: f32,
+    /// Sample standard deviation over seeds.
+    pub std: f32,
+    /// Tasks used (R_expert > R_base) by the first seed's evaluation.
+    pub tasks_used: usize,
 }
 
 /// The aggregated report.
@@ -206,19 +223,27 @@ impl Report {
             }
         );
         let sizes: Vec<String> = self.context_sizes.iter().map(usize::to_string).collect();
+        let (norm_head, norm_rule) = if self.rows.iter().any(|r| r.normalised.is_some()) {
+            (" normalised score (mean +- std) |", "---|")
+        } else {
+            ("", "")
+        };
         s.push_str(&format!(
-            "| method | setting | seeds | per seed | mean +- std | by context size ({}) |\n|---|---|---|---|---|---|\n",
+            "| method | setting | seeds | per seed | mean +- std | by context size ({}) |{norm_head}\n|---|---|---|---|---|---|{norm_rule}\n",
             sizes.join(" / ")
         ));
         for r in &self.rows {
             let per: Vec<String> = r.per_seed.iter().map(|x| format!("{x:.3}")).collect();
+            let normalised = r.normalised.as_ref().map_or(String::new(), |n| {
+                format!(" {:.3} +- {:.3} ({} tasks) |", n.mean, n.std, n.tasks_used)
+            });
             let by: Vec<String> = r
                 .by_context_size
                 .iter()
                 .map(|x| format!("{x:.3}"))
                 .collect();
             s.push_str(&format!(
-                "| {} | {} | {} | {} | **{:.3} +- {:.3}** | {} |\n",
+                "| {} | {} | {} | {} | **{:.3} +- {:.3}** | {} |{normalised}\n",
                 r.method,
                 r.setting,
                 r.seeds.len(),
@@ -288,7 +313,18 @@ fn row(method: &str, setting: &str, entries: &[Entry]) -> Result<Row> {
         task_mean.push(mean_std(&xs).0);
         task_std.push(sample_std(&xs));
     }
+    let scores: Option<Vec<f32>> = entries
+        .iter()
+        .map(|e| e.result.normalised.as_ref().and_then(|n| n.score))
+        .collect();
+    let normalised = scores.map(|per_seed| NormalisedRow {
+        mean: mean_std(&per_seed).0,
+        std: sample_std(&per_seed),
+        tasks_used: first.normalised.as_ref().map_or(0, |n| n.tasks_used),
+        per_seed,
+    });
     Ok(Row {
+        normalised,
         method: method.into(),
         setting: setting.into(),
         seeds: entries.iter().map(|e| e.seed.clone()).collect(),
