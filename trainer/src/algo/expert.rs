@@ -20,6 +20,7 @@ use sim::{EnvConfig, Environment, EpisodeMetric, Family, PointGoalPdExpert, Task
 
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
+use crate::data::better;
 pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate};
 use crate::io::checkpoint;
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
@@ -177,15 +178,6 @@ pub struct BestEval {
 
 /// File the best-evaluated weights of a `keep_best` run are written to.
 pub const BEST_POLICY_FILE: &str = "policy-best.safetensors";
-
-/// True if metric `a` is better than `b` for `family` (lower distances and velocity errors,
-/// higher returns).
-fn better(family: Family, a: f32, b: f32) -> bool {
-    match family.metric_kind() {
-        sim::MetricKind::Return => a > b,
-        sim::MetricKind::MinGoalDistance | sim::MetricKind::MeanVelocityError => a < b,
-    }
-}
 
 impl ExpertTrainer {
     /// A fresh run (warm-started from `cfg.init_from` if set).
@@ -580,7 +572,7 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
             if run.cfg.keep_best
                 && run
                     .best
-                    .is_none_or(|b| better(run.family, ev.mean, b.metric))
+                    .is_none_or(|b| better(run.family.metric_kind(), ev.mean, b.metric))
             {
                 run.export_policy_as(dir, BEST_POLICY_FILE)?;
                 run.best = Some(BestEval {
@@ -619,7 +611,7 @@ fn finish_policy(
         run.cfg.env_config(),
     )?;
     log.log(run.env_steps, &[("eval/metric", last.mean as f64)])?;
-    if better(run.family, best.metric, last.mean) {
+    if better(run.family.metric_kind(), best.metric, last.mean) {
         let io = |e: std::io::Error| Error::Io {
             path: dir.join(POLICY_FILE),
             source: e,
