@@ -108,6 +108,7 @@ pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment
         Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config))),
         Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config))),
         Family::AntGoal => Ok(Box::new(crate::AntGoalEnv::new(config))),
+        Family::AntLinClass => Ok(Box::new(crate::AntLinClassEnv::new(config))),
     }
 }
 
@@ -117,6 +118,7 @@ pub struct EpisodeMetric {
     kind: MetricKind,
     min: f32,
     sum: f64,
+    last: f32,
     steps: usize,
 }
 
@@ -127,6 +129,7 @@ impl EpisodeMetric {
             kind: family.metric_kind(),
             min: f32::INFINITY,
             sum: 0.0,
+            last: f32::NAN,
             steps: 0,
         }
     }
@@ -135,6 +138,7 @@ impl EpisodeMetric {
     pub fn record(&mut self, info: &StepInfo) {
         self.min = self.min.min(info.metric_sample);
         self.sum += info.metric_sample as f64;
+        self.last = info.metric_sample;
         self.steps += 1;
     }
 
@@ -143,8 +147,8 @@ impl EpisodeMetric {
         self.kind
     }
 
-    /// The metric so far: min distance, mean |v - v*| or return (NaN before any step for the
-    /// first two, 0 for the return).
+    /// The metric so far: min distance, mean |v - v*|, return, or classification success (NaN
+    /// before any step, except 0 for the return).
     pub fn value(&self) -> f32 {
         match self.kind {
             MetricKind::MinGoalDistance if self.steps == 0 => f32::NAN,
@@ -152,7 +156,23 @@ impl EpisodeMetric {
             MetricKind::MeanVelocityError if self.steps == 0 => f32::NAN,
             MetricKind::MeanVelocityError => (self.sum / self.steps as f64) as f32,
             MetricKind::Return => self.sum as f32,
+            MetricKind::ClassificationSuccess if self.steps == 0 => f32::NAN,
+            MetricKind::ClassificationSuccess => {
+                match crate::ant_linclass::Decision::from_sample(self.last) {
+                    crate::ant_linclass::Decision::Correct => 1.0,
+                    _ => 0.0,
+                }
+            }
         }
+    }
+
+    /// For a classification metric, whether the episode so far made no decision (a no-op);
+    /// `None` for the other metrics.
+    pub fn no_op(&self) -> Option<bool> {
+        (self.kind == MetricKind::ClassificationSuccess).then(|| {
+            crate::ant_linclass::Decision::from_sample(self.last)
+                == crate::ant_linclass::Decision::Undecided
+        })
     }
 }
 

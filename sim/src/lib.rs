@@ -1,7 +1,8 @@
 //! Planar and 3-D Rapier task families for meta-imitation learning, their paper splits,
 //! scripted experts where honest, and the demo dataset format.
 //!
-//! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`) and
+//! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`,
+//!   `ant-linclass`) and
 //!   gives its meta-train / meta-test [`Task`] lists exactly as in the SMILe reference.
 //! - [`make_env`] builds a `Box<dyn` [`Environment`]`>`; `reset(task, seed)` then `step(action)`
 //!   returning a [`Transition`]. Environments are `Send`, deterministic, and never let a
@@ -15,11 +16,13 @@
 //! Robots: [`PointGoalEnv`] (a damped point mass, with the scripted [`PointGoalPdExpert`]) and
 //! [`PlanarLeggedEnv`] (HalfCheetah and Walker2d analogues as Rapier multibodies with
 //! torque motors, joint limits, damping and ground contact) use rapier2d; [`AntGoalEnv`]
-//! (Gymnasium's Ant quadruped, [`ant`], walking to a goal) is a rapier3d multibody.
+//! (Gymnasium's Ant quadruped, [`ant`], walking to a goal) and [`AntLinClassEnv`] (the same
+//! ant classifying pairs of points by walking to one of two targets) are rapier3d multibodies.
 #![warn(missing_docs)]
 
 pub mod ant;
 pub mod ant_goal;
+pub mod ant_linclass;
 mod dataset;
 mod dynamics;
 mod env;
@@ -33,6 +36,7 @@ mod sensing;
 mod task;
 
 pub use ant_goal::AntGoalEnv;
+pub use ant_linclass::AntLinClassEnv;
 pub use dataset::{
     DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, TransitionRef,
     record_trajectory,
@@ -61,5 +65,6 @@ mod api_tests {
         assert_send::<PointGoalEnv>();
         assert_send::<PlanarLeggedEnv>();
         assert_send::<AntGoalEnv>();
+        assert_send::<AntLinClassEnv>();
     }
 }

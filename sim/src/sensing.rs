@@ -125,6 +125,18 @@ const ANT: [ObsComponent; 29] = [
     Position,
 ];
 
+/// ant-linclass: the ant's entries, then the two points to classify, which the device is given
+/// (as data, not measured by a sensor): passed through.
+const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
+    let mut table = [Direct; crate::ant_linclass::OBS_DIM];
+    let mut i = 0;
+    while i < ANT.len() {
+        table[i] = ANT[i];
+        i += 1;
+    }
+    table
+};
+
 impl Family {
     /// Per observation index, what the entry is: a measured position or angle, the rate of
     /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
@@ -133,6 +145,7 @@ impl Family {
             Family::PointGoal => &POINT_GOAL,
             Family::CheetahVel | Family::WalkerDyn => &PLANAR,
             Family::AntGoal => &ANT,
+            Family::AntLinClass => &ANT_LINCLASS,
         }
     }
 }
@@ -215,6 +228,11 @@ mod tests {
             (Family::CheetahVel, Task::cheetah_vel(1.0), 0.5),
             (Family::WalkerDyn, Family::WalkerDyn.test_tasks()[0], 0.5),
             (Family::AntGoal, Family::AntGoal.test_tasks()[0], 0.5),
+            (
+                Family::AntLinClass,
+                Family::AntLinClass.test_tasks()[0],
+                0.5,
+            ),
         ] {
             let mismatch = rate_mismatch(family, &task, 200);
             assert_eq!(

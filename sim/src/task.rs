@@ -5,10 +5,11 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::SimError;
+use crate::ant_linclass as linclass;
 use crate::dynamics::WalkerDynamics;
 
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
-/// `walker-dyn`, `ant-goal`.
+/// `walker-dyn`, `ant-goal`, `ant-linclass`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 #[non_exhaustive]
 pub enum Family {
@@ -21,6 +22,9 @@ pub enum Family {
     /// 3-D Ant (Gymnasium's quadruped) walking to a goal on the circle of radius 2; the same
     /// goal angles as point-goal.
     AntGoal,
+    /// 3-D Ant walking to one of two targets to classify a pair of 4-D points by a hidden
+    /// hyperplane ([`crate::ant_linclass`]).
+    AntLinClass,
 }
 
 /// Meta-train or meta-test half of a family's task list.
@@ -41,6 +45,21 @@ pub enum MetricKind {
     MeanVelocityError,
     /// Sum of rewards (higher is better).
     Return,
+    /// 1 if the episode's classification decision was correct, else 0 (higher is better); the
+    /// per-step sample is the latched [`crate::ant_linclass::Decision`], and
+    /// [`crate::EpisodeMetric::no_op`] tells whether no decision was made.
+    ClassificationSuccess,
+}
+
+impl MetricKind {
+    /// Whether a smaller value is better (distances and errors) or a larger one (return,
+    /// success).
+    pub fn lower_is_better(self) -> bool {
+        match self {
+            MetricKind::MinGoalDistance | MetricKind::MeanVelocityError => true,
+            MetricKind::Return | MetricKind::ClassificationSuccess => false,
+        }
+    }
 }
 
 /// Walker dynamics seeds of the meta-train split are `WALKER_TRAIN_SEED_BASE + i`, i in 0..50.
@@ -67,11 +86,12 @@ pub const TASK_VALUE_TOLERANCE: f64 = 1e-3;
 
 impl Family {
     /// Every family, in CLI order.
-    pub const ALL: [Family; 4] = [
+    pub const ALL: [Family; 5] = [
         Family::PointGoal,
         Family::CheetahVel,
         Family::WalkerDyn,
         Family::AntGoal,
+        Family::AntLinClass,
     ];
 
     /// The CLI name of the family.
@@ -81,6 +101,7 @@ impl Family {
             Family::CheetahVel => "cheetah-vel",
             Family::WalkerDyn => "walker-dyn",
             Family::AntGoal => "ant-goal",
+            Family::AntLinClass => "ant-linclass",
         }
     }
 
@@ -93,7 +114,7 @@ impl Family {
     }
 
     /// Meta-train tasks: 32 goals at k*pi/16 (point-goal, ant-goal); 31 velocities 0.0..=3.0
-    /// step 0.1; 50 dynamics seeds.
+    /// step 0.1; 50 dynamics seeds; 64 hyperplane seeds.
     pub fn train_tasks(self) -> Vec<Task> {
         match self {
             Family::PointGoal | Family::AntGoal => (0..32)
@@ -105,11 +126,14 @@ impl Family {
             Family::WalkerDyn => (0..50)
                 .map(|i| Task::walker_dyn(WALKER_TRAIN_SEED_BASE + i))
                 .collect(),
+            Family::AntLinClass => (0..linclass::TRAIN_TASKS)
+                .map(|i| Task::ant_linclass(linclass::TRAIN_SEED_BASE + i))
+                .collect(),
         }
     }
 
     /// Meta-test tasks: 16 goals at 2n*pi/16 + pi/32 (point-goal, ant-goal); 30 velocities
-    /// 0.05..=2.95 step 0.1; 25 seeds.
+    /// 0.05..=2.95 step 0.1; 25 dynamics seeds; 32 hyperplane seeds.
     pub fn test_tasks(self) -> Vec<Task> {
         match self {
             Family::PointGoal | Family::AntGoal => (0..16)
@@ -121,11 +145,14 @@ impl Family {
             Family::WalkerDyn => (0..25)
                 .map(|i| Task::walker_dyn(WALKER_TEST_SEED_BASE + i))
                 .collect(),
+            Family::AntLinClass => (0..linclass::TEST_TASKS)
+                .map(|i| Task::ant_linclass(linclass::TEST_SEED_BASE + i))
+                .collect(),
         }
     }
 
     /// A task of this family from one explicit number: goal angle (radians), target velocity
-    /// (m/s) or dynamics seed (a non-negative integer).
+    /// (m/s), dynamics or hyperplane seed (a non-negative integer).
     pub fn task_from_value(self, value: f64) -> Result<Task, SimError> {
         let invalid = |reason: &str| SimError::InvalidTask {
             family: self,
@@ -143,15 +170,22 @@ impl Family {
                 }
                 Ok(Task::walker_dyn(value as u64))
             }
+            Family::AntLinClass => {
+                if value < 0.0 || value.fract() != 0.0 || value > u32::MAX as f64 {
+                    return Err(invalid("a hyperplane seed must be a non-negative integer"));
+                }
+                Ok(Task::ant_linclass(value as u64))
+            }
         }
     }
 
     /// How far a number may be from a task's value and still name it: [`TASK_VALUE_TOLERANCE`]
-    /// for point-goal, ant-goal and cheetah-vel, 0 for walker-dyn (dynamics seeds are integers).
+    /// for point-goal, ant-goal and cheetah-vel, 0 for walker-dyn and ant-linclass (seeds are
+    /// integers).
     pub fn value_tolerance(self) -> f64 {
         match self {
             Family::PointGoal | Family::CheetahVel | Family::AntGoal => TASK_VALUE_TOLERANCE,
-            Family::WalkerDyn => 0.0,
+            Family::WalkerDyn | Family::AntLinClass => 0.0,
         }
     }
 
@@ -161,6 +195,7 @@ impl Family {
             Family::PointGoal | Family::AntGoal => "goal angle (rad)",
             Family::CheetahVel => "target velocity (m/s)",
             Family::WalkerDyn => "dynamics seed",
+            Family::AntLinClass => "hyperplane seed",
         }
     }
 
@@ -219,6 +254,7 @@ impl Family {
             Family::PointGoal => crate::point_goal::OBS_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::OBS_DIM,
             Family::AntGoal => crate::ant::OBS_DIM,
+            Family::AntLinClass => linclass::OBS_DIM,
         }
     }
 
@@ -227,7 +263,7 @@ impl Family {
         match self {
             Family::PointGoal => crate::point_goal::ACT_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::ACT_DIM,
-            Family::AntGoal => crate::ant::ACT_DIM,
+            Family::AntGoal | Family::AntLinClass => crate::ant::ACT_DIM,
         }
     }
 
@@ -237,6 +273,7 @@ impl Family {
             Family::PointGoal | Family::AntGoal => 2,
             Family::CheetahVel => 1,
             Family::WalkerDyn => WalkerDynamics::VECTOR_DIM,
+            Family::AntLinClass => linclass::POINT_DIM,
         }
     }
 
@@ -251,6 +288,7 @@ impl Family {
             Family::PointGoal | Family::AntGoal => MetricKind::MinGoalDistance,
             Family::CheetahVel => MetricKind::MeanVelocityError,
             Family::WalkerDyn => MetricKind::Return,
+            Family::AntLinClass => MetricKind::ClassificationSuccess,
         }
     }
 
@@ -328,6 +366,11 @@ pub enum Task {
         /// Angle of the goal on the circle, radians.
         goal_angle: f32,
     },
+    /// ant-linclass: classify pairs of 4-D points by the hyperplane drawn from this seed.
+    AntLinClass {
+        /// Seed of the hyperplane's normal ([`crate::ant_linclass::hyperplane_normal`]).
+        hyperplane_seed: u64,
+    },
 }
 
 /// Radius of the circle the point-goal and ant-goal goals lie on.
@@ -355,6 +398,21 @@ impl Task {
         Task::WalkerDyn { dynamics_seed }
     }
 
+    /// An ant-linclass task whose hyperplane is drawn from `hyperplane_seed`.
+    pub fn ant_linclass(hyperplane_seed: u64) -> Task {
+        Task::AntLinClass { hyperplane_seed }
+    }
+
+    /// The unit normal of an ant-linclass task's hyperplane (`None` for other families).
+    pub fn linclass_normal(&self) -> Option<[f32; linclass::POINT_DIM]> {
+        match *self {
+            Task::AntLinClass { hyperplane_seed } => {
+                Some(linclass::hyperplane_normal(hyperplane_seed))
+            }
+            _ => None,
+        }
+    }
+
     /// The walker-dyn task with the unmodified dynamics (seed [`WALKER_NOMINAL_SEED`]); in
     /// neither split.
     pub fn walker_nominal() -> Task {
@@ -380,6 +438,7 @@ impl Task {
             Task::CheetahVel { .. } => Family::CheetahVel,
             Task::WalkerDyn { .. } => Family::WalkerDyn,
             Task::AntGoal { .. } => Family::AntGoal,
+            Task::AntLinClass { .. } => Family::AntLinClass,
         }
     }
 
@@ -401,6 +460,7 @@ impl Task {
             Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => goal_angle as f64,
             Task::CheetahVel { target_velocity } => target_velocity as f64,
             Task::WalkerDyn { dynamics_seed } => dynamics_seed as f64,
+            Task::AntLinClass { hyperplane_seed } => hyperplane_seed as f64,
         }
     }
 
@@ -423,12 +483,13 @@ impl Task {
             }
             Task::CheetahVel { target_velocity } => format!("{target_velocity:.2}"),
             Task::WalkerDyn { dynamics_seed } => dynamics_seed.to_string(),
+            Task::AntLinClass { hyperplane_seed } => hyperplane_seed.to_string(),
         }
     }
 
     /// Writes the task parameter vector (length `family().task_dim()`) that the oracle
     /// observation appends: goal (x, y) (point-goal, ant-goal); v*; or the walker's log-scale
-    /// dynamics factors.
+    /// dynamics factors; the hyperplane's unit normal (ant-linclass).
     pub fn write_parameter(&self, out: &mut [f32]) -> Result<(), SimError> {
         let expected = self.family().task_dim();
         if out.len() != expected {
@@ -447,6 +508,9 @@ impl Task {
                     .walker_dynamics()
                     .unwrap_or_else(WalkerDynamics::nominal);
                 dynamics.write_log_factors(out)
+            }
+            Task::AntLinClass { .. } => {
+                out.copy_from_slice(&self.linclass_normal().unwrap_or_default());
             }
         }
         Ok(())
@@ -471,6 +535,7 @@ impl Task {
                 dynamics_seed: WALKER_NOMINAL_SEED,
             } => format!("dynamics_seed={WALKER_NOMINAL_SEED} (nominal)"),
             Task::WalkerDyn { dynamics_seed } => format!("dynamics_seed={dynamics_seed}"),
+            Task::AntLinClass { hyperplane_seed } => format!("hyperplane_seed={hyperplane_seed}"),
         }
     }
 }

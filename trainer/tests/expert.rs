@@ -282,3 +282,33 @@ fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
     assert_eq!(ds.transition_count(), 2 * 20);
     std::fs::remove_dir_all(&d).ok();
 }
+
+#[test]
+fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correct_target() {
+    trainer::threads::set_compute_threads(1);
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts");
+    let d = tmp("linclass");
+    expert::export_scripted_linclass(&assets.join("ant-goal"), &d).unwrap();
+    let ex = Expert::load(&d).unwrap();
+    assert_eq!(
+        (ex.family(), ex.name()),
+        (Family::AntLinClass, "scripted-linclass")
+    );
+    let tasks = Family::AntLinClass.test_tasks()[..4].to_vec();
+    let eval = expert::evaluate(&ex, &tasks, 2, EnvConfig::default()).unwrap();
+    // Measured 0.92 over 32 tasks x 10 episodes; a failure is a no-op (last sample 0), never
+    // the wrong target (last sample -1), so the mean last sample equals the success.
+    assert!(eval.mean >= 0.5, "{eval:?}");
+    assert_eq!(eval.final_sample_mean, eval.mean);
+    // The shipped copy is the same expert.
+    let shipped = Expert::load(&assets.join("ant-linclass")).unwrap();
+    assert_eq!(
+        expert::evaluate(&shipped, &tasks, 2, EnvConfig::default()).unwrap(),
+        eval
+    );
+    // Only an ant-goal SAC expert can be driven.
+    let err = expert::export_scripted_linclass(&assets.join("ant-linclass"), &tmp("linclass-bad"))
+        .unwrap_err();
+    assert!(err.to_string().contains("ant-goal SAC expert"), "{err}");
+    std::fs::remove_dir_all(&d).ok();
+}

@@ -476,6 +476,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                 &run.meta_policy(),
                 &run.data.val,
                 2,
+                cfg.eval_context_size,
                 cfg.eval_episodes,
                 cfg.env_config(),
             )?;

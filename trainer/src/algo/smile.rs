@@ -439,12 +439,14 @@ impl Smile {
         Ok((batch, reward_mean))
     }
 
-    /// Deterministic evaluation on the held-out train tasks (one-trajectory contexts).
+    /// Deterministic evaluation on the held-out train tasks (contexts of
+    /// `eval_context_size` trajectories).
     pub fn validate(&self) -> Result<f32> {
         quick_eval(
             &self.meta_policy(),
             &self.data.val,
             self.cfg.eval_contexts,
+            self.cfg.eval_context_size,
             self.cfg.eval_episodes,
             self.cfg.env_config(),
         )

@@ -1,7 +1,7 @@
 //! Episode rollouts of a context-conditioned policy, and the quick deterministic evaluation
 //! the meta-learners select their kept weights with.
 
-use sim::{EnvConfig, Environment, EpisodeMetric, MetricKind, Task, TaskDemos};
+use sim::{EnvConfig, Environment, EpisodeMetric, MetricKind, Task, TaskDemos, Trajectory};
 
 use crate::Result;
 use crate::model::MetaPolicy;
@@ -14,10 +14,7 @@ pub fn better(kind: MetricKind, a: f32, b: f32) -> bool {
     if b.is_nan() {
         return true;
     }
-    match kind {
-        MetricKind::Return => a > b,
-        MetricKind::MinGoalDistance | MetricKind::MeanVelocityError => a < b,
-    }
+    if kind.lower_is_better() { a < b } else { a > b }
 }
 
 /// One step of a rollout as seen by a callback.
@@ -44,6 +41,8 @@ pub struct Episode {
     pub ret: f32,
     /// Steps taken.
     pub steps: usize,
+    /// Classification families: whether the episode made no decision (a no-op).
+    pub no_op: Option<bool>,
 }
 
 /// A policy callback: `act(obs, action)` writes the action for a raw observation.
@@ -87,17 +86,20 @@ pub fn run_episode(
                 metric: metric.value(),
                 ret,
                 steps,
+                no_op: metric.no_op(),
             });
         }
     }
 }
 
-/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `contexts` draws of one
-/// context trajectory (trajectory `d % n`) and `episodes` rollouts each; z = posterior mean.
+/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `contexts` draws of
+/// `context_size` context trajectories (draw d: trajectories d*k .. d*k + k, wrapping) and
+/// `episodes` rollouts each; z = posterior mean.
 pub fn quick_eval(
     mp: &MetaPolicy,
     tasks: &[TaskDemos],
     contexts: usize,
+    context_size: usize,
     episodes: usize,
     env_cfg: EnvConfig,
 ) -> Result<f32> {
@@ -109,9 +111,14 @@ pub fn quick_eval(
     use rand::SeedableRng;
     let (mut sum, mut n) = (0.0f64, 0usize);
     for td in tasks {
+        let n_traj = td.trajectories.len();
+        let k = context_size.clamp(1, n_traj.max(1));
         for d in 0..contexts.max(1) {
-            let traj = &td.trajectories[d % td.trajectories.len()];
-            let z = mp.latent(&[traj])?;
+            // Context d: the k trajectories from d * k on, in order (wrapping around).
+            let context: Vec<&Trajectory> = (0..k)
+                .map(|j| &td.trajectories[(d * k + j) % n_traj])
+                .collect();
+            let z = mp.latent(&context)?;
             for e in 0..episodes.max(1) {
                 let seed = 3_000_000 + (d * 1000 + e) as u64;
                 let ep = run_episode(

@@ -7,6 +7,7 @@
 //! | cheetah-vel | 1, 2, 3, 4 | 3 x 5 | mean over steps of abs(v - v*) |
 //! | walker-dyn | 1 | 3 x 1 | return; with a base and expert(s) also the normalised metric |
 //! | ant-goal | 1 | 3 x 10 | min distance of the torso to the goal |
+//! | ant-linclass | 1, 2, 4, 8 | 3 x 5 | success (1 correct target first, else 0); also the no-op rate |
 //!
 //! Draw `d` of size `k` for task `i` uses `k` distinct trajectories chosen by a seeded RNG
 //! (seed from `(i, k, d)`), so every method sees the same contexts; rollout `r` of draw `d`
@@ -82,6 +83,13 @@ impl Protocol {
                 rollouts: 1,
                 horizon: None,
             },
+            // Aggregating demos is what this family tests: the success per context size.
+            Family::AntLinClass => Self {
+                context_sizes: vec![1, 2, 4, 8],
+                draws: 3,
+                rollouts: 5,
+                horizon: None,
+            },
             // point-goal and ant-goal (the paper's Figure 2 protocol).
             _ => Self {
                 context_sizes: vec![1],
@@ -104,6 +112,9 @@ pub struct TaskResult {
     pub metric: f32,
     /// Mean metric per context size (same order as the protocol's sizes).
     pub by_context_size: Vec<f32>,
+    /// Classification families: the fraction of episodes that made no decision.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_op_rate: Option<f32>,
 }
 
 /// One method's results.
@@ -123,6 +134,12 @@ pub struct MethodResult {
     pub episode_std: f32,
     /// Mean over tasks per context size.
     pub by_context_size: Vec<f32>,
+    /// Classification families: the no-op rate (episodes without a decision), mean over tasks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_op_rate: Option<f32>,
+    /// Classification families: the no-op rate per context size, mean over tasks.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_op_by_context_size: Option<Vec<f32>>,
     /// walker-dyn's normalised metric, when the evaluation had reference returns.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normalised: Option<NormalisedScore>,
@@ -241,6 +258,7 @@ pub fn metric_name(kind: MetricKind) -> &'static str {
         MetricKind::MinGoalDistance => "min distance to goal",
         MetricKind::MeanVelocityError => "mean |v - v*|",
         MetricKind::Return => "return",
+        MetricKind::ClassificationSuccess => "success rate",
     }
 }
 
@@ -311,13 +329,17 @@ pub fn evaluate(
     };
     let mut env = sim::make_env(family, env_cfg)?;
     let mut results = Vec::with_capacity(tasks.len());
+    let mut no_op_rows: Vec<Option<Vec<f32>>> = Vec::with_capacity(tasks.len());
     let mut all = Vec::new();
     for (i, (task, td)) in tasks.iter().zip(&demos).enumerate() {
         let trajs: Vec<&Trajectory> = td.trajectories.iter().filter(|t| !t.is_empty()).collect();
         let mut by_k = Vec::with_capacity(protocol.context_sizes.len());
+        let mut no_op_by_k = Vec::with_capacity(protocol.context_sizes.len());
         let mut task_eps = Vec::new();
+        let mut task_no_ops = Vec::new();
         for &k in &protocol.context_sizes {
             let mut eps = Vec::new();
+            let mut no_ops = Vec::new();
             for d in 0..protocol.draws {
                 let mut rng =
                     ChaCha8Rng::seed_from_u64(((i as u64) << 32) ^ ((k as u64) << 16) ^ d as u64);
@@ -335,18 +357,24 @@ pub fn evaluate(
                         &mut |_| Ok(()),
                     )?;
                     eps.push(ep.metric);
+                    no_ops.extend(ep.no_op.map(|n| if n { 1.0 } else { 0.0 }));
                 }
             }
             by_k.push(mean_std(&eps).0);
             task_eps.extend(eps);
+            no_op_by_k.push(mean_std(&no_ops).0);
+            task_no_ops.extend(no_ops);
         }
+        let classifies = !task_no_ops.is_empty();
         all.extend_from_slice(&task_eps);
         results.push(TaskResult {
             task: task.label(),
             value: task.value(),
             metric: mean_std(&task_eps).0,
             by_context_size: by_k,
+            no_op_rate: classifies.then(|| mean_std(&task_no_ops).0),
         });
+        no_op_rows.push(classifies.then_some(no_op_by_k));
         on_task(i + 1, tasks.len());
     }
     let per_task: Vec<f32> = results.iter().map(|t| t.metric).collect();
@@ -363,6 +391,19 @@ pub fn evaluate(
             .0
         })
         .collect();
+    // Per context size, the mean over tasks of the tasks' no-op rates.
+    let no_op_rows: Option<Vec<Vec<f32>>> = no_op_rows.into_iter().collect();
+    let no_op_by_context_size = no_op_rows.filter(|r| !r.is_empty()).map(|rows| {
+        (0..protocol.context_sizes.len())
+            .map(|j| mean_std(&rows.iter().map(|r| r[j]).collect::<Vec<_>>()).0)
+            .collect()
+    });
+    let no_op_rate = results
+        .iter()
+        .map(|t| t.no_op_rate)
+        .collect::<Option<Vec<f32>>>()
+        .filter(|r| !r.is_empty())
+        .map(|r| mean_std(&r).0);
     Ok(MethodResult {
         name: name.into(),
         tasks: results,
@@ -371,6 +412,8 @@ pub fn evaluate(
         episode_mean,
         episode_std,
         by_context_size,
+        no_op_rate,
+        no_op_by_context_size,
         normalised: None,
     })
 }
@@ -387,7 +430,7 @@ impl EvalReport {
             env: family.name().into(),
             split: split.to_string(),
             metric: metric_name(family.metric_kind()).into(),
-            lower_is_better: family.metric_kind() != MetricKind::Return,
+            lower_is_better: family.metric_kind().lower_is_better(),
             protocol,
             methods,
             reference: None,
@@ -510,6 +553,27 @@ impl EvalReport {
                 s.push('\n');
             }
         }
+        if self.methods.iter().any(|m| m.no_op_rate.is_some()) {
+            let cell = |x: Option<f32>| x.map_or(" - |".into(), |x| format!(" {x:.3} |"));
+            s.push_str("| **no-op rate** (no decision) |");
+            for m in &self.methods {
+                s.push_str(&cell(m.no_op_rate));
+            }
+            s.push('\n');
+            if self.protocol.context_sizes.len() > 1 {
+                for (j, k) in self.protocol.context_sizes.iter().enumerate() {
+                    s.push_str(&format!("| no-op rate, {k} context demos |"));
+                    for m in &self.methods {
+                        s.push_str(&cell(
+                            m.no_op_by_context_size
+                                .as_ref()
+                                .and_then(|v| v.get(j).copied()),
+                        ));
+                    }
+                    s.push('\n');
+                }
+            }
+        }
         s
     }
 
@@ -551,6 +615,7 @@ impl EvalReport {
         let x_desc = match self.env.as_str() {
             "point-goal" | "ant-goal" => "goal angle (rad)",
             "cheetah-vel" => "target velocity (m/s)",
+            "walker-dyn" | "ant-linclass" => "task seed",
             _ => "task",
         };
         let mut chart = ChartBuilder::on(&root)

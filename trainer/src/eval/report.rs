@@ -54,6 +54,22 @@ pub struct Row {
     /// eval --base --expert`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub normalised: Option<NormalisedRow>,
+    /// Classification families: the no-op rate over seeds, when every seed's evaluation has it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub no_op: Option<NoOpRow>,
+}
+
+/// The no-op rate (episodes without a decision) of a row over its seeds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct NoOpRow {
+    /// Each seed's no-op rate.
+    pub per_seed: Vec<f32>,
+    /// Mean over seeds.
+    pub mean: f32,
+    /// Sample standard deviation over seeds.
+    pub std: f32,
+    /// Mean over seeds per context size.
+    pub by_context_size: Vec<f32>,
 }
 
 /// The normalised score of a row over its seeds.
@@ -223,20 +239,35 @@ impl Report {
             }
         );
         let sizes: Vec<String> = self.context_sizes.iter().map(usize::to_string).collect();
-        let (norm_head, norm_rule) = if self.rows.iter().any(|r| r.normalised.is_some()) {
-            (" normalised score (mean +- std) |", "---|")
+        let (mut norm_head, mut norm_rule) = if self.rows.iter().any(|r| r.normalised.is_some()) {
+            (" normalised score (mean +- std) |".to_string(), "---|")
         } else {
-            ("", "")
+            (String::new(), "")
         };
+        if self.rows.iter().any(|r| r.no_op.is_some()) {
+            norm_head = format!(
+                " no-op rate (mean +- std) | no-op by context size ({}) |",
+                sizes.join(" / ")
+            );
+            norm_rule = "---|---|";
+        }
         s.push_str(&format!(
             "| method | setting | seeds | per seed | mean +- std | by context size ({}) |{norm_head}\n|---|---|---|---|---|---|{norm_rule}\n",
             sizes.join(" / ")
         ));
         for r in &self.rows {
             let per: Vec<String> = r.per_seed.iter().map(|x| format!("{x:.3}")).collect();
-            let normalised = r.normalised.as_ref().map_or(String::new(), |n| {
+            let mut normalised = r.normalised.as_ref().map_or(String::new(), |n| {
                 format!(" {:.3} +- {:.3} ({} tasks) |", n.mean, n.std, n.tasks_used)
             });
+            if let Some(n) = &r.no_op {
+                let by: Vec<String> = n
+                    .by_context_size
+                    .iter()
+                    .map(|x| format!("{x:.3}"))
+                    .collect();
+                normalised = format!(" {:.3} +- {:.3} | {} |", n.mean, n.std, by.join(" / "));
+            }
             let by: Vec<String> = r
                 .by_context_size
                 .iter()
@@ -323,7 +354,23 @@ fn row(method: &str, setting: &str, entries: &[Entry]) -> Result<Row> {
         tasks_used: first.normalised.as_ref().map_or(0, |n| n.tasks_used),
         per_seed,
     });
+    let no_op_seeds: Option<Vec<f32>> = entries.iter().map(|e| e.result.no_op_rate).collect();
+    let no_op_sizes: Option<Vec<&Vec<f32>>> = entries
+        .iter()
+        .map(|e| e.result.no_op_by_context_size.as_ref())
+        .collect();
+    let no_op = no_op_seeds.map(|per_seed| NoOpRow {
+        mean: mean_std(&per_seed).0,
+        std: sample_std(&per_seed),
+        by_context_size: no_op_sizes.map_or_else(Vec::new, |rows| {
+            (0..rows.first().map_or(0, |r| r.len()))
+                .map(|k| mean_std(&rows.iter().map(|r| r[k]).collect::<Vec<_>>()).0)
+                .collect()
+        }),
+        per_seed,
+    });
     Ok(Row {
+        no_op,
         normalised,
         method: method.into(),
         setting: setting.into(),

@@ -42,6 +42,7 @@ fn task(value: f64, metric: f32) -> TaskResult {
         value,
         metric,
         by_context_size: vec![metric],
+        no_op_rate: None,
     }
 }
 
@@ -55,6 +56,8 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
         episode_mean: 15.0,
         episode_std: 15.0,
         by_context_size: vec![15.0],
+        no_op_rate: None,
+        no_op_by_context_size: None,
         normalised: None,
     };
     let plain = EvalReport::new(
@@ -110,4 +113,64 @@ fn ant_goal_is_evaluated_with_the_papers_figure_2_protocol_and_metric() {
         metric_name(Family::AntGoal.metric_kind()),
         "min distance to goal"
     );
+}
+
+/// Stands still whatever the context: never reaches a target.
+struct StandStill;
+
+impl ConditionedActor for StandStill {
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
+        Ok(vec![context.len() as f32])
+    }
+    fn act(&mut self, _obs: &[f32], _z: &[f32], action: &mut [f32]) -> Result<()> {
+        action.fill(0.0);
+        Ok(())
+    }
+}
+
+#[test]
+fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size() {
+    let contexts = DemoDataset::read(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/experts/ant-linclass/demos-test-16x-sub5.safetensors"),
+    )
+    .unwrap();
+    let protocol = Protocol {
+        context_sizes: vec![1, 8],
+        draws: 1,
+        rollouts: 1,
+        horizon: Some(4),
+    };
+    let family = Family::AntLinClass;
+    let m = evaluate(
+        &mut StandStill,
+        "still",
+        family,
+        Split::Test,
+        &contexts,
+        &protocol,
+        &mut |_, _| {},
+    )
+    .unwrap();
+    assert_eq!(m.tasks.len(), 32);
+    assert_eq!((m.mean, m.no_op_rate), (0.0, Some(1.0)));
+    assert_eq!(m.no_op_by_context_size, Some(vec![1.0, 1.0]));
+    assert!(m.tasks.iter().all(|t| t.no_op_rate == Some(1.0)));
+    let report = EvalReport::new(family, Split::Test, protocol, vec![m]);
+    assert!(!report.lower_is_better);
+    assert_eq!(report.metric, "success rate");
+    let md = report.markdown();
+    assert!(
+        md.contains("| **no-op rate** (no decision) | 1.000 |"),
+        "{md}"
+    );
+    assert!(
+        md.contains("| no-op rate, 8 context demos | 1.000 |"),
+        "{md}"
+    );
+    // The JSON carries it for `smile report`.
+    let json = serde_json::to_string(&report).unwrap();
+    assert!(json.contains("no_op_rate"));
+    let p = Protocol::for_family(Family::AntLinClass);
+    assert_eq!(p.context_sizes, vec![1, 2, 4, 8]);
 }

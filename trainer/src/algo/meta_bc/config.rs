@@ -56,6 +56,8 @@ pub struct MetaBcConfig {
     pub patience: u32,
     /// Deterministic rollouts per held-out task and context when validating. Default 2.
     pub eval_episodes: usize,
+    /// Trajectories per context when validating (draw d uses demos d*k..d*k+k). Default 1.
+    pub eval_context_size: usize,
     /// Meta-DAgger (needs an expert). Default false.
     pub dagger: bool,
     /// Meta-DAgger: relabelled rollouts every this many steps. Default 50.
@@ -87,6 +89,7 @@ impl Default for MetaBcConfig {
             select_by: Selection::Mse,
             patience: 8,
             eval_episodes: 2,
+            eval_context_size: 1,
             dagger: false,
             dagger_every: 50,
             dagger_rollouts: 2,

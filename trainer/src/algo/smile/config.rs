@@ -65,6 +65,9 @@ pub struct SmileConfig {
     pub eval_contexts: usize,
     /// Deterministic episodes per held-out task and context in that evaluation. Default 3.
     pub eval_episodes: usize,
+    /// Trajectories per context in that evaluation (draw d uses demos d*k..d*k+k). Default 1,
+    /// the paper's one-demo protocol; ant-linclass, whose task needs several demos, uses 4.
+    pub eval_context_size: usize,
     /// Learner threads: 1 runs each update pair as Algorithm 1 does (discriminator step, then
     /// the SAC step on the updated discriminator's reward); 2 runs the discriminator step on a
     /// second thread *while* the SAC step runs, so SAC's reward comes from the discriminator
@@ -117,6 +120,7 @@ impl Default for SmileConfig {
             eval_every: 1000,
             eval_contexts: 4,
             eval_episodes: 3,
+            eval_context_size: 1,
             learner_threads: 1,
             checkpoint_every: 2000,
             rollout_termination: false,

@@ -11,7 +11,7 @@ use trainer::{DemoSpec, record_demos_with};
 /// Arguments of `smile demos`.
 #[derive(Args, Debug)]
 pub struct DemosArgs {
-    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal.
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long)]
     env: String,
     /// Which task list to record (also the split label stored in the file).

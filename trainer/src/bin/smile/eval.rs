@@ -16,7 +16,7 @@ pub struct EvalArgs {
     /// Trained run directories (or meta_policy.safetensors files); one line per method.
     #[arg(long, required = true, num_args = 1..)]
     policy: Vec<PathBuf>,
-    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal.
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long, default_value = "point-goal")]
     env: String,
     /// Which tasks to evaluate on.

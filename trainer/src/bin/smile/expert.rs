@@ -14,18 +14,25 @@ pub enum ExpertKind {
     Sac,
     /// sim's scripted point-goal PD controller (point-goal only; nothing is trained).
     ScriptedPd,
+    /// ant-linclass only: classifies with the true hyperplane and drives the ant-goal expert
+    /// given by --goal-expert to the chosen target (nothing is trained).
+    ScriptedLinclass,
 }
 
 /// Arguments of `smile expert`.
 #[derive(Args, Debug)]
 pub struct ExpertArgs {
-    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal [default: point-goal, or the
-    /// --config file's `env`].
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default:
+    /// point-goal, or the --config file's `env`].
     #[arg(long)]
     env: Option<String>,
     /// Expert kind.
     #[arg(long, value_enum, default_value_t = ExpertKind::Sac)]
     kind: ExpertKind,
+    /// --kind scripted-linclass: the ant-goal SAC expert it drives (a `smile expert --env
+    /// ant-goal` run directory or policy file, e.g. assets/experts/ant-goal).
+    #[arg(long)]
+    goal_expert: Option<PathBuf>,
     /// TOML file with an `ExpertConfig` (flags given here override it).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -157,6 +164,30 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         std::fs::create_dir_all(&dir)?;
         expert::export_scripted_pd(&dir)?;
         return finish(&dir, a.eval_episodes, None, EnvConfig::default());
+    }
+    if a.kind == ExpertKind::ScriptedLinclass {
+        let env = a.env.as_deref().unwrap_or(Family::AntLinClass.name());
+        if env != Family::AntLinClass.name() {
+            bail!("the scripted classification expert exists only for ant-linclass, not {env}");
+        }
+        let Some(goal) = &a.goal_expert else {
+            bail!(
+                "--kind scripted-linclass drives an ant-goal expert: give it with --goal-expert \
+                 (e.g. assets/experts/ant-goal)"
+            );
+        };
+        let dir = a
+            .out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from("runs/expert-ant-linclass-scripted"));
+        trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
+        std::fs::create_dir_all(&dir)?;
+        expert::export_scripted_linclass(goal, &dir)
+            .with_context(|| format!("--goal-expert {}", goal.display()))?;
+        return finish(&dir, a.eval_episodes, None, EnvConfig::default());
+    }
+    if a.goal_expert.is_some() {
+        bail!("--goal-expert is for --kind scripted-linclass");
     }
     let (mut run, dir) = match &a.resume {
         Some(dir) => {

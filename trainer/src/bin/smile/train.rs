@@ -57,7 +57,7 @@ pub struct TrainArgs {
     /// Algorithm [default: smile]; `--resume` reads it from the run directory.
     #[arg(long, value_enum)]
     algo: Option<Algo>,
-    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal [default: the demo file's].
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default: the demo file's].
     #[arg(long)]
     env: Option<String>,
     /// Meta-train demos (`smile demos --split train`); a meta-test file is refused.
