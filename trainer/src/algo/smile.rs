@@ -38,6 +38,7 @@ use rand_chacha::ChaCha8Rng;
 use sim::Environment;
 
 mod config;
+mod overlap;
 mod persist;
 
 pub use config::SmileConfig;
@@ -93,6 +94,8 @@ pub struct Smile {
     env_steps: u64,
     episodes: u64,
     best: f32,
+    /// The second learner thread of `learner_threads = 2`, started at the first update pair.
+    worker: Option<overlap::DiscWorker>,
 }
 
 /// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
@@ -191,6 +194,7 @@ impl Smile {
             env_steps: 0,
             episodes: 0,
             best: f32::NAN,
+            worker: None,
         })
     }
 
@@ -358,25 +362,32 @@ impl Smile {
         // in a fixed order; then the two updates touch disjoint weights and optimisers.
         let disc_batch = self.sample_disc_batch()?;
         let (sac_batch, reward_mean) = self.sac_batch()?;
-        let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
-        let learner = DiscLearner {
-            encoder: &self.encoder,
-            disc: &self.disc,
-            disc_opt: &mut self.disc_opt,
-            enc_opt: &mut self.enc_opt,
-            gp_weight: self.cfg.gp_weight,
+        let disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
+        let worker = match &mut self.worker {
+            Some(w) => w,
+            empty => empty.insert(overlap::DiscWorker::spawn()?),
         };
-        let (sac, rng, updates) = (&mut self.sac, &mut self.rng, self.updates);
-        let (ds, ss) = std::thread::scope(|s| {
-            // The process-wide compute-thread setting (1) holds in this thread too.
-            let disc = s.spawn(move || disc_update(learner, &disc_batch, updates, &mut disc_rng));
-            let ss = sac.update(&sac_batch, rng);
-            let ds = disc
-                .join()
-                .unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-            (ds, ss)
+        // The optimisers travel with the job and always come back (see `overlap`).
+        let placeholder = || Adam::new(Vec::new(), AdamConfig::with_lr(0.0));
+        let started = worker.start(overlap::DiscJob {
+            encoder: self.encoder.clone(),
+            disc: self.disc.clone(),
+            disc_opt: std::mem::replace(&mut self.disc_opt, placeholder()),
+            enc_opt: std::mem::replace(&mut self.enc_opt, placeholder()),
+            batch: disc_batch,
+            update: self.updates,
+            rng: disc_rng,
+            gp_weight: self.cfg.gp_weight,
         });
-        Ok((ds?, ss?, reward_mean))
+        if let Err(job) = started {
+            (self.disc_opt, self.enc_opt) = (job.disc_opt, job.enc_opt);
+            return Err(overlap::DiscWorker::lost());
+        }
+        let ss = self.sac.update(&sac_batch, &mut self.rng);
+        let done = worker.finish()?;
+        self.disc_opt = done.disc_opt;
+        self.enc_opt = done.enc_opt;
+        Ok((done.stats?, ss?, reward_mean))
     }
 
     /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's

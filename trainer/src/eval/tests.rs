@@ -131,7 +131,7 @@ impl ConditionedActor for StandStill {
 #[test]
 fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size() {
     let contexts = DemoDataset::read(
-        &Path::new(env!("CARGO_MANIFEST_DIR"))
+        Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../assets/experts/ant-linclass/demos-test-16x-sub5.safetensors"),
     )
     .unwrap();

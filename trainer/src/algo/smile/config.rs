@@ -72,10 +72,10 @@ pub struct SmileConfig {
     /// the SAC step on the updated discriminator's reward); 2 runs the discriminator step on a
     /// second thread *while* the SAC step runs, so SAC's reward comes from the discriminator
     /// before this pair's update (one update older). Deterministic either way (the second
-    /// thread has its own RNG drawn from the run's). Measured 2026-11-30 (`smile bench
-    /// --workload pair --learner-threads 2`, docs/BENCHMARKS.md): **no faster yet**, the
-    /// process stays at one CPU's worth, so something below the two updates serialises them
-    /// (not found yet). Do not use it in `smile sweep --jobs 2` or beside other work. Default 1.
+    /// thread has its own RNG drawn from the run's). Measured 2026-11-30 on two quiet cores
+    /// (`smile bench --workload pair --hidden 128 --learner-threads 1|2`, docs/BENCHMARKS.md):
+    /// 5.2 -> 3.4 ms per pair (1.5x), 155% CPU. It needs a free core: do not use it in `smile
+    /// sweep --jobs 2` or beside other work. Default 1.
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
