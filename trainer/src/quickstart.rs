@@ -298,6 +298,10 @@ fn train_smile(
     let mut cfg = SmileConfig {
         env: args.env.name().into(),
         seed: args.seed,
+        // The discriminator step on a second thread (1.5x pairs per second on two free cores,
+        // docs/BENCHMARKS.md "Threads"): Meta-BC shares the cores for its first minute or so,
+        // SMILe has both for the rest of its run.
+        learner_threads: 2,
         ..SmileConfig::default()
     };
     cfg.horizon = horizon(args);
@@ -482,14 +486,14 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     stage(
         3,
         "SMILe (state-action) and Meta-BC (early-stopped on held-out train tasks) on the \
-         meta-train demos, one core each",
+         meta-train demos, at the same time",
     );
     let (smile_dir, bc_dir) = (out.join("smile"), out.join("meta-bc"));
     for d in [&smile_dir, &bc_dir] {
         std::fs::create_dir_all(d).map_err(io(d))?;
     }
-    // Two learners at once, each single-threaded (crate::threads): deterministic, and as fast
-    // as either alone on a 2-core machine.
+    // Two learners at once, candle single-threaded in each (crate::threads); SMILe's update
+    // pairs on two threads (`learner_threads = 2`): deterministic either way.
     let bars = if args.quiet {
         MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
     } else {
