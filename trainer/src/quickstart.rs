@@ -151,19 +151,33 @@ fn shipped(args: &QuickstartConfig) -> Option<PathBuf> {
         .clone()
         .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts"));
     let dir = root.join(args.env.name());
-    [
-        crate::io::checkpoint::POLICY_FILE,
-        SHIPPED_TRAIN,
-        SHIPPED_TEST,
-    ]
-    .iter()
-    .all(|f| dir.join(f).exists())
-    .then_some(dir)
+    let (train, test) = shipped_demos(args.env);
+    [crate::io::checkpoint::POLICY_FILE, train, test]
+        .iter()
+        .all(|f| dir.join(f).exists())
+        .then_some(dir)
 }
 
-/// The shipped demo files (4 per task, subsampled by 20, full-length episodes).
-const SHIPPED_TRAIN: &str = "demos-train-4x-sub20.safetensors";
-const SHIPPED_TEST: &str = "demos-test-4x-sub20.safetensors";
+/// The shipped demo files (train, test) of a family: 4 per task subsampled by 20; for
+/// ant-linclass, whose contexts hold up to 8 demos, 16 per task subsampled by 5.
+fn shipped_demos(family: Family) -> (&'static str, &'static str) {
+    match family {
+        Family::AntLinClass => (
+            "demos-train-16x-sub5.safetensors",
+            "demos-test-16x-sub5.safetensors",
+        ),
+        _ => (
+            "demos-train-4x-sub20.safetensors",
+            "demos-test-4x-sub20.safetensors",
+        ),
+    }
+}
+
+/// ant-linclass's contexts: 1 to 8 demos in training, 4-demo contexts for the held-out
+/// validation (docs/configs/alc-*.toml); (max_context, eval_context_size).
+fn context_sizes(family: Family) -> Option<(usize, usize)> {
+    (family == Family::AntLinClass).then_some((8, 4))
+}
 
 /// Episode length the quickstart uses: the family's own (cheetah-vel: the paper's 1000 steps)
 /// with shipped assets; without them cheetah-vel runs 200-step episodes (as the reference's
@@ -212,11 +226,13 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
                 std::fs::copy(assets.join(f), dir.join(f)).map_err(io(dir))?;
             }
         }
+        let expert = Expert::load(dir)?;
         let note = format!(
-            "the shipped SAC expert ({}; nothing trained)",
+            "the shipped {} expert ({}; nothing trained)",
+            expert.name(),
             assets.display()
         );
-        return Ok((Expert::load(dir)?, note));
+        return Ok((expert, note));
     }
     let mut cfg = expert::ExpertConfig {
         env: args.env.name().into(),
@@ -266,11 +282,8 @@ fn demos(
     };
     let ds = match shipped(args) {
         Some(assets) => {
-            let src = assets.join(if split == Split::Train {
-                SHIPPED_TRAIN
-            } else {
-                SHIPPED_TEST
-            });
+            let (train, test) = shipped_demos(args.env);
+            let src = assets.join(if split == Split::Train { train } else { test });
             std::fs::copy(&src, path).map_err(io(path))?;
             eprintln!("  shipped demos {}", src.display());
             DemoDataset::read(path)?
@@ -282,8 +295,9 @@ fn demos(
         }
     };
     eprintln!(
-        "  {} tasks x {per_task} demos -> {}",
+        "  {} tasks x {} demos -> {}",
         ds.tasks.len(),
+        ds.trajectory_count() / ds.tasks.len().max(1),
         path.display()
     );
     Ok(ds)
@@ -314,6 +328,9 @@ fn train_smile(
         if shipped(args).is_some() {
             cfg.total_updates = 40_000;
         }
+    }
+    if let Some((max_context, eval_context_size)) = context_sizes(args.env) {
+        (cfg.max_context, cfg.eval_context_size) = (max_context, eval_context_size);
     }
     match args.budget {
         Budget::Tiny => {
@@ -365,6 +382,9 @@ fn train_meta_bc(
         cfg.horizon = horizon(args);
         cfg.select_by = meta_bc::Selection::Rollouts;
         cfg.context.enc_hidden = vec![128, 128];
+    }
+    if let Some((max_context, eval_context_size)) = context_sizes(args.env) {
+        (cfg.max_context, cfg.eval_context_size) = (max_context, eval_context_size);
     }
     if args.budget == Budget::Tiny {
         cfg.total_steps = 200;
@@ -452,9 +472,12 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         eprintln!("expected time on 2 cores: 4-6 minutes");
     } else if let Some(assets) = shipped(args) {
         eprintln!(
-            "from the shipped expert and demos in {}; expected time on 2 cores: 13-20 minutes \
-             (SMILe, 40k update pairs on 1000-step episodes, is the long stage)",
-            assets.display()
+            "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
+             (SMILe, 40k update pairs on {}-step episodes, is the long stage)",
+            assets.display(),
+            horizon(args).unwrap_or_else(
+                || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
+            )
         );
     } else if args.budget == Budget::Long && args.env != Family::PointGoal {
         eprintln!(

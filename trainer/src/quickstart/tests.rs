@@ -38,3 +38,23 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
         "point-goal is scripted"
     );
 }
+
+#[test]
+fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
+    let args = QuickstartConfig {
+        env: Family::AntLinClass,
+        ..QuickstartConfig::default()
+    };
+    let dir = shipped(&args).expect("assets/experts/ant-linclass is in the repository");
+    assert!(dir.ends_with("assets/experts/ant-linclass"));
+    let (train, test) = shipped_demos(Family::AntLinClass);
+    assert!(dir.join(train).exists() && dir.join(test).exists());
+    assert_eq!(context_sizes(Family::AntLinClass), Some((8, 4)));
+    assert_eq!(context_sizes(Family::AntGoal), None);
+    check_budget(&args).unwrap();
+    let out = std::env::temp_dir().join(format!("qs-alc-expert-{}", std::process::id()));
+    let (expert, note) = train_expert(&args, &out).unwrap();
+    assert_eq!(expert.name(), "scripted-linclass");
+    assert!(note.contains("shipped scripted-linclass expert"), "{note}");
+    std::fs::remove_dir_all(&out).ok();
+}
