@@ -13,6 +13,10 @@ use rapier3d::prelude::*;
 
 use crate::render::{Role, Shape};
 
+mod episode;
+pub(crate) use episode::AntEpisode;
+pub use episode::VELOCITY_CLIP;
+
 /// Eight torque-controlled joints: per leg, a hip (about z) then an ankle.
 pub const ACT_DIM: usize = 8;
 /// Observation: torso height z (1), orientation quaternion w, x, y, z (4), joint angles (8),

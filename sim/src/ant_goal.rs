@@ -4,51 +4,33 @@
 //! shaping term: a per-task SAC expert learnt to reach a goal (min distance 0.07) within 25k
 //! steps on this reward alone (docs/RESULTS.md).
 
-use crate::ant::{ACT_DIM, AntRobot, AntSpec, OBS_DIM, obs};
-use crate::env::{EpisodeClock, check_family, clip_action};
-use crate::render::{Frame, Role, Shape, View};
+use crate::ant::AntEpisode;
+use crate::env::check_family;
+use crate::render::{Frame, Role, Shape};
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;
 /// Weight of ||a||^2 in the reward `-distance - ACTION_COST * ||a||^2` (the reference's).
 pub const ACTION_COST: f32 = 0.005;
-/// Observed velocities are clipped to +-this (m/s, rad/s), as walker-dyn's: a rare violent
-/// contact must not feed a network a huge input.
-pub const VELOCITY_CLIP: f32 = 10.0;
+pub use crate::ant::VELOCITY_CLIP;
 
 /// The ant-goal environment.
 pub struct AntGoalEnv {
-    spec: AntSpec,
-    robot: AntRobot,
+    ant: AntEpisode,
     task: Task,
     goal: [f32; 2],
-    clock: EpisodeClock,
-    obs: [f32; OBS_DIM],
-    action: [f32; ACT_DIM],
-    /// Torso (x, y) after each step of the episode, the start first (drawn in frames).
-    path: Vec<[f32; 2]>,
 }
 
 impl AntGoalEnv {
     /// An ant-goal environment reset to the first train goal with seed 0.
     pub fn new(config: EnvConfig) -> Self {
-        let spec = crate::ant::ant();
         let task = Family::AntGoal.train_tasks()[0];
-        let robot = AntRobot::build(&spec, 0);
-        let mut env = Self {
-            spec,
-            robot,
+        Self {
+            ant: AntEpisode::new(Family::AntGoal, config.horizon.unwrap_or(HORIZON)),
             goal: task.goal().unwrap_or_default(),
             task,
-            clock: EpisodeClock::new(config.horizon.unwrap_or(HORIZON)),
-            obs: [0.0; OBS_DIM],
-            action: [0.0; ACT_DIM],
-            path: Vec::with_capacity(HORIZON + 1),
-        };
-        env.observe();
-        env.path.push(env.torso_xy());
-        env
+        }
     }
 
     /// The goal position of the current task.
@@ -58,16 +40,12 @@ impl AntGoalEnv {
 
     /// Torso (x, y) position (m), also the last two observation entries.
     pub fn torso_xy(&self) -> [f32; 2] {
-        [self.obs[obs::XY], self.obs[obs::XY + 1]]
+        self.ant.torso_xy()
     }
 
     /// Torso height (m).
     pub fn torso_z(&self) -> f32 {
-        self.obs[obs::Z]
-    }
-
-    fn observe(&mut self) {
-        self.robot.observe(&mut self.obs, VELOCITY_CLIP);
+        self.ant.obs[crate::ant::obs::Z]
     }
 
     fn distance_to_goal(&self) -> f32 {
@@ -83,11 +61,11 @@ impl Environment for AntGoalEnv {
     }
 
     fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
+        self.ant.control_dt()
     }
 
     fn horizon(&self) -> usize {
-        self.clock.horizon
+        self.ant.clock.horizon
     }
 
     fn task(&self) -> &Task {
@@ -102,41 +80,23 @@ impl Environment for AntGoalEnv {
                 reason: "goal angle is not finite".into(),
             });
         }
-        self.robot = AntRobot::build(&self.spec, seed);
         self.task = *task;
         self.goal = task.goal().unwrap_or_default();
-        self.clock.restart();
-        self.observe();
-        self.path.clear();
-        self.path.push(self.torso_xy());
-        Ok(&self.obs)
+        self.ant.reset(seed);
+        Ok(&self.ant.obs)
     }
 
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError> {
-        self.clock.ensure_running()?;
-        clip_action(Family::AntGoal, action, &mut self.action)?;
-        let x_before = self.robot.torso_position()[0];
-        self.robot.set_torques(&self.action);
-        self.robot.advance();
-        if self.robot.diverged() {
-            self.clock.over = true;
-            return Err(SimError::PhysicsDiverged {
-                family: Family::AntGoal,
-                step: self.clock.step,
-            });
-        }
-        self.observe();
-        self.path.push(self.torso_xy());
-        let forward_velocity = (self.robot.torso_position()[0] - x_before) / self.control_dt();
+        let forward_velocity = self.ant.physics_step(action)?;
         let distance = self.distance_to_goal();
-        let effort: f32 = self.action.iter().map(|a| a * a).sum();
-        let (terminated, truncated) = self.clock.advance(false);
+        let reward = -distance - ACTION_COST * self.ant.effort();
+        let (terminated, truncated) = self.ant.clock.advance(false);
         Ok(Transition {
-            obs: &self.obs,
-            reward: -distance - ACTION_COST * effort,
+            obs: &self.ant.obs,
+            reward,
             done: terminated || truncated,
             info: StepInfo {
-                step: self.clock.step,
+                step: self.ant.clock.step,
                 terminated,
                 truncated,
                 metric_sample: distance,
@@ -146,11 +106,11 @@ impl Environment for AntGoalEnv {
     }
 
     fn observation(&self) -> &[f32] {
-        &self.obs
+        &self.ant.obs
     }
 
     fn frame(&self) -> Frame {
-        let mut shapes = vec![
+        self.ant.frame(vec![
             Shape::Ring {
                 center: [0.0, 0.0],
                 radius: crate::task::GOAL_RADIUS,
@@ -161,19 +121,7 @@ impl Environment for AntGoalEnv {
                 radius: 0.1,
                 role: Role::Goal,
             },
-        ];
-        shapes.extend(self.path.windows(2).map(|w| Shape::Capsule {
-            a: w[0],
-            b: w[1],
-            radius: 0.01,
-            role: Role::Guide,
-        }));
-        shapes.extend(self.robot.top_view_shapes());
-        Frame {
-            view: View::Top,
-            time: self.clock.step as f32 * self.control_dt(),
-            shapes,
-        }
+        ])
     }
 }
 

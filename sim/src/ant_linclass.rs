@@ -27,9 +27,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::ant::{ACT_DIM, AntRobot, AntSpec};
-use crate::env::{EpisodeClock, check_family, clip_action};
-use crate::render::{Frame, Role, Shape, View};
+use crate::ant::AntEpisode;
+use crate::env::check_family;
+use crate::render::{Frame, Role, Shape};
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
@@ -55,8 +55,6 @@ pub const TEST_SEED_BASE: u64 = 10_000;
 pub const TRAIN_TASKS: u64 = 64;
 /// Number of meta-test tasks (the paper's).
 pub const TEST_TASKS: u64 = 32;
-/// Observed velocities are clipped to +-this, as in ant-goal.
-const VELOCITY_CLIP: f32 = crate::ant_goal::VELOCITY_CLIP;
 
 /// The latched classification decision of an episode, as the per-step metric sample encodes it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -183,39 +181,24 @@ pub fn goal_expert_input(oracle_obs: &[f32], out: &mut [f32]) -> Result<(), SimE
 
 /// The ant-linclass environment.
 pub struct AntLinClassEnv {
-    spec: AntSpec,
-    robot: AntRobot,
+    ant: AntEpisode,
     task: Task,
-    normal: [f32; POINT_DIM],
     /// Index into [`TARGETS`] of this episode's correct target.
     correct: usize,
     decision: Decision,
-    clock: EpisodeClock,
     obs: [f32; OBS_DIM],
-    ant_obs: [f32; crate::ant::OBS_DIM],
-    action: [f32; ACT_DIM],
-    /// Torso (x, y) after each step of the episode, the start first (drawn in frames).
-    path: Vec<[f32; 2]>,
 }
 
 impl AntLinClassEnv {
     /// An ant-linclass environment reset to the first train task with seed 0.
     pub fn new(config: EnvConfig) -> Self {
-        let spec = crate::ant::ant();
-        let robot = AntRobot::build(&spec, 0);
         let task = Family::AntLinClass.train_tasks()[0];
         let mut env = Self {
-            spec,
-            robot,
+            ant: AntEpisode::new(Family::AntLinClass, config.horizon.unwrap_or(HORIZON)),
             task,
-            normal: [0.0; POINT_DIM],
             correct: 0,
             decision: Decision::Undecided,
-            clock: EpisodeClock::new(config.horizon.unwrap_or(HORIZON)),
             obs: [0.0; OBS_DIM],
-            ant_obs: [0.0; crate::ant::OBS_DIM],
-            action: [0.0; ACT_DIM],
-            path: Vec::with_capacity(HORIZON + 1),
         };
         // The first train task with seed 0 is valid by construction.
         let _ = env.reset(&task, 0);
@@ -224,8 +207,7 @@ impl AntLinClassEnv {
 
     /// Torso (x, y) position (m).
     pub fn torso_xy(&self) -> [f32; 2] {
-        let xy = crate::ant::obs::XY;
-        [self.obs[xy], self.obs[xy + 1]]
+        self.ant.torso_xy()
     }
 
     /// This episode's correct target.
@@ -236,11 +218,6 @@ impl AntLinClassEnv {
     /// The decision so far.
     pub fn decision(&self) -> Decision {
         self.decision
-    }
-
-    fn observe(&mut self) {
-        self.robot.observe(&mut self.ant_obs, VELOCITY_CLIP);
-        self.obs[..crate::ant::OBS_DIM].copy_from_slice(&self.ant_obs);
     }
 
     fn distance_to(&self, target: [f32; 2]) -> f32 {
@@ -255,11 +232,11 @@ impl Environment for AntLinClassEnv {
     }
 
     fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
+        self.ant.control_dt()
     }
 
     fn horizon(&self) -> usize {
-        self.clock.horizon
+        self.ant.clock.horizon
     }
 
     fn task(&self) -> &Task {
@@ -272,37 +249,20 @@ impl Environment for AntLinClassEnv {
             family: Family::AntLinClass,
             reason: "not a hyperplane task".into(),
         })?;
-        self.robot = AntRobot::build(&self.spec, seed);
         self.task = *task;
-        self.normal = normal;
         let (first, second, first_positive) = draw_pair(&normal, seed);
         self.correct = if first_positive { 0 } else { 1 };
+        self.decision = Decision::Undecided;
+        self.ant.reset(seed);
+        self.obs[..FIRST_POINT].copy_from_slice(&self.ant.obs);
         self.obs[FIRST_POINT..SECOND_POINT].copy_from_slice(&first);
         self.obs[SECOND_POINT..].copy_from_slice(&second);
-        self.decision = Decision::Undecided;
-        self.clock.restart();
-        self.observe();
-        self.path.clear();
-        self.path.push(self.torso_xy());
         Ok(&self.obs)
     }
 
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError> {
-        self.clock.ensure_running()?;
-        clip_action(Family::AntLinClass, action, &mut self.action)?;
-        let x_before = self.robot.torso_position()[0];
-        self.robot.set_torques(&self.action);
-        self.robot.advance();
-        if self.robot.diverged() {
-            self.clock.over = true;
-            return Err(SimError::PhysicsDiverged {
-                family: Family::AntLinClass,
-                step: self.clock.step,
-            });
-        }
-        self.observe();
-        self.path.push(self.torso_xy());
-        let forward_velocity = (self.robot.torso_position()[0] - x_before) / self.control_dt();
+        let forward_velocity = self.ant.physics_step(action)?;
+        self.obs[..FIRST_POINT].copy_from_slice(&self.ant.obs);
         let at_correct = self.distance_to(TARGETS[self.correct]) <= DECISION_RADIUS;
         if self.decision == Decision::Undecided {
             let at_wrong = self.distance_to(TARGETS[1 - self.correct]) <= DECISION_RADIUS;
@@ -313,13 +273,13 @@ impl Environment for AntLinClassEnv {
                 self.decision = Decision::Wrong;
             }
         }
-        let (terminated, truncated) = self.clock.advance(false);
+        let (terminated, truncated) = self.ant.clock.advance(false);
         Ok(Transition {
             obs: &self.obs,
             reward: if at_correct { 1.0 } else { 0.0 },
             done: terminated || truncated,
             info: StepInfo {
-                step: self.clock.step,
+                step: self.ant.clock.step,
                 terminated,
                 truncated,
                 metric_sample: self.decision.sample(),
@@ -333,35 +293,24 @@ impl Environment for AntLinClassEnv {
     }
 
     fn frame(&self) -> Frame {
-        let mut shapes = Vec::new();
-        for (i, target) in TARGETS.iter().enumerate() {
-            // The correct target filled, the other as a ring.
-            shapes.push(if i == self.correct {
+        // The correct target filled, the other as a ring.
+        let target = |i: usize| {
+            let (center, radius) = (TARGETS[i], DECISION_RADIUS);
+            if i == self.correct {
                 Shape::Circle {
-                    center: *target,
-                    radius: DECISION_RADIUS,
+                    center,
+                    radius,
                     role: Role::Goal,
                 }
             } else {
                 Shape::Ring {
-                    center: *target,
-                    radius: DECISION_RADIUS,
+                    center,
+                    radius,
                     role: Role::Guide,
                 }
-            });
-        }
-        shapes.extend(self.path.windows(2).map(|w| Shape::Capsule {
-            a: w[0],
-            b: w[1],
-            radius: 0.01,
-            role: Role::Guide,
-        }));
-        shapes.extend(self.robot.top_view_shapes());
-        Frame {
-            view: View::Top,
-            time: self.clock.step as f32 * self.control_dt(),
-            shapes,
-        }
+            }
+        };
+        self.ant.frame(vec![target(0), target(1)])
     }
 }
 

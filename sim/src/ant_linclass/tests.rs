@@ -2,6 +2,7 @@
 //! no-op rate, determinism, errors, frames.
 
 use super::*;
+use crate::ant::ACT_DIM;
 use crate::render::{View, frame_to_svg};
 use crate::{EpisodeMetric, MetricKind, make_env};
 
