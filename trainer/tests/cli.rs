@@ -369,6 +369,26 @@ fn two_tiny_quickstarts_with_one_seed_are_byte_identical() {
     let eval: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(runs[0].join("eval.json")).unwrap()).unwrap();
     assert_eq!(eval["methods"].as_array().unwrap().len(), 3);
+    // The encoder's z of the trained SMILe, for every test task's three context draws.
+    let csv = d.join("latents.csv");
+    let out = smile(&[
+        "latents",
+        "--policy",
+        runs[0].join("smile").to_str().unwrap(),
+        "--env",
+        "point-goal",
+        "--contexts",
+        runs[0].join("demos-test.safetensors").to_str().unwrap(),
+        "--context-sizes",
+        "1,2",
+        "-o",
+        csv.to_str().unwrap(),
+    ]);
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("2 context demos: mean"));
+    let text = std::fs::read_to_string(&csv).unwrap();
+    assert!(text.starts_with("task_value,context_size,draw,param_0,param_1,z_0,"));
+    assert_eq!(text.lines().count(), 1 + 16 * 2 * 3);
     std::fs::remove_dir_all(&d).ok();
 }
 

@@ -280,6 +280,21 @@ pub(crate) fn mean_std(xs: &[f32]) -> (f32, f32) {
     (m as f32, v.sqrt() as f32)
 }
 
+/// Draw `d` of size `k` for task `i`: `k` distinct trajectories of `trajs` chosen by a RNG
+/// seeded from `(i, k, d)`, so every method (and [`latents`]) sees the same contexts.
+pub fn context_draw<'a>(
+    trajs: &[&'a Trajectory],
+    i: usize,
+    k: usize,
+    d: usize,
+) -> Vec<&'a Trajectory> {
+    let mut rng = ChaCha8Rng::seed_from_u64(((i as u64) << 32) ^ ((k as u64) << 16) ^ d as u64);
+    let mut pick = trajs.to_vec();
+    pick.shuffle(&mut rng);
+    pick.truncate(k.min(trajs.len()));
+    pick
+}
+
 /// The demos of each of `tasks`, from `contexts`; errors on a missing task or wrong family.
 pub fn contexts_for<'a>(
     contexts: &'a DemoDataset,
@@ -341,12 +356,7 @@ pub fn evaluate(
             let mut eps = Vec::new();
             let mut no_ops = Vec::new();
             for d in 0..protocol.draws {
-                let mut rng =
-                    ChaCha8Rng::seed_from_u64(((i as u64) << 32) ^ ((k as u64) << 16) ^ d as u64);
-                let mut pick = trajs.clone();
-                pick.shuffle(&mut rng);
-                pick.truncate(k.min(trajs.len()));
-                let z = actor.latent(&pick)?;
+                let z = actor.latent(&context_draw(&trajs, i, k, d))?;
                 for r in 0..protocol.rollouts {
                     let seed = episode_seed(d, r);
                     let ep = run_episode(
@@ -695,6 +705,7 @@ pub fn render_episode(
 }
 
 pub mod expert;
+pub mod latents;
 pub mod norm;
 pub mod report;
 mod report_plot;

@@ -13,6 +13,7 @@ mod demos;
 mod eval;
 mod expert;
 mod export;
+mod latents;
 mod quickstart;
 mod report;
 mod sweep;
@@ -79,6 +80,11 @@ enum Cmd {
         after_help = "Examples:\n  smile report runs/point-goal-3seeds -o runs/point-goal-3seeds/report\n  smile report runs/h6/eval-s0 runs/h6/eval-s1 runs/h6/eval-s2"
     )]
     Report(report::ReportArgs),
+    /// The encoder's z for every task's contexts (CSV) and a linear probe of the task from z.
+    #[command(
+        after_help = "Examples:\n  smile latents --policy runs/wd-smile --env walker-dyn --contexts assets/experts/walker-dyn/demos-test-4x-sub20.safetensors -o runs/wd-smile/latents.csv\n  smile latents --policy runs/alc-smile --env ant-linclass --contexts assets/experts/ant-linclass/demos-test-16x-sub5.safetensors --context-sizes 1,2,4,8 -o z.csv"
+    )]
+    Latents(latents::LatentsArgs),
 }
 
 /// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a
@@ -155,5 +161,6 @@ fn run() -> Result<()> {
         Cmd::Quickstart(a) => quickstart::run(a),
         Cmd::Sweep(a) => sweep::run(a),
         Cmd::Report(a) => report::run(a),
+        Cmd::Latents(a) => latents::run(a),
     }
 }

@@ -1,0 +1,90 @@
+//! `smile latents`: z of a meta-policy's encoder for every task's context draws (CSV), and how
+//! well a linear probe reads the task parameter back from z.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use sim::{Family, Split};
+use trainer::MetaPolicy;
+use trainer::eval::latents;
+
+/// Arguments of `smile latents`.
+#[derive(Args, Debug)]
+pub struct LatentsArgs {
+    /// A trained run directory (or its meta_policy.safetensors).
+    #[arg(long)]
+    policy: PathBuf,
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
+    #[arg(long)]
+    env: String,
+    /// Which tasks.
+    #[arg(long, default_value = "test")]
+    split: Split,
+    /// Demos of those tasks, the contexts.
+    #[arg(long)]
+    contexts: PathBuf,
+    /// Context sizes (demos per context), e.g. `1,2,4,8`.
+    #[arg(long, value_delimiter = ',', default_value = "1", value_parser = clap::value_parser!(u32).range(1..))]
+    context_sizes: Vec<u32>,
+    /// Context draws per task and size (the evaluation's draws: the same contexts).
+    #[arg(long, default_value_t = 3)]
+    draws: usize,
+    /// Output CSV (task_value, context_size, draw, param_*, z_*).
+    #[arg(short, long)]
+    out: PathBuf,
+}
+
+/// Run `smile latents`.
+pub fn run(a: LatentsArgs) -> Result<()> {
+    let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let ctx = crate::read_demos(&a.contexts, "--contexts", family)?;
+    if ctx.split != a.split {
+        bail!(
+            "--contexts {} holds {} demos but --split is {}",
+            a.contexts.display(),
+            ctx.split,
+            a.split
+        );
+    }
+    let mut policy =
+        MetaPolicy::load(&a.policy).with_context(|| format!("--policy {}", a.policy.display()))?;
+    if policy.family != family {
+        bail!(
+            "--policy {} is a {} policy but --env is {family}",
+            a.policy.display(),
+            policy.family
+        );
+    }
+    let sizes: Vec<usize> = a.context_sizes.iter().map(|&k| k as usize).collect();
+    let rows = latents::latents(&mut policy, family, a.split, &ctx, &sizes, a.draws.max(1))?;
+    if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    latents::write_csv(&rows, &a.out)?;
+    println!(
+        "wrote {}: {} rows ({} tasks x {} sizes x {} draws)",
+        a.out.display(),
+        rows.len(),
+        family.tasks(a.split).len(),
+        sizes.len(),
+        a.draws.max(1)
+    );
+    println!(
+        "linear probe of the task parameter from z, leave-one-task-out R^2 per parameter \
+         dimension (1: z encodes it linearly; 0 or below: no linear trace):"
+    );
+    for k in sizes {
+        let of_size: Vec<_> = rows
+            .iter()
+            .filter(|r| r.context_size == k)
+            .cloned()
+            .collect();
+        let r2 = latents::probe_r2(&of_size)?;
+        let cells: Vec<String> = r2.iter().map(|x| format!("{x:.3}")).collect();
+        let mean = r2.iter().filter(|x| x.is_finite()).sum::<f64>()
+            / r2.iter().filter(|x| x.is_finite()).count().max(1) as f64;
+        println!("  {k} context demos: mean {mean:.3} [{}]", cells.join(", "));
+    }
+    Ok(())
+}
