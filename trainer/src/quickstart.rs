@@ -469,7 +469,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     if args.budget == Budget::Short && args.env == Family::PointGoal {
-        eprintln!("expected time on 2 cores: 4-6 minutes");
+        eprintln!("expected time on 2 cores: 2-4 minutes");
     } else if let Some(assets) = shipped(args) {
         eprintln!(
             "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
