@@ -1,0 +1,193 @@
+//! The expert policies a run exports and demos, evaluation and Meta-DAgger load: a SAC actor on
+//! the oracle observation, or a scripted controller (point-goal's PD, ant-linclass's classifier
+//! over an ant-goal actor), each one `policy.safetensors` file.
+
+use std::path::Path;
+
+use candle_core::Tensor;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use sim::{Family, PointGoalPdExpert};
+
+use crate::io::checkpoint;
+use crate::io::checkpoint::POLICY_FILE;
+use crate::model::TanhGaussianPolicy;
+use crate::{Error, Result};
+
+pub(super) fn write_policy(
+    dir: &Path,
+    file: &str,
+    tensors: &[(String, Tensor)],
+    meta: &serde_json::Value,
+) -> Result<()> {
+    let tmp = dir.join(".policy-export");
+    checkpoint::save(&tmp, tensors, meta)?;
+    let io = |e: std::io::Error| Error::Io {
+        path: dir.join(file),
+        source: e,
+    };
+    std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), dir.join(file)).map_err(io)?;
+    std::fs::remove_dir_all(&tmp).map_err(io)?;
+    Ok(())
+}
+
+/// Write a scripted point-goal PD expert descriptor to `dir/policy.safetensors`.
+pub fn export_scripted_pd(dir: &Path) -> Result<()> {
+    let pd = PointGoalPdExpert::default();
+    let meta = serde_json::json!({
+        "kind": "expert-policy", "expert": "scripted-pd", "env": Family::PointGoal.name(),
+        "kp": pd.kp, "kd": pd.kd,
+    });
+    write_policy(dir, POLICY_FILE, &[], &meta)
+}
+
+/// Write the scripted ant-linclass expert to `dir/policy.safetensors`: the ant-goal SAC
+/// expert at `goal_expert` (a run directory or policy file, copied in) walking to the target
+/// that [`sim::ant_linclass::scripted_target`] picks with the true hyperplane, as the paper
+/// drove two of its Ant-goal experts.
+pub fn export_scripted_linclass(goal_expert: &Path, dir: &Path) -> Result<()> {
+    let file = if goal_expert.is_dir() {
+        goal_expert.join(POLICY_FILE)
+    } else {
+        goal_expert.to_path_buf()
+    };
+    let ck = checkpoint::load(&file)?;
+    let is_goal_sac = ck.meta.get("expert").and_then(|k| k.as_str()) == Some("sac-oracle")
+        && ck.meta.get("env").and_then(|k| k.as_str()) == Some(Family::AntGoal.name());
+    if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") || !is_goal_sac {
+        return Err(Error::Checkpoint {
+            path: file,
+            reason: "the scripted ant-linclass expert drives an ant-goal SAC expert \
+                     (`smile expert --env ant-goal`); this file is not one"
+                .into(),
+        });
+    }
+    let widths: Vec<usize> = ck.meta_field("widths")?;
+    let bounds: (f32, f32) = ck.meta_field("log_std_bounds")?;
+    let tensors = (0..2 * (widths.len() - 1))
+        .map(|i| Ok((format!("actor.{i}"), ck.get(&format!("actor.{i}"))?)))
+        .collect::<Result<Vec<_>>>()?;
+    let meta = serde_json::json!({
+        "kind": "expert-policy", "expert": "scripted-linclass",
+        "env": Family::AntLinClass.name(), "widths": widths, "log_std_bounds": bounds,
+        "goal_expert": file.display().to_string(),
+    });
+    write_policy(dir, POLICY_FILE, &tensors, &meta)
+}
+
+/// The SAC actor stored as `actor.{i}` in a policy file, whose input width must be `input`.
+fn load_actor(
+    ck: &checkpoint::Loaded,
+    input: usize,
+    act_dim: usize,
+    bad: &dyn Fn(&str) -> Error,
+) -> Result<TanhGaussianPolicy> {
+    let widths: Vec<usize> = ck.meta_field("widths")?;
+    let bounds: (f32, f32) = ck.meta_field("log_std_bounds")?;
+    if widths.len() < 2 || widths[0] != input {
+        return Err(bad("policy input width does not match the family"));
+    }
+    let hidden = &widths[1..widths.len() - 1];
+    let mut rng = ChaCha8Rng::seed_from_u64(0);
+    let policy = TanhGaussianPolicy::new(widths[0], act_dim, hidden, bounds, &mut rng)?;
+    let n = policy.net().vars().len();
+    let ts = (0..n)
+        .map(|i| ck.get(&format!("actor.{i}")))
+        .collect::<Result<Vec<_>>>()?;
+    policy.net().load_from(&ts)?;
+    Ok(policy)
+}
+
+/// An expert that acts on oracle observations.
+#[derive(Debug, Clone)]
+pub enum Expert {
+    /// A SAC policy trained on the oracle observation; acts with `tanh(mu)`.
+    Sac {
+        /// The family it was trained for.
+        family: Family,
+        /// The policy.
+        policy: TanhGaussianPolicy,
+    },
+    /// The scripted point-goal PD controller from `sim`.
+    ScriptedPd(PointGoalPdExpert),
+    /// ant-linclass: classifies with the true hyperplane and drives an ant-goal SAC expert
+    /// (`policy`, on the ant's observation + the chosen target) to the chosen target.
+    ScriptedLinClass {
+        /// The ant-goal expert's actor.
+        policy: TanhGaussianPolicy,
+    },
+}
+
+impl Expert {
+    /// Load an expert from a run directory or a `policy.safetensors` file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let file = if path.is_dir() {
+            path.join(POLICY_FILE)
+        } else {
+            path.to_path_buf()
+        };
+        let ck = checkpoint::load(&file)?;
+        let bad = |r: &str| Error::Checkpoint {
+            path: file.clone(),
+            reason: r.to_string(),
+        };
+        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") {
+            return Err(bad("not an expert policy file"));
+        }
+        let env: String = ck.meta_field("env")?;
+        let family = env.parse::<Family>().map_err(|e| bad(&e.to_string()))?;
+        match ck.meta_field::<String>("expert")?.as_str() {
+            "scripted-pd" => Ok(Expert::ScriptedPd(PointGoalPdExpert {
+                kp: ck.meta_field("kp")?,
+                kd: ck.meta_field("kd")?,
+            })),
+            "sac-oracle" => {
+                let policy = load_actor(&ck, family.oracle_obs_dim(), family.act_dim(), &bad)?;
+                Ok(Expert::Sac { family, policy })
+            }
+            "scripted-linclass" if family == Family::AntLinClass => {
+                let goal = Family::AntGoal;
+                let policy = load_actor(&ck, goal.oracle_obs_dim(), goal.act_dim(), &bad)?;
+                Ok(Expert::ScriptedLinClass { policy })
+            }
+            other => Err(bad(&format!("unknown expert kind {other:?}"))),
+        }
+    }
+
+    /// Short name stored in datasets (`sac-oracle`, `scripted-pd`).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Expert::Sac { .. } => "sac-oracle",
+            Expert::ScriptedPd(_) => "scripted-pd",
+            Expert::ScriptedLinClass { .. } => "scripted-linclass",
+        }
+    }
+
+    /// The family this expert acts in.
+    pub fn family(&self) -> Family {
+        match self {
+            Expert::Sac { family, .. } => *family,
+            Expert::ScriptedPd(_) => Family::PointGoal,
+            Expert::ScriptedLinClass { .. } => Family::AntLinClass,
+        }
+    }
+
+    /// Deterministic action for an oracle observation.
+    pub fn act(&self, oracle_obs: &[f32], action: &mut [f32]) -> Result<()> {
+        match self {
+            Expert::Sac { policy, .. } => {
+                let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic action
+                action.copy_from_slice(&policy.act(oracle_obs, true, &mut rng)?);
+                Ok(())
+            }
+            Expert::ScriptedPd(pd) => Ok(pd.act(oracle_obs, action)?),
+            Expert::ScriptedLinClass { policy } => {
+                let mut goal_input = [0.0f32; sim::ant::OBS_DIM + 2];
+                sim::ant_linclass::goal_expert_input(oracle_obs, &mut goal_input)?;
+                let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic action
+                action.copy_from_slice(&policy.act(&goal_input, true, &mut rng)?);
+                Ok(())
+            }
+        }
+    }
+}
