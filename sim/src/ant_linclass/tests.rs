@@ -199,3 +199,22 @@ fn frames_show_both_targets_the_correct_one_filled() {
     );
     assert!(frame_to_svg(&frame).contains("<svg"));
 }
+
+#[test]
+fn tasks_draw_their_own_points_for_the_same_reset_seed() {
+    // Demos of different tasks recorded with the same reset seeds must not share their points.
+    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let tasks = Family::AntLinClass.train_tasks();
+    let mut firsts: Vec<Vec<u32>> = tasks
+        .iter()
+        .map(|t| {
+            env.reset(t, 0).unwrap()[FIRST_POINT..SECOND_POINT]
+                .iter()
+                .map(|x| x.to_bits())
+                .collect()
+        })
+        .collect();
+    firsts.sort();
+    firsts.dedup();
+    assert_eq!(firsts.len(), tasks.len(), "two tasks share a first point");
+}
