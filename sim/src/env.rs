@@ -129,7 +129,7 @@ impl EpisodeMetric {
             kind: family.metric_kind(),
             min: f32::INFINITY,
             sum: 0.0,
-            last: f32::NAN,
+            last: 0.0,
             steps: 0,
         }
     }
@@ -167,9 +167,9 @@ impl EpisodeMetric {
     }
 
     /// For a classification metric, whether the episode so far made no decision (a no-op);
-    /// `None` for the other metrics.
+    /// `None` for the other metrics and before any step.
     pub fn no_op(&self) -> Option<bool> {
-        (self.kind == MetricKind::ClassificationSuccess).then(|| {
+        (self.kind == MetricKind::ClassificationSuccess && self.steps > 0).then(|| {
             crate::ant_linclass::Decision::from_sample(self.last)
                 == crate::ant_linclass::Decision::Undecided
         })

@@ -205,6 +205,17 @@ fn check_budget(args: &QuickstartConfig) -> Result<()> {
             args.env
         )));
     }
+    if args.env == Family::AntLinClass && args.budget == Budget::Long && shipped(args).is_none() {
+        // Its expert is scripted over an ant-goal expert; SAC on the sparse classification
+        // reward would burn hours for nothing.
+        return Err(Error::Usage(
+            "ant-linclass's expert is scripted over the ant-goal expert: make it with `smile \
+             expert --kind scripted-linclass --goal-expert assets/experts/ant-goal` and use \
+             `smile demos` / `smile train`, or restore assets/experts/ant-linclass (the \
+             quickstart's shipped files)"
+                .into(),
+        ));
+    }
     Ok(())
 }
 

@@ -152,6 +152,12 @@ fn the_metric_reads_the_latched_decision() {
     assert_eq!(run(&[0.0, -1.0, -1.0]), (0.0, Some(false)));
     assert_eq!(run(&[0.0, 0.0]), (0.0, Some(true)));
     assert!(run(&[]).0.is_nan());
+    assert_eq!(run(&[]).1, None, "no decision can be judged before a step");
+    // Fresh accumulators compare equal (no NaN inside).
+    assert_eq!(
+        EpisodeMetric::new(Family::AntLinClass),
+        EpisodeMetric::new(Family::AntLinClass)
+    );
     assert_eq!(EpisodeMetric::new(Family::AntGoal).no_op(), None);
     for d in [Decision::Undecided, Decision::Correct, Decision::Wrong] {
         assert_eq!(Decision::from_sample(d.sample()), d);

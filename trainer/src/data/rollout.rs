@@ -111,13 +111,18 @@ pub fn quick_eval(
     use rand::SeedableRng;
     let (mut sum, mut n) = (0.0f64, 0usize);
     for td in tasks {
-        let n_traj = td.trajectories.len();
-        let k = context_size.clamp(1, n_traj.max(1));
+        let trajs: Vec<&Trajectory> = td.trajectories.iter().filter(|t| !t.is_empty()).collect();
+        if trajs.is_empty() {
+            return Err(crate::Error::Data(format!(
+                "held-out task {} has no demos to form a context",
+                td.task.label()
+            )));
+        }
+        let k = context_size.clamp(1, trajs.len());
         for d in 0..contexts.max(1) {
             // Context d: the k trajectories from d * k on, in order (wrapping around).
-            let context: Vec<&Trajectory> = (0..k)
-                .map(|j| &td.trajectories[(d * k + j) % n_traj])
-                .collect();
+            let context: Vec<&Trajectory> =
+                (0..k).map(|j| trajs[(d * k + j) % trajs.len()]).collect();
             let z = mp.latent(&context)?;
             for e in 0..episodes.max(1) {
                 let seed = 3_000_000 + (d * 1000 + e) as u64;

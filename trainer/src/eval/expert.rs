@@ -170,7 +170,8 @@ pub struct EvalReport {
     /// Mean of `per_task`.
     pub mean: f32,
     /// Mean over all episodes of the metric sample at the last step (for point-goal: the final
-    /// distance to the goal; for cheetah-vel: the final |v - v*|).
+    /// distance to the goal; for cheetah-vel: the final |v - v*|; for ant-linclass: the
+    /// latched decision, so P(correct) - P(wrong)).
     pub final_sample_mean: f32,
 }
 

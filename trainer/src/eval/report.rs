@@ -267,6 +267,9 @@ impl Report {
                     .map(|x| format!("{x:.3}"))
                     .collect();
                 normalised = format!(" {:.3} +- {:.3} | {} |", n.mean, n.std, by.join(" / "));
+            } else if norm_rule == "---|---|" {
+                // A row without no-op data (an evaluation by an older binary) keeps the columns.
+                normalised = " - | - |".into();
             }
             let by: Vec<String> = r
                 .by_context_size
@@ -364,7 +367,10 @@ fn row(method: &str, setting: &str, entries: &[Entry]) -> Result<Row> {
         std: sample_std(&per_seed),
         by_context_size: no_op_sizes.map_or_else(Vec::new, |rows| {
             (0..rows.first().map_or(0, |r| r.len()))
-                .map(|k| mean_std(&rows.iter().map(|r| r[k]).collect::<Vec<_>>()).0)
+                .map(|k| {
+                    let xs: Vec<f32> = rows.iter().filter_map(|r| r.get(k).copied()).collect();
+                    mean_std(&xs).0
+                })
                 .collect()
         }),
         per_seed,

@@ -56,5 +56,13 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
     let (expert, note) = train_expert(&args, &out).unwrap();
     assert_eq!(expert.name(), "scripted-linclass");
     assert!(note.contains("shipped scripted-linclass expert"), "{note}");
+    // Without the shipped files the long budget would train SAC on a sparse reward: refused.
+    let bare = QuickstartConfig {
+        assets: Some(PathBuf::from("/nonexistent")),
+        budget: Budget::Long,
+        ..args
+    };
+    let err = check_budget(&bare).unwrap_err().to_string();
+    assert!(err.contains("scripted-linclass"), "{err}");
     std::fs::remove_dir_all(&out).ok();
 }

@@ -62,6 +62,13 @@ pub fn export_scripted_linclass(goal_expert: &Path, dir: &Path) -> Result<()> {
                 .into(),
         });
     }
+    // Loads as the actor it will be (input and output widths checked) before anything is written.
+    let goal = Family::AntGoal;
+    let bad = |r: &str| Error::Checkpoint {
+        path: file.clone(),
+        reason: r.to_string(),
+    };
+    load_actor(&ck, goal.oracle_obs_dim(), goal.act_dim(), &bad)?;
     let widths: Vec<usize> = ck.meta_field("widths")?;
     let bounds: (f32, f32) = ck.meta_field("log_std_bounds")?;
     let tensors = (0..2 * (widths.len() - 1))

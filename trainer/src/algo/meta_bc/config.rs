@@ -132,9 +132,14 @@ impl MetaBcConfig {
         self.env
             .parse::<Family>()
             .map_err(|e| Error::Config(e.to_string()))?;
-        if self.tasks_per_batch == 0 || self.per_task == 0 || self.max_context == 0 {
+        if self.tasks_per_batch == 0
+            || self.per_task == 0
+            || self.max_context == 0
+            || self.eval_context_size == 0
+        {
             return Err(Error::Config(
-                "meta-bc batch sizes (tasks_per_batch, per_task, max_context) must be positive"
+                "meta-bc batch sizes (tasks_per_batch, per_task, max_context, \
+                 eval_context_size) must be positive"
                     .into(),
             ));
         }

@@ -171,9 +171,10 @@ impl SmileConfig {
             || self.sac_per_task == 0
             || self.max_context == 0
             || self.updates_per_iter == 0
+            || self.eval_context_size == 0
         {
             return Err(Error::Config(
-                "smile batch sizes and counts must be positive".into(),
+                "smile batch sizes and counts (eval_context_size too) must be positive".into(),
             ));
         }
         if !(1..=2).contains(&self.learner_threads) {

@@ -11,7 +11,7 @@
 //! The discriminator, encoder and their optimisers travel to the worker and back with every
 //! job: the networks are shared handles (candle `Var`s, updated in place), the optimisers are
 //! moved out of the run for the job's duration and always returned, even when the step
-//! fails, so a failed step leaves the run whole.
+//! fails or panics, so a failed step leaves the run whole.
 
 use std::sync::mpsc;
 use std::thread::JoinHandle;
@@ -58,18 +58,27 @@ impl DiscWorker {
             .name("smile-disc".into())
             .spawn(move || {
                 for mut job in inbox {
-                    let stats = disc_update(
-                        DiscLearner {
-                            encoder: &job.encoder,
-                            disc: &job.disc,
-                            disc_opt: &mut job.disc_opt,
-                            enc_opt: &mut job.enc_opt,
-                            gp_weight: job.gp_weight,
-                        },
-                        &job.batch,
-                        job.update,
-                        &mut job.rng,
-                    );
+                    // A panic in the step becomes an error reply, so the optimisers come back.
+                    let stats = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                        disc_update(
+                            DiscLearner {
+                                encoder: &job.encoder,
+                                disc: &job.disc,
+                                disc_opt: &mut job.disc_opt,
+                                enc_opt: &mut job.enc_opt,
+                                gp_weight: job.gp_weight,
+                            },
+                            &job.batch,
+                            job.update,
+                            &mut job.rng,
+                        )
+                    }))
+                    .unwrap_or_else(|_| {
+                        Err(Error::Data(format!(
+                            "the discriminator step of update {} panicked",
+                            job.update
+                        )))
+                    });
                     let reply = DiscDone {
                         stats,
                         disc_opt: job.disc_opt,

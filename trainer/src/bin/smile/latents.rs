@@ -57,6 +57,18 @@ pub fn run(a: LatentsArgs) -> Result<()> {
         );
     }
     let sizes: Vec<usize> = a.context_sizes.iter().map(|&k| k as usize).collect();
+    let fewest = ctx
+        .tasks
+        .iter()
+        .map(|t| t.trajectories.iter().filter(|tr| !tr.is_empty()).count())
+        .min()
+        .unwrap_or(0);
+    if let Some(k) = sizes.iter().find(|&&k| k > fewest) {
+        eprintln!(
+            "note: --contexts has only {fewest} demos for some task: contexts of {k} use all of \
+             them (rows still say {k})"
+        );
+    }
     let rows = latents::latents(&mut policy, family, a.split, &ctx, &sizes, a.draws.max(1))?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
