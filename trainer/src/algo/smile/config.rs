@@ -174,7 +174,7 @@ impl SmileConfig {
             || self.eval_context_size == 0
         {
             return Err(Error::Config(
-                "smile batch sizes and counts (eval_context_size too) must be positive".into(),
+                "smile batch sizes and counts must be positive (eval_context_size too)".into(),
             ));
         }
         if !(1..=2).contains(&self.learner_threads) {
