@@ -47,12 +47,6 @@ impl AntGoalEnv {
     pub fn torso_z(&self) -> f32 {
         self.ant.obs[crate::ant::obs::Z]
     }
-
-    fn distance_to_goal(&self) -> f32 {
-        let [x, y] = self.torso_xy();
-        let (dx, dy) = (x - self.goal[0], y - self.goal[1]);
-        (dx * dx + dy * dy).sqrt()
-    }
 }
 
 impl Environment for AntGoalEnv {
@@ -88,7 +82,7 @@ impl Environment for AntGoalEnv {
 
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError> {
         let forward_velocity = self.ant.physics_step(action)?;
-        let distance = self.distance_to_goal();
+        let distance = self.ant.torso_distance(self.goal);
         let reward = -distance - ACTION_COST * self.ant.effort();
         let (terminated, truncated) = self.ant.clock.advance(false);
         Ok(Transition {

@@ -225,11 +225,6 @@ impl AntLinClassEnv {
     pub fn decision(&self) -> Decision {
         self.decision
     }
-
-    fn distance_to(&self, target: [f32; 2]) -> f32 {
-        let [x, y] = self.torso_xy();
-        ((x - target[0]).powi(2) + (y - target[1]).powi(2)).sqrt()
-    }
 }
 
 impl Environment for AntLinClassEnv {
@@ -272,9 +267,9 @@ impl Environment for AntLinClassEnv {
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError> {
         let forward_velocity = self.ant.physics_step(action)?;
         self.obs[..FIRST_POINT].copy_from_slice(&self.ant.obs);
-        let at_correct = self.distance_to(TARGETS[self.correct]) <= DECISION_RADIUS;
+        let at_correct = self.ant.torso_distance(TARGETS[self.correct]) <= DECISION_RADIUS;
         if self.decision == Decision::Undecided {
-            let at_wrong = self.distance_to(TARGETS[1 - self.correct]) <= DECISION_RADIUS;
+            let at_wrong = self.ant.torso_distance(TARGETS[1 - self.correct]) <= DECISION_RADIUS;
             // The targets are 2.82 apart: the torso is never within 0.5 of both.
             if at_correct {
                 self.decision = Decision::Correct;

@@ -62,6 +62,13 @@ impl AntEpisode {
         [self.obs[obs::XY], self.obs[obs::XY + 1]]
     }
 
+    /// Distance (m) from the torso to the point `target` in the ground plane.
+    pub fn torso_distance(&self, target: [f32; 2]) -> f32 {
+        let [x, y] = self.torso_xy();
+        let (dx, dy) = (x - target[0], y - target[1]);
+        (dx * dx + dy * dy).sqrt()
+    }
+
     /// Applies `action` (checked, clipped to [-1, 1]) for one control step and observes;
     /// returns the torso's world-frame x velocity over the step. The family advances the
     /// clock (it knows whether the step ended the episode).
