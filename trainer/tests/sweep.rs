@@ -335,3 +335,43 @@ fn the_docs_plans_load() {
     }
     assert!(n >= 3, "only {n} plans in {}", dir.display());
 }
+
+/// A cell with two learner threads counts as two cores: the local default runs one per two
+/// cores, and the Slurm script asks two CPUs per task.
+#[test]
+fn two_learner_thread_cells_count_two_cores() {
+    let dir = tmp("cpus");
+    let out = dir.join("out");
+    let plan = plan_with_out(&out).replace(
+        "total_updates = 600,",
+        "learner_threads = 2, total_updates = 600,",
+    ) + "\n[algo.meta-bc]\nset = { total_steps = 100 }\n";
+    let path = setup(&dir, &plan);
+    let sweep = trainer::sweep::Sweep::load(&path).unwrap();
+    let cpus: Vec<(String, usize)> = sweep
+        .cells
+        .iter()
+        .map(|c| (c.algo.clone(), c.cpus()))
+        .collect();
+    assert!(
+        cpus.iter()
+            .all(|(a, n)| *n == if a == "smile" { 2 } else { 1 }),
+        "{cpus:?}"
+    );
+    assert_eq!(sweep.cpus_per_cell(), 2);
+    assert_eq!(
+        (
+            sweep.default_jobs(1),
+            sweep.default_jobs(2),
+            sweep.default_jobs(16)
+        ),
+        (1, 1, 8)
+    );
+    ok(&smile(&["sweep", path.to_str().unwrap(), "--slurm"]));
+    let script = std::fs::read_to_string(out.join("slurm/cells.sbatch")).unwrap();
+    assert!(script.contains("--cpus-per-task=2"), "{script}");
+    // Without two-thread cells, one per core, as before.
+    let single = trainer::sweep::Sweep::load(&setup(&dir, &plan_with_out(&out))).unwrap();
+    assert_eq!((single.cpus_per_cell(), single.default_jobs(2)), (1, 2));
+    std::fs::remove_dir_all(&dir).ok();
+}

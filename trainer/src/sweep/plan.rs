@@ -139,6 +139,17 @@ impl Cell {
         s
     }
 
+    /// The cores this cell's training keeps busy: SMILe's `learner_threads` (2 runs the
+    /// discriminator step on a second thread), else 1. The config was checked at load, so a
+    /// value that does not parse counts as 1.
+    pub fn cpus(&self) -> usize {
+        self.config
+            .parse::<toml::Table>()
+            .ok()
+            .and_then(|t| t.get("learner_threads")?.as_integer())
+            .map_or(1, |n| n.clamp(1, 2) as usize)
+    }
+
     /// The demo file's stem.
     pub fn demos_label(&self) -> String {
         self.demos
@@ -221,6 +232,19 @@ fn short(v: &toml::Value) -> String {
 }
 
 impl Sweep {
+    /// The most cores any one cell keeps busy ([`Cell::cpus`]): a Slurm task's
+    /// `--cpus-per-task`, and what divides the cores into local jobs.
+    pub fn cpus_per_cell(&self) -> usize {
+        self.cells.iter().map(Cell::cpus).max().unwrap_or(1)
+    }
+
+    /// How many cells to run at once on `cores` cores when the user does not say: one per
+    /// `cpus_per_cell` cores, at least one (two-thread cells on two cores run one at a time,
+    /// not two oversubscribed).
+    pub fn default_jobs(&self, cores: usize) -> usize {
+        (cores / self.cpus_per_cell()).max(1)
+    }
+
     /// Reads, checks and expands the plan at `path`. Refuses unknown keys, empty axes, unknown
     /// algorithms, missing files and configs their algorithm rejects, naming the plan line.
     pub fn load(path: &Path) -> Result<Self> {

@@ -1,5 +1,5 @@
-//! Slurm: an `sbatch` array script with one array index per cell (`--cpus-per-task 1`, one
-//! log per cell) whose tasks run `smile sweep run-cell PLAN --index $SLURM_ARRAY_TASK_ID`, and
+//! Slurm: an `sbatch` array script with one array index per cell (`--cpus-per-task` = the
+//! cell's learner threads, one log per cell) whose tasks run `smile sweep run-cell PLAN --index $SLURM_ARRAY_TASK_ID`, and
 //! a report job that runs after every cell succeeded (`--dependency=afterok`).
 //!
 //! The same `run-cell` serves a Kubernetes Indexed Job: it reads `JOB_COMPLETION_INDEX` when
@@ -68,10 +68,10 @@ pub fn write_scripts(
         .map_or("sweep".into(), |s| s.to_string_lossy().into_owned());
     let cells = format!(
         "#!/bin/bash
-# {n} cells of {plan}: one array task per cell, one CPU each.
+# {n} cells of {plan}: one array task per cell, {cpus} CPU(s) each.
 #SBATCH --job-name=smile-{name}
 #SBATCH --array=0-{last}
-#SBATCH --cpus-per-task=1
+#SBATCH --cpus-per-task={cpus}
 #SBATCH --chdir={cwd_raw}
 #SBATCH --output={log}/cell-%a.out
 #SBATCH --error={log}/cell-%a.out
@@ -80,6 +80,7 @@ exec {exe} sweep run-cell {plan} --index \"$SLURM_ARRAY_TASK_ID\"
 ",
         plan = quote(&plan),
         last = n.saturating_sub(1),
+        cpus = sweep.cpus_per_cell(),
         cwd_raw = cwd.to_string_lossy(),
         log = dir.to_string_lossy(),
         exe = quote(&exe),

@@ -16,7 +16,8 @@ pub struct SweepArgs {
     /// The plan (TOML): methods, demo files, seeds, config axes and the evaluation.
     #[arg(required = true)]
     plan: Option<PathBuf>,
-    /// Cells run at once, each a single-threaded process [default: one per core].
+    /// Cells run at once, each a single-threaded process [default: one per core; one per two
+    /// cores when a cell sets `learner_threads = 2`].
     #[arg(long)]
     jobs: Option<usize>,
     /// Write a Slurm array script (and the report job) instead of running locally.
@@ -131,9 +132,9 @@ pub fn run(a: SweepArgs) -> Result<()> {
         }
         return Ok(());
     }
-    let jobs = a
-        .jobs
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()));
+    let jobs = a.jobs.unwrap_or_else(|| {
+        sweep.default_jobs(std::thread::available_parallelism().map_or(1, |n| n.get()))
+    });
     let total = sweep.cells.len() as u64;
     let pb = trainer::progress_bar(total, a.quiet, "cells");
     let running = std::sync::Mutex::new(Vec::<String>::new());
