@@ -66,3 +66,25 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
     assert!(err.contains("scripted-linclass"), "{err}");
     std::fs::remove_dir_all(&out).ok();
 }
+
+/// The quickstart trains SMILe with the configuration behind each family's RESULTS row: the
+/// TOML files in docs/configs, read back and compared field by field.
+#[test]
+fn smile_configs_are_the_documented_ones() {
+    let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/configs");
+    for (family, file) in [
+        (Family::AntGoal, "ag-smile-rs1.toml"),
+        (Family::AntLinClass, "alc-smile.toml"),
+    ] {
+        let args = QuickstartConfig {
+            env: family,
+            ..QuickstartConfig::default()
+        };
+        let mut want: SmileConfig =
+            toml::from_str(&std::fs::read_to_string(docs.join(file)).unwrap()).unwrap();
+        // What the quickstart sets on top: the family, the seed, two learner threads.
+        want.env = family.name().into();
+        want.learner_threads = 2;
+        assert_eq!(smile_config(&args), want, "{family} vs {file}");
+    }
+}

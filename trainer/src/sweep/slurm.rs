@@ -1,6 +1,7 @@
 //! Slurm: an `sbatch` array script with one array index per cell (`--cpus-per-task` = the
-//! cell's learner threads, one log per cell) whose tasks run `smile sweep run-cell PLAN --index $SLURM_ARRAY_TASK_ID`, and
-//! a report job that runs after every cell succeeded (`--dependency=afterok`).
+//! cells' learner threads, one log per cell) whose tasks run `smile sweep run-cell PLAN --index
+//! $SLURM_ARRAY_TASK_ID`, and a report job that runs after every cell succeeded
+//! (`--dependency=afterok`).
 //!
 //! The same `run-cell` serves a Kubernetes Indexed Job: it reads `JOB_COMPLETION_INDEX` when
 //! no `--index` is given (README, "Sweeps").

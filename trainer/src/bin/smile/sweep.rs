@@ -16,8 +16,8 @@ pub struct SweepArgs {
     /// The plan (TOML): methods, demo files, seeds, config axes and the evaluation.
     #[arg(required = true)]
     plan: Option<PathBuf>,
-    /// Cells run at once, each a single-threaded process [default: one per core; one per two
-    /// cores when a cell sets `learner_threads = 2`].
+    /// Cells run at once, each its own process [default: one per core; one per two cores when
+    /// a cell sets `learner_threads = 2`].
     #[arg(long)]
     jobs: Option<usize>,
     /// Write a Slurm array script (and the report job) instead of running locally.
