@@ -67,4 +67,6 @@ pub use data::{
 pub use io::{checkpoint, export};
 
 /// The metrics log (JSON lines + TensorBoard events) and the progress-bar style.
-pub use io::{METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, sac_fields};
+pub use io::{
+    METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults, sac_fields,
+};

@@ -330,10 +330,10 @@ fn smile_config(args: &QuickstartConfig) -> SmileConfig {
         // SmileConfig's defaults (the reference's section 7 point-goal prototype, 30k pairs).
         Family::PointGoal => {}
         // The configs behind the Ant families' rows in docs/RESULTS.md, the defaults otherwise:
-        // SAC's reward scale 1 on ant-goal (docs/configs/ag-smile-rs1.toml: ahead of Meta-BC
-        // on every seed, where the default 8 was not), contexts of 1-8 demos on ant-linclass
-        // (alc-smile.toml).
-        Family::AntGoal => cfg.sac.reward_scale = 1.0,
+        // SAC 2 x 256 with reward scale 1 on ant-goal (docs/configs/ag-smile-rs1.toml: ahead of
+        // Meta-BC on every seed, where 2 x 128 at scale 8 was not), contexts of 1-8 demos on
+        // ant-linclass (alc-smile.toml).
+        Family::AntGoal => (cfg.sac.hidden, cfg.sac.reward_scale) = (vec![256, 256], 1.0),
         Family::AntLinClass => cfg.eval_contexts = 2,
         // cheetah-vel and walker-dyn: the reference's section 7 cheetah prototype, 4 rollouts
         // then 200 update pairs, encoder 2 x 128; 40k pairs at the paper's horizon

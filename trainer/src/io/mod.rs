@@ -1,10 +1,13 @@
-//! What the trainer writes and reads: atomic checkpoints, the metrics log (JSON lines and
-//! TensorBoard events), the infer-core blob export with its verification, and progress bars.
+//! What the trainer writes and reads: configuration files (over the defaults), atomic
+//! checkpoints, the metrics log (JSON lines and TensorBoard events), the infer-core blob export
+//! with its verification, and progress bars.
 
 pub mod checkpoint;
+mod config;
 pub mod export;
 mod metrics;
 pub mod progress;
 
+pub use config::from_toml_over_defaults;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter, sac_fields};
 pub use progress::bar;

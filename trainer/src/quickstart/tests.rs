@@ -81,7 +81,8 @@ fn smile_configs_are_the_documented_ones() {
             ..QuickstartConfig::default()
         };
         let mut want: SmileConfig =
-            toml::from_str(&std::fs::read_to_string(docs.join(file)).unwrap()).unwrap();
+            crate::from_toml_over_defaults(&std::fs::read_to_string(docs.join(file)).unwrap())
+                .unwrap();
         // What the quickstart sets on top: the family, the seed, two learner threads.
         want.env = family.name().into();
         want.learner_threads = 2;

@@ -452,10 +452,12 @@ fn message(e: Error) -> String {
 fn check_config(algo: &str, t: &toml::Table) -> std::result::Result<(), String> {
     let s = toml::to_string(t).map_err(|e| e.to_string())?;
     if algo.starts_with("smile") {
-        let c: SmileConfig = toml::from_str(&s).map_err(|e| e.message().to_string())?;
+        let c: SmileConfig =
+            crate::from_toml_over_defaults(&s).map_err(|e| e.message().to_string())?;
         c.validate().map_err(message)
     } else {
-        let c: MetaBcConfig = toml::from_str(&s).map_err(|e| e.message().to_string())?;
+        let c: MetaBcConfig =
+            crate::from_toml_over_defaults(&s).map_err(|e| e.message().to_string())?;
         c.validate().map_err(message)
     }
 }

@@ -99,7 +99,7 @@ pub struct ExpertArgs {
 
 fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     let mut cfg = match &a.config {
-        Some(p) => toml::from_str(
+        Some(p) => trainer::from_toml_over_defaults(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
         )
         .with_context(|| format!("parsing {}", p.display()))?,

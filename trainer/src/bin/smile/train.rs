@@ -103,7 +103,9 @@ pub struct TrainArgs {
 
 /// The base configuration: the run's saved `config.toml` when resuming, else `--config`, else
 /// the defaults.
-fn read_toml<T: serde::de::DeserializeOwned + Default>(a: &TrainArgs) -> Result<T> {
+fn read_toml<T: serde::Serialize + serde::de::DeserializeOwned + Default>(
+    a: &TrainArgs,
+) -> Result<T> {
     let saved = a.out.join("config.toml");
     let p = if a.resume {
         Some(saved)
@@ -111,7 +113,7 @@ fn read_toml<T: serde::de::DeserializeOwned + Default>(a: &TrainArgs) -> Result<
         a.config.clone()
     };
     match &p {
-        Some(p) => toml::from_str(
+        Some(p) => trainer::from_toml_over_defaults(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
         )
         .with_context(|| format!("parsing {}", p.display())),

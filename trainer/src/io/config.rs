@@ -1,0 +1,77 @@
+//! Reading a configuration file over the algorithm's defaults.
+//!
+//! serde's `#[serde(default)]` fills a missing field from the *field type's* `Default`, so a
+//! partial nested table such as `[sac] reward_scale = 2.0` in a SMILe config would take every
+//! other SAC field from `SacConfig::default()` (2 x 256, reward scale 1) instead of from
+//! `SmileConfig::default()` (2 x 128, reward scale 8). Sessions 6 and 7 ran their reward-scale
+//! probes with exactly that accident (docs/RESULTS.md). Here the file's tables are merged key by
+//! key into the serialised defaults of the whole configuration first, so a key the file does
+//! not name keeps the value the algorithm's own default gives it, at any depth.
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+
+/// Deserialises `text` (TOML) into `T`, every key the text does not set taken from
+/// `T::default()`, nested tables included. Unknown keys and wrong types are still refused by
+/// `T`'s own `Deserialize` (e.g. `deny_unknown_fields`).
+pub fn from_toml_over_defaults<T: Serialize + DeserializeOwned + Default>(
+    text: &str,
+) -> Result<T, toml::de::Error> {
+    // The file alone first: its unknown keys and wrong types are reported with their line.
+    toml::from_str::<T>(text)?;
+    let given: toml::Table = toml::from_str(text)?;
+    // The defaults always serialise (numbers, strings, vectors, tables).
+    let mut merged = toml::Table::try_from(T::default()).unwrap_or_default();
+    merge(&mut merged, given);
+    merged.try_into()
+}
+
+/// `over` into `base`: tables merge recursively, every other value replaces.
+fn merge(base: &mut toml::Table, over: toml::Table) {
+    for (k, v) in over {
+        match (base.get_mut(&k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (_, v) => {
+                base.insert(k, v);
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::smile::SmileConfig;
+
+    #[test]
+    fn a_partial_nested_table_keeps_the_algorithms_defaults() {
+        let c: SmileConfig =
+            from_toml_over_defaults("seed = 3\n[sac]\nreward_scale = 2.0\n").unwrap();
+        let d = SmileConfig::default();
+        assert_eq!((c.seed, c.sac.reward_scale), (3, 2.0));
+        // SmileConfig's SAC (2 x 128), not SacConfig's (2 x 256); every other field untouched.
+        assert_eq!(c.sac.hidden, vec![128, 128]);
+        let mut want = d.clone();
+        (want.seed, want.sac.reward_scale) = (3, 2.0);
+        assert_eq!(c, want);
+        // What plain serde does with the same text: the accident this module prevents.
+        let plain: SmileConfig = toml::from_str("[sac]\nreward_scale = 2.0\n").unwrap();
+        assert_eq!(plain.sac.hidden, vec![256, 256]);
+        // An empty file is the defaults; a full file is itself.
+        assert_eq!(from_toml_over_defaults::<SmileConfig>("").unwrap(), d);
+        let full = toml::to_string(&want).unwrap();
+        assert_eq!(from_toml_over_defaults::<SmileConfig>(&full).unwrap(), want);
+    }
+
+    #[test]
+    fn unknown_keys_and_wrong_types_are_still_refused_with_their_line() {
+        let e = from_toml_over_defaults::<SmileConfig>("seed = 1\n[sac]\nreward_scal = 2.0\n")
+            .unwrap_err();
+        assert!(
+            e.to_string().contains("reward_scal") && e.span().is_some(),
+            "{e}"
+        );
+        let e = from_toml_over_defaults::<SmileConfig>("[sac]\nhidden = \"wide\"\n").unwrap_err();
+        assert!(e.to_string().contains("line 2"), "{e}");
+    }
+}
