@@ -375,3 +375,20 @@ fn two_learner_thread_cells_count_two_cores() {
     assert_eq!((single.cpus_per_cell(), single.default_jobs(2)), (1, 2));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `set = { sac = { .. } }` merges into the base config's `[sac]` table instead of replacing it.
+#[test]
+fn a_set_table_merges_into_the_base_configs_table() {
+    let dir = tmp("set-merge");
+    let out = dir.join("out");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("base.toml"), "[sac]\nreward_scale = 3.0\n").unwrap();
+    let plan =
+        plan_with_out(&out).replace("[algo.smile]\n", "[algo.smile]\nconfig = \"base.toml\"\n");
+    let sweep = trainer::sweep::Sweep::load(&setup(&dir, &plan)).unwrap();
+    let cfg: toml::Table = sweep.cells[0].config.parse().unwrap();
+    let sac = cfg["sac"].as_table().unwrap();
+    assert_eq!(sac["reward_scale"].as_float(), Some(3.0), "{cfg}");
+    assert_eq!(sac["hidden"].as_array().map(Vec::len), Some(2), "{cfg}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -22,15 +22,15 @@ pub fn from_toml_over_defaults<T: Serialize + DeserializeOwned + Default>(
     let given: toml::Table = toml::from_str(text)?;
     // The defaults always serialise (numbers, strings, vectors, tables).
     let mut merged = toml::Table::try_from(T::default()).unwrap_or_default();
-    merge(&mut merged, given);
+    merge_tables(&mut merged, given);
     merged.try_into()
 }
 
 /// `over` into `base`: tables merge recursively, every other value replaces.
-fn merge(base: &mut toml::Table, over: toml::Table) {
+pub(crate) fn merge_tables(base: &mut toml::Table, over: toml::Table) {
     for (k, v) in over {
         match (base.get_mut(&k), v) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge(b, o),
+            (Some(toml::Value::Table(b)), toml::Value::Table(o)) => merge_tables(b, o),
             (_, v) => {
                 base.insert(k, v);
             }

@@ -9,5 +9,6 @@ mod metrics;
 pub mod progress;
 
 pub use config::from_toml_over_defaults;
+pub(crate) use config::merge_tables;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter, sac_fields};
 pub use progress::bar;

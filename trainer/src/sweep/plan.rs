@@ -186,7 +186,9 @@ fn plan_err(path: &Path, text: &str, needle: Option<&str>, msg: String) -> Error
     ))
 }
 
-/// Sets a dotted `key` in `table` (creating sections as needed).
+/// Sets a dotted `key` in `table` (creating sections as needed); a table value merges key by
+/// key into a table already there (`set = { sac = { hidden = [..] } }` keeps the base file's
+/// other `[sac]` keys).
 fn set_key(
     table: &mut toml::Table,
     key: &str,
@@ -202,7 +204,14 @@ fn set_key(
             .as_table_mut()
             .ok_or_else(|| format!("`{p}` in `{key}` is not a section"))?;
     }
-    t.insert(last.to_string(), value);
+    match (t.get_mut(last), value) {
+        (Some(toml::Value::Table(base)), toml::Value::Table(over)) => {
+            crate::io::merge_tables(base, over)
+        }
+        (_, value) => {
+            t.insert(last.to_string(), value);
+        }
+    }
     Ok(())
 }
 
