@@ -11,6 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier3d::prelude::*;
 
+use crate::planar::Start;
 use crate::render::{Role, Shape};
 
 mod episode;
@@ -86,6 +87,8 @@ pub(crate) struct AntSpec {
     pub joint_damping: f32,
     pub joint_armature: f32,
     pub friction: f32,
+    /// Softness of the ground contact (natural frequency Hz, damping ratio).
+    pub contact_softness: [f32; 2],
     pub physics_dt: f32,
     pub substeps: usize,
     pub solver_iterations: usize,
@@ -142,6 +145,7 @@ pub(crate) fn ant() -> AntSpec {
         joint_damping: 1.0,
         joint_armature: 1.0,
         friction: 1.0,
+        contact_softness: ANT_CONTACT_SOFTNESS,
         physics_dt: 0.025,
         substeps: 2,
         solver_iterations: 2,
@@ -149,6 +153,10 @@ pub(crate) fn ant() -> AntSpec {
         velocity_noise: 0.1,
     }
 }
+
+/// The ant's ground-contact softness (natural frequency Hz, damping ratio), calibrated on
+/// the fidelity probe's drop test against MuJoCo's (`docs/FIDELITY.md`).
+pub(crate) const ANT_CONTACT_SOFTNESS: [f32; 2] = [60.0, 10.0];
 
 fn flat(p: [f32; 2]) -> Vector {
     Vector::new(p[0], p[1], 0.0)
@@ -161,37 +169,57 @@ pub(crate) struct AntRobot {
     /// Link bodies in joint order: thigh_1, shin_1, thigh_2, ...
     links: [RigidBodyHandle; JOINTS],
     gear: f32,
+    ground: ColliderHandle,
     substeps: usize,
 }
 
 impl AntRobot {
     /// Builds the ant in its rest pose, then adds the seeded initial-state noise.
     pub fn build(spec: &AntSpec, seed: u64) -> Self {
+        Self::build_with(spec, Start::Noise(seed))
+    }
+
+    /// Builds the ant as `start` says.
+    pub fn build_with(spec: &AntSpec, start: Start) -> Self {
         let mut world = PhysicsWorld::new();
         world.gravity = Vector::new(0.0, 0.0, -9.81);
         world.integration_parameters.dt = spec.physics_dt;
         world.integration_parameters.num_solver_iterations = spec.solver_iterations;
-        world.insert(
+        let [frequency, damping_ratio] = spec.contact_softness;
+        let softness = SpringCoefficients::new(frequency, damping_ratio);
+        world.integration_parameters.contact_softness = softness;
+        world.integration_parameters.static_contact_softness = softness;
+        // MuJoCo combines frictions by taking the larger one.
+        let (_, ground) = world.insert(
             RigidBodyBuilder::fixed().translation(Vector::new(0.0, 0.0, -0.5)),
-            ColliderBuilder::cuboid(1.0e3, 1.0e3, 0.5).friction(spec.friction),
+            ColliderBuilder::cuboid(1.0e3, 1.0e3, 0.5)
+                .friction(spec.friction)
+                .friction_combine_rule(CoefficientCombineRule::Max),
         );
+        let lift = match start {
+            Start::Welded(height) => height,
+            _ => 0.0,
+        };
         // Built with every joint at 0 (legs flat); the rest pose is applied as a displacement.
-        let origin = Vector::new(0.0, 0.0, spec.rest_height);
+        let origin = Vector::new(0.0, 0.0, spec.rest_height + lift);
         let r = spec.limb_radius;
         let capsule = |a: Vector, b: Vector| {
             ColliderBuilder::capsule_from_endpoints(a, b, r)
                 .density(spec.density)
                 .friction(spec.friction)
+                .friction_combine_rule(CoefficientCombineRule::Max)
         };
-        let torso = world.insert_body(
+        let root = if lift > 0.0 {
+            RigidBodyBuilder::fixed()
+        } else {
             RigidBodyBuilder::dynamic()
-                .translation(origin)
-                .can_sleep(false),
-        );
+        };
+        let torso = world.insert_body(root.translation(origin).can_sleep(false));
         world.insert_collider(
             ColliderBuilder::ball(spec.torso_radius)
                 .density(spec.density)
-                .friction(spec.friction),
+                .friction(spec.friction)
+                .friction_combine_rule(CoefficientCombineRule::Max),
             Some(torso),
         );
         let mut links = [torso; JOINTS];
@@ -232,10 +260,11 @@ impl AntRobot {
             torso,
             links,
             gear: spec.gear,
+            ground,
             substeps: spec.substeps,
         };
         robot.configure_joints(spec);
-        robot.place(spec, seed);
+        robot.place(spec, start);
         robot
     }
 
@@ -257,11 +286,16 @@ impl AntRobot {
         let Some(multibody) = self.multibody_mut() else {
             return;
         };
+        // A welded root turns fixed (0 dofs) only at the first step: count what is there now.
+        let root_dofs = multibody.ndofs() - JOINTS;
         multibody.set_self_contacts_enabled(false);
-        // The free root keeps Rapier's default of no damping (ant.xml: root damping 0).
+        // ant.xml's free root has no damping; Rapier gives its angular dofs 0.1.
+        for dof in 0..root_dofs {
+            multibody.damping_mut()[dof] = 0.0;
+        }
         for (joint, &body) in links.iter().enumerate() {
-            multibody.damping_mut()[ROOT_DOFS + joint] = spec.joint_damping;
-            multibody.armature_mut()[ROOT_DOFS + joint] = spec.joint_armature;
+            multibody.damping_mut()[root_dofs + joint] = spec.joint_damping;
+            multibody.armature_mut()[root_dofs + joint] = spec.joint_armature;
             debug_assert_eq!(
                 multibody.link(joint + 1).map(|l| l.rigid_body_handle()),
                 Some(body)
@@ -269,38 +303,47 @@ impl AntRobot {
         }
     }
 
-    /// Moves the flat-built ant to the rest pose plus U(-q, q) on every generalised position
-    /// and qd * N(0, 1) on every generalised velocity (Gymnasium's reset noise).
-    fn place(&mut self, spec: &AntSpec, seed: u64) {
-        let mut rng = ChaCha8Rng::seed_from_u64(seed);
-        let q = spec.position_noise;
-        let mut displacement: Vec<f32> = (0..ROOT_DOFS + JOINTS)
-            .map(|_| rng.random_range(-q..=q))
-            .collect();
+    /// Moves the flat-built ant to the rest pose, for [`Start::Noise`] plus U(-q, q) on every
+    /// generalised position and qd * N(0, 1) on every generalised velocity (Gymnasium's reset
+    /// noise).
+    fn place(&mut self, spec: &AntSpec, start: Start) {
+        let handle = MultibodyJointHandle(self.links[0].0);
+        let world = &mut self.world;
+        let Some((multibody, _)) = world.multibody_joints.get_mut(handle) else {
+            return;
+        };
+        // Also settles the root's type: a welded (fixed) root loses its six dofs here.
+        multibody.forward_kinematics(&world.bodies, true);
+        let ndofs = multibody.generalized_velocity().len();
+        let root_dofs = ndofs.saturating_sub(JOINTS);
+        let (mut displacement, velocity): (Vec<f32>, Vec<f32>) = match start {
+            Start::Noise(seed) => {
+                let mut rng = ChaCha8Rng::seed_from_u64(seed);
+                let q = spec.position_noise;
+                let displacement = (0..ndofs).map(|_| rng.random_range(-q..=q)).collect();
+                let velocity = (0..ndofs)
+                    .map(|_| {
+                        let n: f32 = StandardNormal.sample(&mut rng);
+                        spec.velocity_noise * n
+                    })
+                    .collect();
+                (displacement, velocity)
+            }
+            Start::Rest | Start::Welded(_) => (vec![0.0; ndofs], vec![0.0; ndofs]),
+        };
         for (leg, pair) in spec
             .legs
             .iter()
-            .zip(displacement[ROOT_DOFS..].chunks_mut(2))
+            .zip(displacement[root_dofs..].chunks_mut(2))
         {
             pair[1] += leg.ankle_rest;
         }
-        let velocity: Vec<f32> = (0..ROOT_DOFS + JOINTS)
-            .map(|_| {
-                let n: f32 = StandardNormal.sample(&mut rng);
-                spec.velocity_noise * n
-            })
-            .collect();
-        let handle = MultibodyJointHandle(self.links[0].0);
-        let world = &mut self.world;
-        if let Some((multibody, _)) = world.multibody_joints.get_mut(handle) {
-            multibody.forward_kinematics(&world.bodies, true);
-            multibody.apply_displacements(&displacement);
-            multibody
-                .generalized_velocity_mut()
-                .copy_from_slice(&velocity);
-            multibody.forward_kinematics(&world.bodies, false);
-            multibody.update_rigid_bodies(&mut world.bodies, true);
-        }
+        multibody.apply_displacements(&displacement);
+        multibody
+            .generalized_velocity_mut()
+            .copy_from_slice(&velocity);
+        multibody.forward_kinematics(&world.bodies, false);
+        multibody.update_rigid_bodies(&mut world.bodies, true);
     }
 
     /// Sets the joint torques `action[i] * gear` (action already clipped).
@@ -333,6 +376,17 @@ impl AntRobot {
         self.world.bodies[self.torso].translation().to_array()
     }
 
+    /// The deepest penetration (m) of any ant collider into the ground right now (0 if none).
+    pub fn ground_penetration(&self) -> f32 {
+        self.world
+            .narrow_phase
+            .contact_pairs_with(self.ground)
+            .flat_map(|pair| pair.manifolds().iter())
+            .flat_map(|manifold| manifold.points.iter())
+            .map(|point| -point.dist)
+            .fold(0.0, f32::max)
+    }
+
     /// Writes the 29-D observation (layout: [`obs`]); velocities clipped to +-`velocity_clip`.
     pub fn observe(&self, out: &mut [f32; OBS_DIM], velocity_clip: f32) {
         let body = &self.world.bodies[self.torso];
@@ -356,15 +410,18 @@ impl AntRobot {
         }
         let velocity = multibody.generalized_velocity();
         let clip = |v: f32| v.clamp(-velocity_clip, velocity_clip);
-        // The free root's generalised velocity: linear then angular, both in world axes.
-        let angular = Vector::new(velocity[3], velocity[4], velocity[5]);
-        let local = rotation.inverse() * angular;
-        for axis in 0..3 {
-            out[obs::LINEAR_VELOCITY + axis] = clip(velocity[axis]);
-            out[obs::ANGULAR_VELOCITY + axis] = clip(local[axis]);
+        let root = multibody.ndofs() - JOINTS;
+        if root == ROOT_DOFS {
+            // The free root's generalised velocity: linear then angular, both in world axes.
+            let angular = Vector::new(velocity[3], velocity[4], velocity[5]);
+            let local = rotation.inverse() * angular;
+            for axis in 0..3 {
+                out[obs::LINEAR_VELOCITY + axis] = clip(velocity[axis]);
+                out[obs::ANGULAR_VELOCITY + axis] = clip(local[axis]);
+            }
         }
         for joint in 0..JOINTS {
-            out[obs::JOINT_VELOCITIES + joint] = clip(velocity[ROOT_DOFS + joint]);
+            out[obs::JOINT_VELOCITIES + joint] = clip(velocity[root + joint]);
         }
     }
 

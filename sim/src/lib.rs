@@ -27,6 +27,7 @@ mod dataset;
 mod dynamics;
 mod env;
 mod error;
+pub mod fidelity;
 pub mod legged;
 pub mod planar;
 pub mod point_goal;

@@ -46,6 +46,12 @@ pub(crate) struct LimbSpec {
     pub mass: f32,
     /// Joint range (radians, counter-clockwise positive).
     pub range: [f32; 2],
+    /// +1 if MuJoCo's hinge turns about -y (its angle is counter-clockwise, as ours), -1 if
+    /// about +y: observed angles, velocities and applied torques are multiplied by it, so the
+    /// robot reads and takes exactly MuJoCo's joint coordinates and actions.
+    pub sign: f32,
+    /// The range in MuJoCo's coordinates (what the fidelity probe's controller tracks).
+    pub mujoco_range: [f32; 2],
     /// Torque (N m) of an action of 1.
     pub gear: f32,
     pub damping: f32,
@@ -60,6 +66,11 @@ pub(crate) struct RobotSpec {
     pub torso: Vec<Capsule>,
     pub torso_mass: f32,
     pub torso_friction: f32,
+    /// The ground's friction; contacts take the larger of the two, as MuJoCo does.
+    pub ground_friction: f32,
+    /// Softness of the ground contact (natural frequency Hz, damping ratio): Rapier's default
+    /// (60 Hz, 10) is stiffer than MuJoCo's soft contacts (solref 0.02 s).
+    pub contact_softness: [f32; 2],
     /// Rest position of the torso origin above the ground.
     pub origin: [f32; 2],
     pub limbs: [LimbSpec; LIMBS],
@@ -111,29 +122,62 @@ fn scaled_mass(capsules: &[Capsule], offset: Vector, mass: f32, inertia: f32) ->
     )
 }
 
+/// How a robot starts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum Start {
+    /// The rest pose plus the seeded reset noise (the episodes' start).
+    Noise(u64),
+    /// The rest pose exactly, zero velocity.
+    Rest,
+    /// The rest pose with the torso welded to the world this far (m) above its rest height:
+    /// the fidelity probe's joint responses without contact.
+    Welded(f32),
+}
+
 /// A built robot in its own physics world.
 pub(crate) struct PlanarRobot {
     pub world: PhysicsWorld,
     torso: RigidBodyHandle,
     limbs: [RigidBodyHandle; LIMBS],
     gears: [f32; LIMBS],
+    signs: [f32; LIMBS],
+    ground: ColliderHandle,
     substeps: usize,
 }
 
 impl PlanarRobot {
     /// Builds the robot at rest, then adds the seeded initial-state noise.
     pub fn build(spec: &RobotSpec, scaling: &Scaling, seed: u64) -> Self {
+        Self::build_with(spec, scaling, Start::Noise(seed))
+    }
+
+    /// Builds the robot as `start` says.
+    pub fn build_with(spec: &RobotSpec, scaling: &Scaling, start: Start) -> Self {
         let mut world = PhysicsWorld::new();
         world.integration_parameters.dt = spec.physics_dt;
         world.integration_parameters.num_solver_iterations = spec.solver_iterations;
-        world.insert(
+        let [frequency, damping_ratio] = spec.contact_softness;
+        let softness = SpringCoefficients::new(frequency, damping_ratio);
+        world.integration_parameters.contact_softness = softness;
+        world.integration_parameters.static_contact_softness = softness;
+        let (_, ground) = world.insert(
             RigidBodyBuilder::fixed().translation(Vector::new(0.0, -0.5)),
-            ColliderBuilder::cuboid(1.0e4, 0.5).friction(1.0),
+            ColliderBuilder::cuboid(1.0e4, 0.5)
+                .friction(spec.ground_friction)
+                .friction_combine_rule(CoefficientCombineRule::Max),
         );
-        let origin = v(spec.origin);
-        let torso = world.insert_body(
+        let lift = match start {
+            Start::Welded(height) => height,
+            _ => 0.0,
+        };
+        let origin = v(spec.origin) + Vector::new(0.0, lift);
+        let root = if lift > 0.0 {
+            RigidBodyBuilder::fixed()
+        } else {
             RigidBodyBuilder::dynamic()
-                .translation(origin)
+        };
+        let torso = world.insert_body(
+            root.translation(origin)
                 .additional_mass_properties(scaled_mass(
                     &spec.torso,
                     Vector::ZERO,
@@ -146,12 +190,14 @@ impl PlanarRobot {
             world.insert_collider(
                 ColliderBuilder::capsule_from_endpoints(v(capsule.a), v(capsule.b), capsule.radius)
                     .density(0.0)
-                    .friction(spec.torso_friction * scaling.friction[0]),
+                    .friction(spec.torso_friction * scaling.friction[0])
+                    .friction_combine_rule(CoefficientCombineRule::Max),
                 Some(torso),
             );
         }
         let mut limbs = [torso; LIMBS];
         let mut gears = [0.0; LIMBS];
+        let mut signs = [1.0; LIMBS];
         for (i, limb) in spec.limbs.iter().enumerate() {
             let joint = v(limb.joint);
             let body = world.insert_body(
@@ -172,7 +218,8 @@ impl PlanarRobot {
                     limb.capsule.radius,
                 )
                 .density(0.0)
-                .friction(limb.friction * scaling.friction[i + 1]),
+                .friction(limb.friction * scaling.friction[i + 1])
+                .friction_combine_rule(CoefficientCombineRule::Max),
                 Some(body),
             );
             let (parent, parent_origin) = match limb.parent {
@@ -189,16 +236,21 @@ impl PlanarRobot {
             world.insert_multibody_joint(parent, body, hinge);
             limbs[i] = body;
             gears[i] = limb.gear;
+            signs[i] = limb.sign;
         }
         let mut robot = Self {
             world,
             torso,
             limbs,
             gears,
+            signs,
+            ground,
             substeps: spec.substeps,
         };
         robot.configure_joints(spec, scaling);
-        robot.add_initial_noise(spec, seed);
+        if let Start::Noise(seed) = start {
+            robot.add_initial_noise(spec, seed);
+        }
         robot
     }
 
@@ -215,10 +267,22 @@ impl PlanarRobot {
         let Some(multibody) = self.multibody_mut() else {
             return;
         };
+        // A welded root turns fixed (0 dofs) only at the first step: count what is there now.
+        let root_dofs = multibody.ndofs() - LIMBS;
         multibody.set_self_contacts_enabled(false);
+        // MuJoCo's root joints have no damping; Rapier gives a free angular dof 0.1.
+        for dof in 0..root_dofs {
+            multibody.damping_mut()[dof] = 0.0;
+        }
+        // Rapier integrates a joint spring implicitly, -k (q + h v) over a solver substep h:
+        // an extra damping k h that MuJoCo's (explicit) spring does not have. Take it off the
+        // declared damping, so the joint's total damping is MuJoCo's.
+        let substep = spec.physics_dt / spec.solver_iterations as f32;
         for (i, limb) in spec.limbs.iter().enumerate() {
-            let dof = ROOT_DOFS + i;
-            multibody.damping_mut()[dof] = limb.damping * scaling.damping[i];
+            let dof = root_dofs + i;
+            let spring_damping = limb.stiffness * substep;
+            multibody.damping_mut()[dof] =
+                (limb.damping * scaling.damping[i] - spring_damping).max(0.0);
             multibody.armature_mut()[dof] = limb.armature;
             if let Some(link) = multibody.link_mut(i + 1) {
                 debug_assert_eq!(link.rigid_body_handle(), limbs[i]);
@@ -259,11 +323,12 @@ impl PlanarRobot {
     /// Sets the joint torques `action[i] * gear[i]` (action already clipped).
     pub fn set_torques(&mut self, action: &[f32]) {
         let gears = self.gears;
+        let signs = self.signs;
         let Some(multibody) = self.multibody_mut() else {
             return;
         };
         for (i, (&a, gear)) in action.iter().zip(gears).enumerate() {
-            let torque = a * gear;
+            let torque = signs[i] * a * gear;
             if let Some(link) = multibody.link_mut(i + 1) {
                 let target = if torque >= 0.0 { 1.0e9 } else { -1.0e9 };
                 link.joint
@@ -281,18 +346,19 @@ impl PlanarRobot {
         }
     }
 
-    /// Torso origin (x, z) and angle.
+    /// Torso origin (x, z) and pitch (MuJoCo's rooty: about +y, so clockwise positive).
     pub fn torso_pose(&self) -> (f32, f32, f32) {
         let body = &self.world.bodies[self.torso];
         let p = body.translation();
-        (p.x, p.y, body.rotation().angle())
+        (p.x, p.y, -body.rotation().angle())
     }
 
-    /// Writes the 17-D observation; velocities are clipped to +-`velocity_clip`.
+    /// Writes the 17-D observation in MuJoCo's coordinates (Gymnasium's layout, the torso
+    /// height absolute); velocities are clipped to +-`velocity_clip`.
     pub fn observe(&self, obs: &mut [f32; OBS_DIM], velocity_clip: f32) {
-        let (_, z, angle) = self.torso_pose();
+        let (_, z, pitch) = self.torso_pose();
         obs[0] = z;
-        obs[1] = angle;
+        obs[1] = pitch;
         let angle_of = |h: RigidBodyHandle| self.world.bodies[h].rotation().angle();
         let parent_of = |i: usize| match i {
             0 | 3 => self.torso,
@@ -300,15 +366,30 @@ impl PlanarRobot {
         };
         for i in 0..LIMBS {
             let relative = angle_of(self.limbs[i]) - angle_of(parent_of(i));
-            obs[2 + i] = wrap_angle(relative);
+            obs[2 + i] = self.signs[i] * wrap_angle(relative);
         }
+        let clip = |value: f32| value.clamp(-velocity_clip, velocity_clip);
         let handle = MultibodyJointHandle(self.limbs[0].0);
         if let Some((multibody, _)) = self.world.multibody_joints.get(handle) {
             let velocity = multibody.generalized_velocity();
-            for (slot, &value) in obs[8..].iter_mut().zip(velocity.iter()) {
-                *slot = value.clamp(-velocity_clip, velocity_clip);
+            let root = multibody.ndofs() - LIMBS;
+            if root == ROOT_DOFS {
+                obs[8] = clip(velocity[0]);
+                obs[9] = clip(velocity[1]);
+                obs[10] = clip(-velocity[ANGULAR_AXIS]);
+            } else {
+                obs[8..11].fill(0.0);
+            }
+            for i in 0..LIMBS {
+                obs[11 + i] = clip(self.signs[i] * velocity[root + i]);
             }
         }
+    }
+
+    /// The deepest penetration (m) of any robot collider into the ground right now (0 if
+    /// none): what the fidelity probe compares with MuJoCo's contact distances.
+    pub fn ground_penetration(&self) -> f32 {
+        deepest_penetration(&self.world.narrow_phase, self.ground)
     }
 
     /// True if any body's position or velocity is non-finite.
@@ -338,6 +419,16 @@ impl PlanarRobot {
         }
         shapes
     }
+}
+
+/// The deepest penetration into collider `ground` over its current contact manifolds.
+pub(crate) fn deepest_penetration(narrow_phase: &NarrowPhase, ground: ColliderHandle) -> f32 {
+    narrow_phase
+        .contact_pairs_with(ground)
+        .flat_map(|pair| pair.manifolds().iter())
+        .flat_map(|manifold| manifold.points.iter())
+        .map(|point| -point.dist)
+        .fold(0.0, f32::max)
 }
 
 /// Wraps an angle to (-pi, pi].

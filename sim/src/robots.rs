@@ -1,9 +1,20 @@
-//! The two planar legged robots, one declarative function each. Dimensions, masses, ranges,
-//! gears, damping and springs follow Gymnasium's `half_cheetah.xml` and `walker2d.xml`;
-//! MuJoCo's joint angles are about +y (clockwise in the x-z plane), ours counter-clockwise,
-//! so ranges are mirrored.
+//! The two planar legged robots, one declarative function each. Dimensions, masses (as
+//! MuJoCo 4.0 compiles them), ranges, gears, damping and springs follow Gymnasium's
+//! `half_cheetah.xml` and `walker2d.xml`. Rapier's angles are counter-clockwise in the x-z
+//! plane; a MuJoCo hinge about +y (the cheetah's) turns clockwise, one about -y (the
+//! walker's) counter-clockwise, so each limb names its hinge axis and the robot converts:
+//! observations and actions are in MuJoCo's joint coordinates. Measured against MuJoCo
+//! itself in `docs/FIDELITY.md`.
 
 use crate::planar::{Capsule, LimbSpec, RobotSpec};
+
+/// The cheetah's ground-contact softness (natural frequency Hz, damping ratio), calibrated on
+/// the fidelity probe's drop test against MuJoCo's penetration (12 mm; solref 0.02 s, solimp
+/// 0 / 0.8 / 0.01): Rapier's default (60 Hz, 10) let it sink 42 mm (`docs/FIDELITY.md`).
+const CHEETAH_CONTACT_SOFTNESS: [f32; 2] = [120.0, 1.0];
+/// The walker's: Rapier's default, which no setting tried (30-240 Hz, ratio 1-10, 1-4
+/// substeps) brought closer to MuJoCo's drop and divergence figures (`docs/FIDELITY.md`).
+const WALKER_CONTACT_SOFTNESS: [f32; 2] = [60.0, 10.0];
 
 fn capsule(a: [f32; 2], b: [f32; 2], radius: f32) -> Capsule {
     Capsule { a, b, radius }
@@ -17,7 +28,9 @@ struct Limb {
     end: [f32; 2],
     radius: f32,
     mass: f32,
-    /// MuJoCo's joint range (about +y, clockwise); mirrored into ours.
+    /// The y component of MuJoCo's hinge axis: +1 (`axis="0 1 0"`) or -1 (`"0 -1 0"`).
+    mujoco_axis_y: f32,
+    /// MuJoCo's joint range, about that axis.
     mujoco_range: [f32; 2],
     gear: f32,
     damping: f32,
@@ -28,12 +41,17 @@ struct Limb {
 
 impl From<Limb> for LimbSpec {
     fn from(l: Limb) -> Self {
+        // About +y MuJoCo's angle is clockwise: minus ours, and its range mirrored.
+        let sign = -l.mujoco_axis_y;
+        let [low, high] = l.mujoco_range.map(|a| sign * a);
         LimbSpec {
             parent: l.parent,
             joint: l.joint,
             capsule: capsule(l.joint, l.end, l.radius),
             mass: l.mass,
-            range: [-l.mujoco_range[1], -l.mujoco_range[0]],
+            range: [low.min(high), low.max(high)],
+            sign,
+            mujoco_range: l.mujoco_range,
             gear: l.gear,
             damping: l.damping,
             stiffness: l.stiffness,
@@ -47,6 +65,8 @@ impl From<Limb> for LimbSpec {
 /// as in Gymnasium, but as 2 physics steps of 0.025 s (Gymnasium: 5 of 0.01) because the
 /// multibody mass-matrix update dominates the cost; friction 0.4.
 pub(crate) fn half_cheetah() -> RobotSpec {
+    // half_cheetah.xml's hinges turn about +y.
+    const AXIS_Y: f32 = 1.0;
     let r = 0.046;
     let f = 0.4;
     RobotSpec {
@@ -54,8 +74,11 @@ pub(crate) fn half_cheetah() -> RobotSpec {
             capsule([-0.5, 0.0], [0.5, 0.0], r),
             capsule([0.485, 0.003], [0.715, 0.197], r),
         ],
-        torso_mass: 6.36,
+        torso_mass: 6.25,
         torso_friction: f,
+        // The floor takes the default class's friction too.
+        ground_friction: f,
+        contact_softness: CHEETAH_CONTACT_SOFTNESS,
         origin: [0.0, 0.7],
         limbs: [
             Limb {
@@ -63,7 +86,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [-0.5, 0.0],
                 end: [-0.34, -0.25],
                 radius: r,
-                mass: 1.54,
+                mass: 1.544,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-0.52, 1.05],
                 gear: 120.0,
                 damping: 6.0,
@@ -77,7 +101,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [-0.34, -0.25],
                 end: [-0.62, -0.39],
                 radius: r,
-                mass: 1.59,
+                mass: 1.587,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-0.785, 0.785],
                 gear: 90.0,
                 damping: 4.5,
@@ -91,7 +116,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [-0.62, -0.39],
                 end: [-0.56, -0.58],
                 radius: r,
-                mass: 1.07,
+                mass: 1.095,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-0.4, 0.785],
                 gear: 60.0,
                 damping: 3.0,
@@ -105,7 +131,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [0.5, 0.0],
                 end: [0.36, -0.24],
                 radius: r,
-                mass: 1.43,
+                mass: 1.438,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-1.0, 0.7],
                 gear: 120.0,
                 damping: 4.5,
@@ -119,7 +146,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [0.36, -0.24],
                 end: [0.49, -0.42],
                 radius: r,
-                mass: 1.18,
+                mass: 1.201,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-1.2, 0.87],
                 gear: 60.0,
                 damping: 3.0,
@@ -133,7 +161,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
                 joint: [0.49, -0.42],
                 end: [0.58, -0.56],
                 radius: r,
-                mass: 0.85,
+                mass: 0.885,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: [-0.5, 0.5],
                 gear: 30.0,
                 damping: 1.5,
@@ -152,20 +181,27 @@ pub(crate) fn half_cheetah() -> RobotSpec {
     }
 }
 
-/// Walker2d: vertical torso, two legs (thigh, leg, foot); control dt 0.008 as in Gymnasium,
-/// as one physics step (Gymnasium: 4 of 0.002); friction 0.9, gears 100.
+/// Walker2d as the original gym's `walker2d.xml` (the SMILe authors' walker): vertical torso,
+/// two legs (thigh, leg, foot), hinges about -y (knees fold backwards), masses from density
+/// 1000, friction 0.9 but 1.9 on the left foot (as that file has it; the floor 0.7), gears 100;
+/// control dt 0.01 as the authors' walker (frame skip 5 of 0.002 s; Gymnasium's v5 takes 4),
+/// here one physics step of 4 solver substeps.
 pub(crate) fn walker() -> RobotSpec {
+    // walker2d.xml's hinges turn about -y.
+    const AXIS_Y: f32 = -1.0;
     let f = 0.9;
+    let left_foot = 1.9;
     let bend = [-2.618, 0.0];
     let ankle = [-0.785, 0.785];
-    let leg = |hip_parent: Option<usize>, first: usize| {
+    let leg = |hip_parent: Option<usize>, first: usize, foot_friction: f32| {
         [
             Limb {
                 parent: hip_parent,
                 joint: [0.0, -0.2],
                 end: [0.0, -0.65],
                 radius: 0.05,
-                mass: 3.93,
+                mass: 4.058,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: bend,
                 gear: 100.0,
                 damping: 0.1,
@@ -179,7 +215,8 @@ pub(crate) fn walker() -> RobotSpec {
                 joint: [0.0, -0.65],
                 end: [0.0, -1.15],
                 radius: 0.04,
-                mass: 2.71,
+                mass: 2.781,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: bend,
                 gear: 100.0,
                 damping: 0.1,
@@ -193,26 +230,29 @@ pub(crate) fn walker() -> RobotSpec {
                 joint: [0.0, -1.15],
                 end: [0.2, -1.15],
                 radius: 0.06,
-                mass: 2.94,
+                mass: 3.167,
+                mujoco_axis_y: AXIS_Y,
                 mujoco_range: ankle,
                 gear: 100.0,
                 damping: 0.1,
                 stiffness: 0.0,
                 armature: 0.01,
-                friction: f,
+                friction: foot_friction,
             }
             .into(),
         ]
     };
-    let [r0, r1, r2] = leg(None, 0);
-    let [l0, l1, l2] = leg(None, 3);
+    let [r0, r1, r2] = leg(None, 0, f);
+    let [l0, l1, l2] = leg(None, 3, left_foot);
     RobotSpec {
         torso: vec![capsule([0.0, 0.2], [0.0, -0.2], 0.05)],
-        torso_mass: 3.53,
+        torso_mass: 3.665,
         torso_friction: f,
+        ground_friction: 0.7,
+        contact_softness: WALKER_CONTACT_SOFTNESS,
         origin: [0.0, 1.25],
         limbs: [r0, r1, r2, l0, l1, l2],
-        physics_dt: 0.008,
+        physics_dt: 0.01,
         substeps: 1,
         solver_iterations: 4,
         position_noise: 5e-3,
