@@ -9,7 +9,7 @@ use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, WalkerDyna
 pub const CHEETAH_HORIZON: usize = 1000;
 /// cheetah-vel reward weight of ||a||^2.
 pub const CHEETAH_ACTION_COST: f32 = 0.05;
-/// Default walker-dyn episode length (control steps of 0.008 s).
+/// Default walker-dyn episode length (control steps of 0.01 s).
 pub const WALKER_HORIZON: usize = 1000;
 /// walker-dyn reward weight of ||a||^2.
 pub const WALKER_ACTION_COST: f32 = 1e-3;
