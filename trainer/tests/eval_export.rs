@@ -48,6 +48,7 @@ fn eval_report_and_blob_parity() {
         draws: 2,
         rollouts: 1,
         horizon: Some(30),
+        action_noise: 0.0,
     };
     let r = eval::evaluate(
         &mut mp,

@@ -25,6 +25,7 @@ fn test_metric(mp: &mut MetaPolicy, contexts: &DemoDataset) -> f32 {
         draws: 1,
         rollouts: 1,
         horizon: Some(HORIZON),
+        action_noise: 0.0,
     };
     eval::evaluate(
         mp,

@@ -21,7 +21,7 @@ use sim::{EnvConfig, Environment, EpisodeMetric, Family, Task};
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
 use crate::data::better;
-pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate};
+pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate, evaluate_under_noise};
 use crate::io::checkpoint;
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::{Error, Result};

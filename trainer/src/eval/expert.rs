@@ -183,6 +183,18 @@ pub fn evaluate(
     episodes: usize,
     env_cfg: EnvConfig,
 ) -> Result<EvalReport> {
+    evaluate_under_noise(expert, tasks, episodes, env_cfg, 0.0)
+}
+
+/// [`evaluate`] with Gaussian noise of standard deviation `action_noise` added to every
+/// action before the plant clips it ([`super::ActionNoise`], seeded by the reset seed).
+pub fn evaluate_under_noise(
+    expert: &Expert,
+    tasks: &[Task],
+    episodes: usize,
+    env_cfg: EnvConfig,
+    action_noise: f32,
+) -> Result<EvalReport> {
     let family = expert.family();
     let mut env = sim::make_env(family, env_cfg)?;
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
@@ -192,11 +204,14 @@ pub fn evaluate(
     for task in tasks {
         let mut sum = 0.0f32;
         for k in 0..episodes {
-            env.reset(task, 1_000_000 + k as u64)?;
+            let seed = 1_000_000 + k as u64;
+            env.reset(task, seed)?;
+            let mut noise = super::ActionNoise::new(action_noise, seed);
             let mut m = EpisodeMetric::new(family);
             loop {
                 env.oracle_observation(&mut oracle)?;
                 expert.act(&oracle, &mut action)?;
+                noise.add_to(&mut action);
                 let tr = env.step(&action)?;
                 m.record(&tr.info);
                 if tr.done {

@@ -26,6 +26,7 @@ use std::path::Path;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
 
@@ -65,6 +66,11 @@ pub struct Protocol {
     /// Episode length override (None: the family's horizon).
     #[serde(default)]
     pub horizon: Option<usize>,
+    /// Standard deviation of Gaussian noise added to every action before the plant clips it
+    /// (a robustness probe of compounding error; 0, the paper's protocol, adds none). Drawn
+    /// from a stream seeded by the episode's seed, so evaluations repeat exactly.
+    #[serde(default)]
+    pub action_noise: f32,
 }
 
 impl Protocol {
@@ -76,12 +82,14 @@ impl Protocol {
                 draws: 3,
                 rollouts: 5,
                 horizon: None,
+                action_noise: 0.0,
             },
             Family::WalkerDyn => Self {
                 context_sizes: vec![1],
                 draws: 3,
                 rollouts: 1,
                 horizon: None,
+                action_noise: 0.0,
             },
             // Aggregating demos is what this family tests: the success per context size.
             Family::AntLinClass => Self {
@@ -89,6 +97,7 @@ impl Protocol {
                 draws: 3,
                 rollouts: 5,
                 horizon: None,
+                action_noise: 0.0,
             },
             // point-goal and ant-goal (the paper's Figure 2 protocol).
             _ => Self {
@@ -96,6 +105,7 @@ impl Protocol {
                 draws: 3,
                 rollouts: 10,
                 horizon: None,
+                action_noise: 0.0,
             },
         }
     }
@@ -325,6 +335,35 @@ pub fn contexts_for<'a>(
         .collect()
 }
 
+/// Offset of the action-noise streams' seeds from their episodes' seeds.
+const ACTION_NOISE_SEED_OFFSET: u64 = 500_000_000;
+
+/// Gaussian action noise of one episode ([`Protocol::action_noise`]); none at sigma 0.
+pub struct ActionNoise {
+    sigma: f32,
+    rng: ChaCha8Rng,
+}
+
+impl ActionNoise {
+    /// Noise of standard deviation `sigma` for the episode of reset seed `seed`.
+    pub fn new(sigma: f32, seed: u64) -> Self {
+        Self {
+            sigma,
+            rng: ChaCha8Rng::seed_from_u64(ACTION_NOISE_SEED_OFFSET + seed),
+        }
+    }
+
+    /// Adds sigma N(0, 1) to every entry of `action` (the plant clips afterwards).
+    pub fn add_to(&mut self, action: &mut [f32]) {
+        if self.sigma > 0.0 {
+            for a in action {
+                let n: f32 = StandardNormal.sample(&mut self.rng);
+                *a += self.sigma * n;
+            }
+        }
+    }
+}
+
 /// Evaluates `actor` on `family`'s `split` tasks with contexts from `contexts`.
 /// `on_task(i, n)` reports progress.
 pub fn evaluate(
@@ -359,11 +398,16 @@ pub fn evaluate(
                 let z = actor.latent(&context_draw(&trajs, i, k, d))?;
                 for r in 0..protocol.rollouts {
                     let seed = episode_seed(d, r);
+                    let mut noise = ActionNoise::new(protocol.action_noise, seed);
                     let ep = run_episode(
                         env.as_mut(),
                         task,
                         seed,
-                        &mut |o, a| actor.act(o, &z, a),
+                        &mut |o, a| {
+                            actor.act(o, &z, a)?;
+                            noise.add_to(a);
+                            Ok(())
+                        },
                         &mut |_| Ok(()),
                     )?;
                     eps.push(ep.metric);

@@ -140,6 +140,7 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
         draws: 1,
         rollouts: 1,
         horizon: Some(4),
+        action_noise: 0.0,
     };
     let family = Family::AntLinClass;
     let m = evaluate(
@@ -173,4 +174,41 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
     assert!(json.contains("no_op_rate"));
     let p = Protocol::for_family(Family::AntLinClass);
     assert_eq!(p.context_sizes, vec![1, 2, 4, 8]);
+}
+
+#[test]
+fn action_noise_perturbs_every_episode_reproducibly_and_zero_changes_nothing() {
+    let contexts = DemoDataset::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/experts/point-goal/demos-test-4x-sub20.safetensors"),
+    )
+    .unwrap();
+    let run = |sigma: f32| {
+        let protocol = Protocol {
+            context_sizes: vec![1],
+            draws: 1,
+            rollouts: 2,
+            horizon: Some(20),
+            action_noise: sigma,
+        };
+        evaluate(
+            &mut StandStill,
+            "still",
+            Family::PointGoal,
+            Split::Test,
+            &contexts,
+            &protocol,
+            &mut |_, _| {},
+        )
+        .unwrap()
+    };
+    let (still, noisy) = (run(0.0), run(0.5));
+    // A point that never moves keeps its start distance; noise moves it, the same way twice.
+    assert_ne!(still.mean, noisy.mean);
+    assert_eq!(noisy, run(0.5));
+    assert_eq!(still, run(0.0));
+    // The protocol without the field (an older eval.json) reads as no noise.
+    let old: Protocol =
+        serde_json::from_str(r#"{"context_sizes": [1], "draws": 1, "rollouts": 1}"#).unwrap();
+    assert_eq!(old.action_noise, 0.0);
 }

@@ -57,15 +57,19 @@ fn spawn_plain_lines(bar: WeakProgressBar, what: String, every: Duration) {
         .name("progress-lines".into())
         .spawn(move || {
             let mut last = Instant::now();
+            // Where the bar stood when first seen: a resumed run starts part way, and its rate
+            // counts only the units done in this process.
+            let mut start = None;
             loop {
                 std::thread::sleep(poll);
                 let Some(pb) = bar.upgrade() else { return };
                 if pb.is_finished() {
                     return;
                 }
+                let (base, since) = *start.get_or_insert((pb.position(), pb.elapsed()));
                 if last.elapsed() >= every {
                     last = Instant::now();
-                    eprintln!("{}", plain_line(&pb, &what));
+                    eprintln!("{}", plain_line(&pb, &what, base, since));
                 }
             }
         });
@@ -78,8 +82,9 @@ fn hms(d: Duration) -> String {
     format!("{}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
 }
 
-/// `[progress] 1200/5000 updates (24%), 31/s, elapsed 0:00:38, ETA 0:02:02 <message>`.
-pub fn plain_line(pb: &ProgressBar, what: &str) -> String {
+/// `[progress] 1200/5000 updates (24%), 31/s, elapsed 0:00:38, ETA 0:02:02 <message>`, the rate
+/// (and so the ETA) measured from position `base`, reached at `since` into the bar's life.
+fn plain_line(pb: &ProgressBar, what: &str, base: u64, since: Duration) -> String {
     let pos = pb.position();
     let len = pb.length().unwrap_or(0);
     let percent = if len > 0 {
@@ -96,15 +101,16 @@ pub fn plain_line(pb: &ProgressBar, what: &str) -> String {
     // The average since the start, not indicatif's decaying estimate: between slow units
     // (sweep cells of minutes) that one falls to 0/s and its ETA to centuries.
     let elapsed = pb.elapsed();
-    let rate = pos as f64 / elapsed.as_secs_f64().max(1e-9);
-    let eta = if pos == 0 || len < pos {
+    let done = pos.saturating_sub(base);
+    let rate = done as f64 / elapsed.saturating_sub(since).as_secs_f64().max(1e-9);
+    let eta = if done == 0 || len < pos {
         "?".to_string()
     } else {
         hms(Duration::from_secs_f64((len - pos) as f64 / rate))
     };
     format!(
         "[progress] {pos}/{len} {what}{percent}, {}/s, elapsed {}, ETA {eta}{message}",
-        if rate < 0.1 && pos > 0 {
+        if rate < 0.1 && done > 0 {
             format!("{:.4}", rate)
         } else {
             format!("{rate:.1}")
@@ -123,7 +129,7 @@ mod tests {
         pb.set_length(200);
         pb.set_position(50);
         pb.set_message("smile");
-        let line = plain_line(&pb, "updates");
+        let line = plain_line(&pb, "updates", 0, Duration::ZERO);
         assert!(
             line.starts_with("[progress] 50/200 updates (25%), "),
             "{line}"
@@ -131,7 +137,27 @@ mod tests {
         assert!(line.ends_with(" smile"), "{line}");
         // Nothing done yet: no made-up ETA.
         pb.set_position(0);
-        assert!(plain_line(&pb, "cells").contains("ETA ? smile"));
+        assert!(plain_line(&pb, "cells", 0, Duration::ZERO).contains("ETA ? smile"));
         assert_eq!(hms(Duration::from_secs(3723)), "1:02:03");
+    }
+
+    #[test]
+    fn a_resumed_bar_counts_its_rate_from_where_it_started() {
+        let pb = ProgressBar::hidden();
+        pb.set_length(1000);
+        pb.set_position(600);
+        std::thread::sleep(Duration::from_millis(50));
+        pb.set_position(610);
+        let since = Duration::from_millis(1);
+        let line = plain_line(&pb, "steps", 600, since);
+        let rate: f64 = line
+            .split(", ")
+            .find_map(|part| part.strip_suffix("/s"))
+            .and_then(|r| r.parse().ok())
+            .expect("a rate");
+        // 10 units in about 50 ms: about 200/s, not 610 / 50 ms = 12 200/s.
+        assert!(rate < 400.0, "{line}");
+        // The ETA follows: 390 units at that rate are seconds, not a fraction of one.
+        assert!(!line.contains("ETA 0:00:00"), "{line}");
     }
 }

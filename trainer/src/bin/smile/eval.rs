@@ -37,6 +37,10 @@ pub struct EvalArgs {
     /// Episode length override.
     #[arg(long)]
     horizon: Option<usize>,
+    /// Standard deviation of Gaussian noise added to every action before the plant clips it
+    /// (a compounding-error probe; seeded per episode). 0 is the paper's protocol.
+    #[arg(long, default_value_t = 0.0, value_parser = parse_noise)]
+    action_noise: f32,
     /// Also save one animated SVG episode per method (first task, first context trajectory).
     #[arg(long)]
     render: bool,
@@ -88,6 +92,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
         protocol.context_sizes = a.context_sizes.iter().map(|&k| k as usize).collect();
     }
     protocol.horizon = a.horizon;
+    protocol.action_noise = a.action_noise;
     // Everything is loaded and checked before any rollout, so a wrong policy, context file,
     // base or expert fails fast.
     let mut policies = Vec::with_capacity(a.policy.len());
@@ -184,4 +189,18 @@ pub fn run(a: EvalArgs) -> Result<()> {
     println!("{md}");
     eprintln!("wrote {}/eval.json, eval.md, eval.svg", a.out.display());
     Ok(())
+}
+
+/// `--action-noise`: a finite standard deviation in [0, 10].
+fn parse_noise(text: &str) -> std::result::Result<f32, String> {
+    let sigma: f32 = text
+        .parse()
+        .map_err(|e| format!("`{text}` is not a number: {e}"))?;
+    if sigma.is_finite() && (0.0..=10.0).contains(&sigma) {
+        Ok(sigma)
+    } else {
+        Err(format!(
+            "{text}: expected a standard deviation from 0 to 10"
+        ))
+    }
 }
