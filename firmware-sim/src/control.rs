@@ -136,6 +136,24 @@ pub enum LoopError {
     /// The sensor noise std is negative or not finite.
     #[error("sensor noise std must be finite and >= 0, got {0}")]
     Noise(f32),
+    /// The ADC settings cannot quantise (the library check behind the CLI's).
+    #[error("ADC: {bits} bits over +-{range} (bits must be 1 to 24, the range finite and > 0)")]
+    Adc {
+        /// Requested resolution.
+        bits: u8,
+        /// Requested full scale.
+        range: f32,
+    },
+    /// More ticks were asked than one plant episode lasts (it would stop early, silently).
+    #[error(
+        "{ticks} ticks asked but a plant episode lasts {most} ticks at this rate; pass --ticks 1..={most} or a longer --horizon"
+    )]
+    Ticks {
+        /// Requested ticks.
+        ticks: usize,
+        /// Ticks in one episode.
+        most: usize,
+    },
     /// The requested rate is not a divisor of the plant's rate.
     #[error("control rate {rate} Hz must divide the plant rate {plant} Hz")]
     Rate {
@@ -187,9 +205,19 @@ pub fn run(
             plant: plant_rate,
         });
     }
-    let ticks = config
-        .ticks
-        .unwrap_or(plant.horizon().div_ceil(steps_per_tick));
+    let most = plant.horizon().div_ceil(steps_per_tick);
+    let ticks = config.ticks.unwrap_or(most);
+    if ticks == 0 || ticks > most {
+        return Err(LoopError::Ticks { ticks, most });
+    }
+    if let Some(bits) = config.adc_bits
+        && !((1..=24).contains(&bits) && config.adc_range.is_finite() && config.adc_range > 0.0)
+    {
+        return Err(LoopError::Adc {
+            bits,
+            range: config.adc_range,
+        });
+    }
     let mut noise_rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45);
     if !(config.noise_std.is_finite() && config.noise_std >= 0.0) {
         return Err(LoopError::Noise(config.noise_std));

@@ -28,10 +28,6 @@ pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_
 pub use estimation::Sensing;
 pub use session::{Session, SessionConfig, SessionError, run_session};
 
-/// Writes `bytes` to `path` via a temporary file and a rename, so a reader never sees a
-/// half-written file.
-pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path)
-}
+/// The workspace's one atomic write (temporary sibling, fsync, rename; the temporary removed
+/// on failure), owned by `sim`, the lowest crate with files.
+pub use sim::write_atomic;

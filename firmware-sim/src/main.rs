@@ -37,6 +37,24 @@ enum Cmd {
     Compare(CompareArgs),
 }
 
+/// A finite number > 0 (`--adc-range`).
+fn positive_finite(text: &str) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v}: expected a finite number > 0")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
+/// A probability in [0, 1] (`--link-drop`, `--link-corrupt`).
+fn probability(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v}: expected a probability from 0 to 1")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
 #[derive(Args, Debug)]
 struct RunArgs {
     /// The policy blob (from `smile export`).
@@ -51,26 +69,26 @@ struct RunArgs {
     /// Demo dataset holding the context demo(s) for that task.
     #[arg(long)]
     context: PathBuf,
-    /// Context trajectories to teach (taken in file order).
-    #[arg(long, default_value_t = 1)]
-    trajectories: usize,
+    /// Context trajectories to teach (taken in file order), at least 1.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+    trajectories: u64,
     /// Control rate in Hz (default: the plant's own, 1 / control dt).
     #[arg(long)]
     rate: Option<f32>,
-    /// Ticks to run (default: one plant episode).
-    #[arg(long)]
-    ticks: Option<usize>,
+    /// Ticks to run, 1 to one plant episode (default: one plant episode).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    ticks: Option<u64>,
     /// Plant episode length in plant steps (default: the family's).
     #[arg(long)]
     horizon: Option<usize>,
     /// Std of Gaussian sensor noise.
     #[arg(long, default_value_t = 0.0)]
     noise: f32,
-    /// ADC resolution in bits (ideal sensors when absent).
-    #[arg(long)]
+    /// ADC resolution in bits, 1 to 24 (ideal sensors when absent).
+    #[arg(long, value_parser = clap::value_parser!(u8).range(1..=24))]
     adc_bits: Option<u8>,
-    /// ADC full scale (+-).
-    #[arg(long, default_value_t = 10.0)]
+    /// ADC full scale (+-), finite and > 0.
+    #[arg(long, default_value_t = 10.0, value_parser = positive_finite)]
     adc_range: f32,
     /// Apply each action one tick late.
     #[arg(long)]
@@ -98,11 +116,11 @@ struct RunArgs {
     /// RAM budget for the application, KiB.
     #[arg(long, default_value_t = 16)]
     ram_kib: usize,
-    /// Probability that a link frame is corrupted.
-    #[arg(long, default_value_t = 0.0)]
+    /// Probability that a link frame is corrupted, 0 to 1.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
     link_corrupt: f64,
-    /// Probability that a link frame is lost.
-    #[arg(long, default_value_t = 0.0)]
+    /// Probability that a link frame is lost, 0 to 1.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
     link_drop: f64,
     /// Output directory for trace.csv, plot.svg and summary.txt.
     #[arg(long, short, default_value = "runs/firmware")]
@@ -161,7 +179,7 @@ fn session_config(args: &RunArgs) -> SessionConfig {
         },
         control: LoopConfig {
             rate_hz: args.rate,
-            ticks: args.ticks,
+            ticks: args.ticks.map(|t| t as usize),
             noise_std: args.noise,
             adc_bits: args.adc_bits,
             adc_range: args.adc_range,
@@ -239,8 +257,7 @@ fn run_cmd(args: RunArgs) -> Result<()> {
         bail!("--accel-std and --meas-std tune the estimator: they need --sensing positions");
     }
     let spec = parse_task(args.env, &args.task)?;
-    let blob = std::fs::read(&args.blob)
-        .with_context(|| format!("reading --blob {}", args.blob.display()))?;
+    let blob = read_blob(&args.blob)?;
     let demos = read_demos(&args.context, "--context", args.env)?;
     let value = match spec {
         TaskSpec::Index(task) => task.value(),
@@ -261,7 +278,7 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     let context: Vec<_> = found
         .trajectories
         .iter()
-        .take(args.trajectories.max(1))
+        .take(args.trajectories as usize)
         .collect();
     let config = session_config(&args);
     let session = run_session(&blob, &task, &context, &config)?;
@@ -296,6 +313,28 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     Ok(())
 }
 
+/// Reads `--blob` and checks it is a whole, valid policy blob before the link sees it (a
+/// truncated file would otherwise be "device refused message N: BadBlob").
+fn read_blob(path: &std::path::Path) -> Result<Vec<u8>> {
+    let blob = std::fs::read(path).with_context(|| format!("reading --blob {}", path.display()))?;
+    if let Err(e) = infer_core::Model::from_bytes(&blob) {
+        bail!(
+            "--blob {} is not a valid policy blob ({e}); export it again with `smile export`",
+            path.display()
+        );
+    }
+    Ok(blob)
+}
+
+/// SHA-256 of `bytes`, lower-case hex (as `smile export` records it).
+fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
 #[derive(Args, Debug)]
 struct CompareArgs {
     /// The policy blob (from `smile export`).
@@ -311,9 +350,9 @@ struct CompareArgs {
     /// Demos of the reference's tasks (the `--contexts` file given to `smile export`).
     #[arg(long)]
     contexts: PathBuf,
-    /// Device episodes per task (context trajectory i % n, reset seed i).
-    #[arg(long, default_value_t = 10)]
-    episodes: usize,
+    /// Device episodes per task (context trajectory i % n, reset seed i), at least 1.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u64).range(1..))]
+    episodes: u64,
     /// Output directory for compare.json and compare.md.
     #[arg(long, short, default_value = "runs/firmware-compare")]
     out: PathBuf,
@@ -357,8 +396,30 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
             reference_path.display()
         )
     })?;
-    let blob =
-        std::fs::read(&args.blob).with_context(|| format!("reading {}", args.blob.display()))?;
+    let blob = read_blob(&args.blob)?;
+    // The report must describe this blob: an interrupted re-export can leave a new blob
+    // beside the previous export's report.
+    match reference["blob_sha256"].as_str().filter(|s| !s.is_empty()) {
+        Some(sha) => {
+            let here = sha256_hex(&blob);
+            if sha != here {
+                bail!(
+                    "{} describes another blob (SHA-256 {}), not {} ({}): run `smile export` \
+                     again to write the blob and its report together",
+                    reference_path.display(),
+                    &sha[..sha.len().min(12)],
+                    args.blob.display(),
+                    &here[..12]
+                );
+            }
+        }
+        None => eprintln!(
+            "warning: {} names no blob checksum (written before that field); cannot check it \
+             describes {}",
+            reference_path.display(),
+            args.blob.display()
+        ),
+    }
     let demos = read_demos(&args.contexts, "--contexts", args.env)?;
     let config = SessionConfig::default();
     let mut rows = Vec::new();
@@ -371,8 +432,9 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
         };
         let found = demos_of(&demos, &args.contexts, "--contexts", value)?;
         let (task, trajectories) = (found.task, &found.trajectories);
-        let mut metrics = Vec::with_capacity(args.episodes);
-        for i in 0..args.episodes.max(1) {
+        let episodes = args.episodes as usize;
+        let mut metrics = Vec::with_capacity(episodes);
+        for i in 0..episodes {
             let context = [&trajectories[i % trajectories.len()]];
             let control = LoopConfig {
                 seed: 7_000_000 + i as u64,
@@ -404,7 +466,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     let report = CompareReport {
         env: args.env.to_string(),
         metric: reference["metric"].as_str().unwrap_or("metric").to_string(),
-        episodes_per_task: args.episodes.max(1),
+        episodes_per_task: args.episodes as usize,
         host_mean,
         device_mean,
         mean_abs_difference: rows.iter().map(|r| r.difference.abs()).sum::<f32>() / n,

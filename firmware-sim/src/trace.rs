@@ -55,7 +55,9 @@ pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<
 /// Plots the run: the xy path to the goal (point-goal, ant-goal) or forward velocity against
 /// the target over time (cheetah-vel, walker-dyn).
 pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::error::Error>> {
-    let root = SVGBackend::new(path, (720, 480)).into_drawing_area();
+    // Drawn in memory, then written atomically: a failed write leaves no partial SVG.
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (720, 480)).into_drawing_area();
     root.fill(&WHITE)?;
     let family = report.task.family();
     let title = format!(
@@ -148,7 +150,8 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
         }
     }
     root.present()?;
-    Ok(())
+    drop(root);
+    Ok(crate::write_atomic(path, svg.as_bytes())?)
 }
 
 /// Human summary of a run.

@@ -228,3 +228,97 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 27, items 3, 9 and 11: a report beside another blob (an interrupted re-export) is
+/// refused by checksum; ADC settings that panicked, probabilities out of [0, 1], zero or
+/// too many ticks and zero episodes are refused at the door, by flag.
+#[test]
+fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
+    let dir = tmp("refuse");
+    let (blob, demos) = blob_and_demos(&dir, 1);
+    let task = Family::PointGoal.test_tasks()[0];
+    let mut reference = blob.clone().into_os_string();
+    reference.push(".json");
+    let report = |sha: &str| {
+        serde_json::json!({
+            "blob_sha256": sha,
+            "metric": "min distance to goal",
+            "per_task_candle": [{"value": task.value(), "metric": 0.5}],
+        })
+        .to_string()
+    };
+    std::fs::write(&reference, report(&"0".repeat(64))).unwrap();
+    let compare = |episodes: &str| {
+        firmware_sim(&[
+            "compare",
+            "--blob",
+            s(&blob),
+            "--env",
+            "point-goal",
+            "--contexts",
+            s(&demos),
+            "--episodes",
+            episodes,
+            "-o",
+            s(&dir.join("cmp")),
+        ])
+    };
+    let err = fails(&compare("1"));
+    assert!(err.contains("describes another blob"), "{err}");
+    use sha2::Digest;
+    let sha: String = sha2::Sha256::digest(std::fs::read(&blob).unwrap())
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    std::fs::write(&reference, report(&sha)).unwrap();
+    ok(&compare("1"));
+    let e = String::from_utf8_lossy(&compare("0").stderr).into_owned();
+    assert!(e.contains("--episodes"), "{e}");
+    let run_out = dir.join("run");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "run",
+            "--blob",
+            s(&blob),
+            "--env",
+            "point-goal",
+            "--task",
+            "0",
+            "--context",
+            s(&demos),
+            "-o",
+            s(&run_out),
+        ];
+        args.extend_from_slice(extra);
+        firmware_sim(&args)
+    };
+    for (bad, flag) in [
+        (&["--adc-bits", "12", "--adc-range=-5"][..], "--adc-range"),
+        (
+            &["--adc-bits", "12", "--adc-range", "NaN"][..],
+            "--adc-range",
+        ),
+        (&["--adc-bits", "0"][..], "--adc-bits"),
+        (&["--link-drop", "NaN"][..], "--link-drop"),
+        (&["--link-drop=-0.1"][..], "--link-drop"),
+        (&["--link-corrupt", "1.5"][..], "--link-corrupt"),
+        (&["--ticks", "0"][..], "--ticks"),
+        (&["--trajectories", "0"][..], "--trajectories"),
+    ] {
+        let o = run(bad);
+        let e = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(!o.status.success() && e.contains(flag), "{bad:?}: {e}");
+        assert!(!e.contains("panicked"), "{bad:?}: {e}");
+    }
+    let e = fails(&run(&["--ticks", "2000000"]));
+    assert!(e.contains("2000000 ticks asked"), "{e}");
+    // A truncated blob is named as one, not as a device refusal of message N.
+    let bytes = std::fs::read(&blob).unwrap();
+    std::fs::write(&blob, &bytes[..bytes.len() / 2]).unwrap();
+    let e = fails(&run(&[]));
+    assert!(
+        e.contains("is not a valid policy blob") && !e.contains("BadBlob"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -28,6 +28,7 @@ mod dynamics;
 mod env;
 mod error;
 pub mod fidelity;
+mod fsio;
 pub mod legged;
 pub mod planar;
 pub mod point_goal;
@@ -45,6 +46,7 @@ pub use dataset::{
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::SimError;
+pub use fsio::{temp_sibling, write_atomic, write_atomic_with};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;

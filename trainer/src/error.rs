@@ -54,6 +54,35 @@ pub enum Error {
         /// What does not fit.
         reason: String,
     },
+    /// A policy comes from a training run that did not finish (killed, or still running).
+    #[error(
+        "{} is from an unfinished run (stopped at update {updates} of {total}: killed, or still \
+         training); finish it with `{resume}`",
+        path.display()
+    )]
+    Unfinished {
+        /// The policy file.
+        path: PathBuf,
+        /// Updates done when it was written.
+        updates: u64,
+        /// The run's budget.
+        total: u64,
+        /// The command that finishes the run.
+        resume: String,
+    },
+    /// Another process is writing the directory.
+    #[error(
+        "{} is in use by another process (pid {pid}, lock file {}); wait for it to finish or \
+         choose another output directory",
+        path.display(),
+        path.join(crate::io::lock::LOCK_FILE).display()
+    )]
+    Locked {
+        /// The directory.
+        path: PathBuf,
+        /// The holder's process id, as it wrote it in the lock file (`?` if unreadable).
+        pid: String,
+    },
     /// An environment error from `sim`.
     #[error("sim: {0}")]
     Sim(#[from] sim::SimError),

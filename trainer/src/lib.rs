@@ -50,7 +50,7 @@ pub use error::{Error, Result};
 pub use model::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator,
     FrozenMlp, META_POLICY_FILE, MetaPolicy, Mlp, ObsNorm, PolicySample, TanhGaussianPolicy,
-    bce_with_logits, gradient_penalty, input_gradient, mlp_to_layers, policy_input,
+    TrainingMark, bce_with_logits, gradient_penalty, input_gradient, mlp_to_layers, policy_input,
 };
 
 /// The optimiser.
@@ -65,6 +65,9 @@ pub use data::{
 
 /// Checkpoints and blob export keep their namespaces (`checkpoint::load`, `export::verify`).
 pub use io::{checkpoint, export};
+
+/// One writer per output directory.
+pub use io::{DirLock, lock};
 
 /// The metrics log (JSON lines + TensorBoard events) and the progress-bar style.
 pub use io::{

@@ -481,7 +481,8 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
     check_budget(args)?;
     let out = &args.out;
-    std::fs::create_dir_all(out).map_err(io(out))?;
+    // One quickstart per directory at a time: a second is refused with this one's pid.
+    let _lock = crate::io::DirLock::acquire(out)?;
     write(
         &out.join("quickstart.toml"),
         toml::to_string(args).map_err(|e| Error::Serialise {
@@ -586,6 +587,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     // `firmware-sim compare --blob policy.blob` works on the quickstart's blob as it is.
     let export_report = export::ExportReport {
         bytes: blob.len(),
+        blob_sha256: crate::io::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),
         algo: smile_policy.algo.clone(),
         env: args.env.name().into(),

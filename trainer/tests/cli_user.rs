@@ -271,7 +271,11 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
             "sac_per_task = 0\n",
             "batch sizes and counts must be positive",
         ),
-        ("smile", "gp_weight = -1.0\n", "gp_weight must be >= 0"),
+        (
+            "smile",
+            "gp_weight = -1.0\n",
+            "gp_weight must be a finite number >= 0",
+        ),
         ("smile", "[sac]\nbatch_size = 0\n", "sac.batch_size"),
         ("meta-bc", "total_stepz = 5\n", "total_stepz"),
         ("meta-bc", "[context]\nr_dimm = 3\n", "r_dimm"),

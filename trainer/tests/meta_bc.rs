@@ -218,11 +218,22 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
     .unwrap();
     meta_bc::train(&mut again, &cut, &mut |_| {}).unwrap();
     assert_eq!(again.val_mse().unwrap(), best);
-    let kept = std::fs::read(full.join(trainer::META_POLICY_FILE)).unwrap();
-    let at_best = std::fs::read(cut.join("last").join(trainer::META_POLICY_FILE)).unwrap();
-    assert!(
-        kept == at_best,
-        "the kept policy is not the step-{best_step} one (validation {vals:?})"
-    );
+    // The weights are equal; the files' training marks differ (step 200 of 200 against
+    // step 160 of 160), so compare tensors, not bytes.
+    let kept = trainer::checkpoint::load(&full.join(trainer::META_POLICY_FILE)).unwrap();
+    let at_best =
+        trainer::checkpoint::load(&cut.join("last").join(trainer::META_POLICY_FILE)).unwrap();
+    for name in [
+        "phi.0", "phi.1", "head.0", "policy.0", "policy.1", "policy.2",
+    ] {
+        let (a, b) = (kept.get(name).unwrap(), at_best.get(name).unwrap());
+        assert!(
+            a.flatten_all().unwrap().to_vec1::<f32>().unwrap()
+                == b.flatten_all().unwrap().to_vec1::<f32>().unwrap(),
+            "{name}: the kept policy is not the step-{best_step} one (validation {vals:?})"
+        );
+    }
+    let mark = trainer::MetaPolicy::training_mark(&full).unwrap().unwrap();
+    assert!(mark.finished && mark.updates == best_step, "{mark:?}");
     std::fs::remove_dir_all(&root).ok();
 }

@@ -59,6 +59,10 @@ fn bad_plans_are_refused_before_anything_runs() {
             "(line 4): the axis `seeds` is empty",
         ),
         (
+            good.replace("seeds = [0, 1]", "seeds = [0, 0]"),
+            "are the same training",
+        ),
+        (
             good.replace("total_updates = 600", "total_updatez = 600"),
             "(line 7): [algo.smile]: unknown field `total_updatez`",
         ),
@@ -245,6 +249,101 @@ fn a_killed_local_sweep_resumes_to_the_same_results() {
             .unwrap()
             .contains("<svg")
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 27, item 2: an edited plan trains again what changed (the old cell kept aside),
+/// manifest and cell.toml agree; two demo files of one name get two cells; an evaluation
+/// that is not there, or unreadable, is named by `smile report`, not silently dropped.
+#[test]
+fn an_edited_plan_reruns_what_changed_and_nothing_collides() {
+    let dir = tmp("edited");
+    let out = dir.join("out");
+    setup(&dir, "");
+    std::fs::create_dir_all(dir.join("other")).unwrap();
+    common::pd_demos(
+        Split::Train,
+        Family::PointGoal.train_tasks()[..8].to_vec(),
+        3,
+        20,
+    )
+    .write(dir.join("other/train.safetensors"))
+    .unwrap();
+    let plan = |steps: u32, demos: &str| {
+        format!(
+            r#"env = "point-goal"
+out = "{}"
+demos = [{demos}]
+seeds = [0]
+
+[algo.meta-bc]
+set = {{ total_steps = {steps}, eval_every = 50, policy_hidden = [8, 8] }}
+
+[eval]
+contexts = "test.safetensors"
+rollouts = 1
+"#,
+            out.display()
+        )
+    };
+    let p = dir.join("plan.toml");
+    std::fs::write(&p, plan(100, r#""train.safetensors""#)).unwrap();
+    ok(&smile(&[
+        "sweep",
+        p.to_str().unwrap(),
+        "--jobs",
+        "1",
+        "--quiet",
+    ]));
+    let cell = out.join("meta-bc-s0");
+    let first = bytes(&cell.join("train/meta_policy.safetensors"));
+    std::fs::write(&p, plan(200, r#""train.safetensors""#)).unwrap();
+    let err = ok(&smile(&["sweep", p.to_str().unwrap(), "--jobs", "1"]));
+    assert!(err.contains("1 of 1 cells done"), "{err}");
+    let toml = std::fs::read_to_string(cell.join("cell.toml")).unwrap();
+    assert!(toml.contains("total_steps = 200"), "{toml}");
+    let manifest = std::fs::read_to_string(out.join("manifest.json")).unwrap();
+    assert!(manifest.contains("total_steps = 200"), "{manifest}");
+    assert_ne!(bytes(&cell.join("train/meta_policy.safetensors")), first);
+    let aside: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("meta-bc-s0.stale-"))
+        .collect();
+    assert_eq!(
+        aside.len(),
+        1,
+        "the old training is kept aside once: {aside:?}"
+    );
+    // Two demo files named train.safetensors: two cells, two directories.
+    std::fs::write(
+        &p,
+        plan(100, r#""train.safetensors", "other/train.safetensors""#),
+    )
+    .unwrap();
+    let sweep = trainer::sweep::Sweep::load(&p).unwrap();
+    let dirs: Vec<_> = sweep.cells.iter().map(|c| sweep.cell_dir(c)).collect();
+    assert_eq!(dirs.len(), 2);
+    assert_ne!(dirs[0], dirs[1], "{dirs:?}");
+    ok(&smile(&[
+        "sweep",
+        p.to_str().unwrap(),
+        "--jobs",
+        "1",
+        "--quiet",
+    ]));
+    // One evaluation unreadable: the report names it.
+    std::fs::write(dirs[1].join("eval/eval.json"), "{\"trunc").unwrap();
+    let rep = dir.join("report");
+    let o = smile(&["report", out.to_str().unwrap(), "-o", rep.to_str().unwrap()]);
+    let err = ok(&o);
+    assert!(err.contains("1 sweep cell(s) left out"), "{err}");
+    let md = std::fs::read_to_string(rep.join("report.md")).unwrap();
+    assert!(md.contains("left out"), "{md}");
+    // ... and the sweep counts it not done: it is evaluated again.
+    let err = ok(&smile(&["sweep", p.to_str().unwrap(), "--jobs", "1"]));
+    assert!(err.contains("2 of 2 cells done"), "{err}");
+    serde_json::from_slice::<serde_json::Value>(&bytes(&dirs[1].join("eval/eval.json"))).unwrap();
     std::fs::remove_dir_all(&dir).ok();
 }
 

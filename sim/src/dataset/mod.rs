@@ -514,11 +514,12 @@ impl DemoDataset {
             .map_err(|e| DatasetError::Corrupt(format!("serialising: {e}")))
     }
 
-    /// Writes the dataset to `path` (safetensors).
+    /// Writes the dataset to `path` (safetensors), atomically: a kill or a full disk leaves
+    /// the previous file whole.
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), DatasetError> {
         let path = path.as_ref();
         let bytes = self.to_bytes()?;
-        std::fs::write(path, bytes).map_err(|source| DatasetError::Io {
+        crate::write_atomic(path, &bytes).map_err(|source| DatasetError::Io {
             path: path.display().to_string(),
             source,
         })

@@ -32,7 +32,9 @@ use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sam
 use crate::io::MetricsLog;
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
-use crate::model::{ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, scalar};
+use crate::model::{
+    ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, TrainingMark, scalar,
+};
 use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
 
@@ -178,6 +180,15 @@ impl MetaBc {
     pub fn aggregate(&self, ti: usize) -> (&[f32], &[f32]) {
         let p = &self.pairs[ti];
         (&p.obs, &p.act)
+    }
+
+    /// The training mark of a policy saved now.
+    fn mark(&self, finished: bool) -> TrainingMark {
+        TrainingMark {
+            updates: self.steps,
+            total_updates: self.cfg.total_steps,
+            finished,
+        }
     }
 
     /// The current policy as a [`MetaPolicy`] (shares the live weights).
@@ -491,7 +502,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
             if improved || (run.data.val.is_empty() && at_end) {
                 (run.best_mse, run.best_metric) = (val_mse, val_metric);
                 run.bad_evals = 0;
-                run.meta_policy().save(dir)?;
+                run.meta_policy().save_marked(dir, Some(run.mark(false)))?;
             } else {
                 run.bad_evals += 1;
                 if cfg.patience > 0 && run.bad_evals >= cfg.patience {
@@ -519,9 +530,12 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
         path: last.clone(),
         source: e,
     })?;
-    run.meta_policy().save(&last)?;
+    run.meta_policy().save_marked(&last, Some(run.mark(true)))?;
     if !dir.join(crate::model::META_POLICY_FILE).exists() {
-        run.meta_policy().save(dir)?;
+        run.meta_policy().save_marked(dir, Some(run.mark(true)))?;
+    } else {
+        // The kept (best) policy was written mid-run, marked unfinished: now it is final.
+        MetaPolicy::mark_finished(dir)?;
     }
     Ok(())
 }

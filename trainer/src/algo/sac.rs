@@ -83,20 +83,49 @@ impl Default for SacConfig {
 }
 
 impl SacConfig {
-    /// Reject values that cannot train.
+    /// Reject values that cannot train: every number finite, rates and scales positive, each
+    /// message naming the key and its allowed range.
     pub fn validate(&self) -> Result<()> {
-        let bad = |m: &str| Err(Error::Config(m.to_string()));
+        let bad = |m: String| Err(Error::Config(m));
         if self.hidden.is_empty() || self.hidden.contains(&0) {
-            return bad("sac.hidden needs at least one positive width");
+            return bad("sac.hidden needs at least one positive width".into());
         }
-        if !(0.0..=1.0).contains(&self.gamma) || !(0.0..=1.0).contains(&self.tau) {
-            return bad("sac.gamma and sac.tau must lie in [0, 1]");
+        for (key, v) in [("sac.gamma", self.gamma), ("sac.tau", self.tau)] {
+            if !(0.0..=1.0).contains(&v) {
+                return bad(format!("{key} must lie in [0, 1], not {v}"));
+            }
         }
-        if self.batch_size == 0 || self.init_alpha <= 0.0 {
-            return bad("sac.batch_size and sac.init_alpha must be positive");
+        for (key, v) in [
+            ("sac.actor_lr", self.actor_lr),
+            ("sac.critic_lr", self.critic_lr),
+            ("sac.alpha_lr", self.alpha_lr),
+            ("sac.init_alpha", self.init_alpha),
+            ("sac.reward_scale", self.reward_scale),
+        ] {
+            if !(v.is_finite() && v > 0.0) {
+                return bad(format!("{key} must be a finite number > 0, not {v}"));
+            }
         }
-        if self.log_std_min >= self.log_std_max {
-            return bad("sac.log_std_min must be below sac.log_std_max");
+        if !(self.policy_reg.is_finite() && self.policy_reg >= 0.0) {
+            return bad(format!(
+                "sac.policy_reg must be a finite number >= 0, not {}",
+                self.policy_reg
+            ));
+        }
+        if let Some(t) = self.target_entropy.filter(|t| !t.is_finite()) {
+            return bad(format!("sac.target_entropy must be finite, not {t}"));
+        }
+        if self.batch_size == 0 {
+            return bad("sac.batch_size must be positive".into());
+        }
+        if !(self.log_std_min.is_finite()
+            && self.log_std_max.is_finite()
+            && self.log_std_min < self.log_std_max)
+        {
+            return bad(format!(
+                "sac.log_std_min ({}) must be finite and below sac.log_std_max ({})",
+                self.log_std_min, self.log_std_max
+            ));
         }
         Ok(())
     }

@@ -52,7 +52,7 @@ use crate::io::MetricsLog;
 use crate::model::scalar;
 use crate::model::{
     ContextBatch, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, MetaPolicy,
-    bce_with_logits, policy_input,
+    TrainingMark, bce_with_logits, policy_input,
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
@@ -216,6 +216,15 @@ impl Smile {
     /// The data this run trains on.
     pub fn data(&self) -> &MetaData {
         &self.data
+    }
+
+    /// The training mark of a policy saved now.
+    fn mark(&self, finished: bool) -> TrainingMark {
+        TrainingMark {
+            updates: self.updates,
+            total_updates: self.cfg.total_updates,
+            finished,
+        }
     }
 
     /// The current policy as a [`MetaPolicy`] (shares the live weights).
@@ -600,7 +609,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
                 let m = run.validate()?;
                 if better(kind, m, run.best) {
                     run.best = m;
-                    run.meta_policy().save(dir)?;
+                    run.meta_policy().save_marked(dir, Some(run.mark(false)))?;
                 }
                 log.log(
                     run.updates,
@@ -628,9 +637,12 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         path: last.clone(),
         source: e,
     })?;
-    run.meta_policy().save(&last)?;
+    run.meta_policy().save_marked(&last, Some(run.mark(true)))?;
     if run.data.val.is_empty() || !dir.join(crate::model::META_POLICY_FILE).exists() {
-        run.meta_policy().save(dir)?;
+        run.meta_policy().save_marked(dir, Some(run.mark(true)))?;
+    } else {
+        // The kept (best) policy was written mid-run, marked unfinished: now it is final.
+        MetaPolicy::mark_finished(dir)?;
     }
     Ok(())
 }

@@ -136,7 +136,9 @@ impl ExpertSet {
 /// `path` itself, or for a folder of experts (a directory without `policy.safetensors`) the
 /// experts in it, sorted by name; an empty folder is an error.
 fn expand_expert_folder(path: &Path) -> Result<Vec<std::path::PathBuf>> {
-    if !path.is_dir() || path.join(POLICY_FILE).exists() {
+    // A run directory: itself (an unfinished one is named as such by `Expert::load`).
+    let ckpt = crate::io::checkpoint::CHECKPOINT_FILE;
+    if !path.is_dir() || path.join(POLICY_FILE).exists() || path.join(ckpt).exists() {
         return Ok(vec![path.to_path_buf()]);
     }
     let io = |e: std::io::Error| Error::Io {

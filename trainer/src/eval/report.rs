@@ -98,6 +98,10 @@ pub struct Report {
     pub context_sizes: Vec<usize>,
     /// One row per (method, setting).
     pub rows: Vec<Row>,
+    /// Sweep cells left out, each with why (not evaluated yet, unreadable evaluation): a row
+    /// with fewer seeds than planned says so here, not silently.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub left_out: Vec<String>,
 }
 
 fn read_eval(path: &Path) -> Result<EvalReport> {
@@ -134,6 +138,7 @@ impl Report {
     /// evaluations must be of one family, metric and protocol.
     pub fn from_inputs(inputs: &[PathBuf]) -> Result<Self> {
         let mut entries = Vec::new();
+        let mut left_out = Vec::new();
         let mut head: Option<EvalReport> = None;
         let mut take = |rep: EvalReport, origin: &Path| -> Result<Vec<MethodResult>> {
             if let Some(h) = &head {
@@ -176,9 +181,24 @@ impl Report {
                 for c in &m.cells {
                     let eval = input.join(&c.cell.name).join("eval");
                     if !eval.join("eval.json").exists() {
+                        left_out.push(format!(
+                            "{} (seed {} of {}, {}): not evaluated yet ({:?} in the manifest)",
+                            c.cell.name,
+                            c.cell.seed,
+                            c.cell.method,
+                            c.cell.setting(),
+                            c.status
+                        ));
                         continue;
                     }
-                    for r in take(read_eval(&eval)?, &eval)? {
+                    let rep = match read_eval(&eval) {
+                        Ok(rep) => rep,
+                        Err(e) => {
+                            left_out.push(format!("{}: {e}", c.cell.name));
+                            continue;
+                        }
+                    };
+                    for r in take(rep, &eval)? {
                         entries.push(Entry {
                             method: c.cell.method.clone(),
                             setting: c.cell.setting(),
@@ -223,6 +243,7 @@ impl Report {
             lower_is_better: head.lower_is_better,
             context_sizes: head.protocol.context_sizes,
             rows,
+            left_out,
         })
     }
 
@@ -286,6 +307,15 @@ impl Report {
                 r.std,
                 by.join(" / ")
             ));
+        }
+        if !self.left_out.is_empty() {
+            s.push_str(&format!(
+                "\n**{} cell(s) left out** (rows above have fewer seeds than planned):\n\n",
+                self.left_out.len()
+            ));
+            for l in &self.left_out {
+                s.push_str(&format!("- {l}\n"));
+            }
         }
         s
     }

@@ -65,7 +65,9 @@ pub fn per_task(report: &Report, path: &Path) -> Result<()> {
             .map(|(m, s)| m + s)
             .collect::<Vec<_>>()
     }));
-    let root = SVGBackend::new(path, (800, 500)).into_drawing_area();
+    // Drawn in memory, then written atomically: a failed write leaves no partial SVG.
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let x_desc = match report.env.as_str() {
         "point-goal" | "ant-goal" => "goal angle (rad)",
@@ -132,7 +134,10 @@ pub fn per_task(report: &Report, path: &Path) -> Result<()> {
         .border_style(BLACK)
         .draw()
         .map_err(|x| e(&x))?;
-    root.present().map_err(|x| e(&x))
+    root.present().map_err(|x| e(&x))?;
+    drop(chart);
+    drop(root);
+    crate::io::checkpoint::write_atomic(path, svg.as_bytes())
 }
 
 /// Metric (mean over tasks and seeds) against the number of context demos.
@@ -142,7 +147,9 @@ pub fn by_context_size(report: &Report, path: &Path) -> Result<()> {
     let k1 = *report.context_sizes.last().unwrap_or(&1) as f64;
     let (k0, k1) = if k1 > k0 { (k0, k1) } else { (k0, k0 + 1.0) };
     let ys = y_range(report.rows.iter().flat_map(|r| r.by_context_size.clone()));
-    let root = SVGBackend::new(path, (640, 420)).into_drawing_area();
+    // Drawn in memory, then written atomically: a failed write leaves no partial SVG.
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (640, 420)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
     let mut chart = ChartBuilder::on(&root)
         .caption(
@@ -185,5 +192,8 @@ pub fn by_context_size(report: &Report, path: &Path) -> Result<()> {
         .border_style(BLACK)
         .draw()
         .map_err(|x| e(&x))?;
-    root.present().map_err(|x| e(&x))
+    root.present().map_err(|x| e(&x))?;
+    drop(chart);
+    drop(root);
+    crate::io::checkpoint::write_atomic(path, svg.as_bytes())
 }

@@ -152,7 +152,9 @@ impl EvalReport {
         } else {
             y0 + 1.0
         };
-        let root = SVGBackend::new(path, (760, 480)).into_drawing_area();
+        // Drawn in memory, then written atomically: a failed write leaves no partial SVG.
+        let mut svg = String::new();
+        let root = SVGBackend::with_string(&mut svg, (760, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
         let x_desc = match self.env.as_str() {
             "point-goal" | "ant-goal" => "goal angle (rad)",
@@ -198,6 +200,8 @@ impl EvalReport {
             .draw()
             .map_err(|e| err(&e))?;
         root.present().map_err(|e| err(&e))?;
-        Ok(())
+        drop(chart);
+        drop(root);
+        crate::io::checkpoint::write_atomic(path, svg.as_bytes())
     }
 }

@@ -54,9 +54,24 @@ fn ckpt_err(path: &Path, reason: impl Into<String>) -> Error {
     }
 }
 
-/// Write `tensors` and `meta` to `dir/checkpoint.safetensors` atomically (temp file + rename).
+/// Write `tensors` and `meta` to `dir/checkpoint.safetensors` atomically (temp file + rename),
+/// with a readable copy of the metadata beside it.
 pub fn save(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|e| ckpt_err(dir, e.to_string()))?;
+    let path = dir.join(CHECKPOINT_FILE);
+    let doc = save_file(&path, tensors, meta)?;
+    let pretty = serde_json::to_string_pretty(&doc).unwrap_or_default();
+    write_atomic(&dir.join("checkpoint.json"), pretty.as_bytes())?;
+    Ok(path)
+}
+
+/// Write `tensors` and `meta` to the safetensors file `path` atomically; returns the metadata
+/// document as written (with its format tag).
+pub fn save_file(
+    path: &Path,
+    tensors: &[(String, Tensor)],
+    meta: &serde_json::Value,
+) -> Result<serde_json::Value> {
     let mut bufs: Vec<(String, Dtype, Vec<usize>, Vec<u8>)> = Vec::with_capacity(tensors.len());
     for (name, t) in tensors {
         let t = t.contiguous()?;
@@ -79,7 +94,7 @@ pub fn save(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) 
             ),
             other => {
                 return Err(ckpt_err(
-                    dir,
+                    path,
                     format!("{name}: unsupported dtype {other:?}"),
                 ));
             }
@@ -90,30 +105,41 @@ pub fn save(dir: &Path, tensors: &[(String, Tensor)], meta: &serde_json::Value) 
         .iter()
         .map(|(n, d, s, b)| Ok((n.as_str(), TensorView::new(*d, s.clone(), b)?)))
         .collect::<std::result::Result<Vec<_>, safetensors::SafeTensorError>>()
-        .map_err(|e| ckpt_err(dir, e.to_string()))?;
+        .map_err(|e| ckpt_err(path, e.to_string()))?;
     let mut doc = meta.clone();
     doc["format"] = serde_json::Value::from(CHECKPOINT_FORMAT);
     let info = HashMap::from([(META_KEY.to_string(), doc.to_string())]);
     let bytes =
-        safetensors::serialize(views, Some(info)).map_err(|e| ckpt_err(dir, e.to_string()))?;
-    let path = dir.join(CHECKPOINT_FILE);
-    write_atomic(&path, &bytes)?;
-    let pretty = serde_json::to_string_pretty(&doc).unwrap_or_default();
-    write_atomic(&dir.join("checkpoint.json"), pretty.as_bytes())?;
-    Ok(path)
+        safetensors::serialize(views, Some(info)).map_err(|e| ckpt_err(path, e.to_string()))?;
+    write_atomic(path, &bytes)?;
+    Ok(doc)
 }
 
-/// Write `bytes` to `path` via a temporary sibling and a rename.
+/// Write `bytes` to `path` atomically ([`sim::write_atomic`]: temporary sibling, fsync,
+/// rename, the temporary removed on failure); an error names the file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    let tmp = path.with_extension("tmp");
-    let io = |e: std::io::Error| ckpt_err(path, e.to_string());
-    {
-        use std::io::Write;
-        let mut f = std::fs::File::create(&tmp).map_err(io)?;
-        f.write_all(bytes).map_err(io)?;
-        f.sync_all().map_err(io)?;
-    }
-    std::fs::rename(&tmp, path).map_err(io)
+    sim::write_atomic(path, bytes).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })
+}
+
+/// SHA-256 of `bytes`, lower-case hex: how a run names its demos and a report its blob.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
+/// SHA-256 of the file at `path` ([`sha256_hex`]), an error naming the file.
+pub fn sha256_file(path: &Path) -> Result<String> {
+    let bytes = std::fs::read(path).map_err(|e| Error::Io {
+        path: path.to_path_buf(),
+        source: e,
+    })?;
+    Ok(sha256_hex(&bytes))
 }
 
 /// A loaded checkpoint: tensors by name and the metadata document.
@@ -132,6 +158,31 @@ impl Loaded {
             .get(name)
             .cloned()
             .ok_or_else(|| ckpt_err(&self.path, format!("missing tensor `{name}`")))
+    }
+
+    /// Refuses a file holding a NaN or infinite float (a diverged run): through a ReLU a NaN
+    /// weight comes out 0, so such a policy would evaluate to a plausible-looking number.
+    pub fn ensure_finite(&self) -> Result<()> {
+        let mut names: Vec<&String> = self.tensors.keys().collect();
+        names.sort();
+        for name in names {
+            let t = &self.tensors[name];
+            if t.dtype() != DType::F32 {
+                continue;
+            }
+            let v = t.flatten_all()?.to_vec1::<f32>()?;
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(ckpt_err(
+                    &self.path,
+                    format!(
+                        "tensor `{name}` holds a non-finite value ({} at index {i}): the run \
+                         that wrote it diverged; resume from an earlier checkpoint or train again",
+                        v[i]
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Where it was loaded from.

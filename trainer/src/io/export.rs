@@ -259,6 +259,11 @@ pub fn parity(
 pub struct ExportReport {
     /// Blob size in bytes.
     pub bytes: usize,
+    /// SHA-256 of the blob this report describes (lower-case hex): `firmware-sim compare`
+    /// refuses a report beside another blob (an interrupted re-export). Empty in reports
+    /// written before the field.
+    #[serde(default)]
+    pub blob_sha256: String,
     /// `f32`, `w8a32` or `w8a8`.
     pub quant: String,
     /// Algorithm of the exported policy.
@@ -318,6 +323,7 @@ pub fn verify(
     )?;
     Ok(ExportReport {
         bytes: blob.len(),
+        blob_sha256: crate::io::checkpoint::sha256_hex(blob),
         quant: quant.into(),
         algo: mp.algo.clone(),
         env: family.name().into(),

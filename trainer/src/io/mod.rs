@@ -5,10 +5,12 @@
 pub mod checkpoint;
 mod config;
 pub mod export;
+pub mod lock;
 mod metrics;
 pub mod progress;
 
 pub use config::from_toml_over_defaults;
 pub(crate) use config::merge_tables;
+pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter, sac_fields};
 pub use progress::bar;

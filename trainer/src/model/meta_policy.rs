@@ -19,6 +19,18 @@ use crate::{Error, Result};
 /// File name of a trained meta-policy inside a run directory.
 pub const META_POLICY_FILE: &str = "meta_policy.safetensors";
 
+/// How far the training that wrote a meta-policy file had got, stored in the file itself so a
+/// policy from a killed run cannot pass for a finished one (a copied file keeps it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+pub struct TrainingMark {
+    /// Update pairs (SMILe) or gradient steps (Meta-BC) done when the file was written.
+    pub updates: u64,
+    /// The run's budget.
+    pub total_updates: u64,
+    /// True only once training ended (budget spent or early stop) and this file was final.
+    pub finished: bool,
+}
+
 /// A trained meta-policy: encoder, conditioned policy and observation statistics.
 #[derive(Debug, Clone)]
 pub struct MetaPolicy {
@@ -131,8 +143,14 @@ impl MetaPolicy {
         })
     }
 
-    /// Writes `dir/meta_policy.safetensors` atomically.
+    /// Writes `dir/meta_policy.safetensors` atomically, without a training mark (a policy
+    /// made outside a training run).
     pub fn save(&self, dir: &Path) -> Result<()> {
+        self.save_marked(dir, None)
+    }
+
+    /// Writes `dir/meta_policy.safetensors` atomically with how far its training had got.
+    pub fn save_marked(&self, dir: &Path, mark: Option<TrainingMark>) -> Result<()> {
         let mut ts = Vec::new();
         mlp_tensors("phi", &self.encoder.phi, &mut ts);
         mlp_tensors("head", &self.encoder.head, &mut ts);
@@ -144,16 +162,68 @@ impl MetaPolicy {
             "context": self.encoder.config(),
             "norm": self.norm,
             "policy_widths": self.policy.net().widths(),
+            "training": mark,
         });
-        let tmp = dir.join(".meta-policy-export");
-        checkpoint::save(&tmp, &ts, &meta)?;
-        let dst = dir.join(META_POLICY_FILE);
-        std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), &dst).map_err(|e| Error::Io {
-            path: dst.clone(),
-            source: e,
-        })?;
-        let _ = std::fs::remove_dir_all(&tmp);
-        Ok(())
+        checkpoint::save_file(&dir.join(META_POLICY_FILE), &ts, &meta).map(|_| ())
+    }
+
+    /// Marks the meta-policy file at `path` (a run directory or the file) finished, keeping its
+    /// weights: training calls it once the budget is spent or it stopped early.
+    pub fn mark_finished(path: &Path) -> Result<()> {
+        let file = Self::file_of(path);
+        let mp = Self::load(&file)?;
+        let mut mark = Self::training_mark(&file)?.unwrap_or(TrainingMark {
+            updates: 0,
+            total_updates: 0,
+            finished: true,
+        });
+        mark.finished = true;
+        let dir = file.parent().unwrap_or(Path::new("."));
+        mp.save_marked(dir, Some(mark))
+    }
+
+    /// The training mark of a meta-policy file (or a run directory's); `None` for files
+    /// written before marks existed, or outside a training run.
+    pub fn training_mark(path: &Path) -> Result<Option<TrainingMark>> {
+        let file = Self::file_of(path);
+        let ck = checkpoint::load(&file)?;
+        match ck.meta.get("training") {
+            None | Some(serde_json::Value::Null) => Ok(None),
+            Some(_) => ck.meta_field("training").map(Some),
+        }
+    }
+
+    /// Refuses a meta-policy whose training did not finish (killed, or still running), saying
+    /// how to finish it; `allow` turns the refusal into a warning on stderr.
+    pub fn ensure_finished(path: &Path, allow: bool) -> Result<()> {
+        let file = Self::file_of(path);
+        let Some(mark) = Self::training_mark(&file)? else {
+            return Ok(());
+        };
+        if mark.finished {
+            return Ok(());
+        }
+        let dir = file.parent().unwrap_or(Path::new("."));
+        let err = Error::Unfinished {
+            path: file.clone(),
+            updates: mark.updates,
+            total: mark.total_updates,
+            resume: format!("smile train --resume -o {} --demos DEMOS", dir.display()),
+        };
+        if allow {
+            eprintln!("warning: {err} (used anyway: --allow-unfinished)");
+            Ok(())
+        } else {
+            Err(err)
+        }
+    }
+
+    fn file_of(path: &Path) -> std::path::PathBuf {
+        if path.is_dir() {
+            path.join(META_POLICY_FILE)
+        } else {
+            path.to_path_buf()
+        }
     }
 
     /// Loads a meta-policy from a run directory or a `meta_policy.safetensors` file.
@@ -164,6 +234,7 @@ impl MetaPolicy {
             path.to_path_buf()
         };
         let ck = checkpoint::load(&file)?;
+        ck.ensure_finite()?;
         if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("meta-policy") {
             return Err(Error::Checkpoint {
                 path: file,

@@ -127,9 +127,26 @@ pub struct Cell {
     pub config: String,
     /// Meta-DAgger's expert.
     pub expert: Option<PathBuf>,
+    /// What the training depends on (algorithm, full config, demo and expert paths), hashed:
+    /// a cell directory trained for another key is stale, and two cells with one key are one
+    /// training listed twice.
+    #[serde(default)]
+    pub key: String,
 }
 
 impl Cell {
+    /// [`Cell::key`] from the cell's fields.
+    pub fn training_key(&self) -> String {
+        let text = format!(
+            "algo {}\ndemos {}\nexpert {:?}\nconfig\n{}",
+            self.algo,
+            self.demos.display(),
+            self.expert,
+            self.config
+        );
+        crate::io::checkpoint::sha256_hex(text.as_bytes())[..16].to_string()
+    }
+
     /// The setting this cell belongs to, without the seed: what the report averages over.
     pub fn setting(&self) -> String {
         let mut s = self.demos_label();
@@ -421,9 +438,37 @@ impl Sweep {
                                 reason: e.to_string(),
                             })?,
                             expert: m.expert.as_ref().map(|e| rel(e)),
+                            key: String::new(),
                         });
                     }
                 }
+            }
+        }
+        // Keys: one training listed twice is refused; cells whose names collide (the same demo
+        // file name in two folders) get their key's first 8 digits appended.
+        for c in &mut cells {
+            c.key = c.training_key();
+        }
+        for (i, c) in cells.iter().enumerate() {
+            if let Some(d) = cells[..i].iter().find(|d| d.key == c.key) {
+                return Err(err(
+                    Some("seeds"),
+                    format!(
+                        "cells {} and {} are the same training ({}, seed {}, demos {}): a \
+                         repeated seed or demo file would be counted as two seeds",
+                        d.index,
+                        c.index,
+                        c.method,
+                        c.seed,
+                        c.demos.display()
+                    ),
+                ));
+            }
+        }
+        let names: Vec<String> = cells.iter().map(|c| c.name.clone()).collect();
+        for c in &mut cells {
+            if names.iter().filter(|n| **n == c.name).count() > 1 {
+                c.name = format!("{}-{}", c.name, &c.key[..8]);
             }
         }
         let mut plan = plan;

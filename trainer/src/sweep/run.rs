@@ -6,6 +6,13 @@
 //! being run by another process (its `lock` file is locked) is left to it. The lock belongs to
 //! the process running the cell (`smile sweep run-cell`), so killing a local runner, even with
 //! kill -9, loses nothing: its cells finish in their own processes and a new runner skips them.
+//!
+//! A cell directory records what it was made from (`cell.json`: the training key; `cell.toml`:
+//! the config; `eval/plan.json`: the evaluation settings). After a plan is edited, a cell
+//! trained for other settings is *stale*: its directory is moved aside (`<name>.stale-<key>`)
+//! and it trains again; a cell whose evaluation settings changed is evaluated again. A
+//! finished evaluation is one whose `eval.json` parses, written last (atomically) by
+//! `smile eval`.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -35,6 +42,41 @@ pub enum Status {
     Done,
     /// The last attempt failed (see `failed` and `log.txt` in the cell directory).
     Failed,
+    /// The directory holds a training for other settings (the plan was edited): it is moved
+    /// aside and the cell runs again.
+    Stale,
+}
+
+/// The record of what a cell directory was trained for.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+struct CellRecord {
+    key: String,
+}
+
+/// True when the cell directory was made for other training settings than `cell`'s.
+fn is_stale(dir: &Path, cell: &Cell) -> bool {
+    if let Ok(text) = std::fs::read_to_string(dir.join("cell.json")) {
+        return serde_json::from_str::<CellRecord>(&text).map_or(true, |r| r.key != cell.key);
+    }
+    // Cells made before cell.json: their cell.toml is the config they trained with.
+    std::fs::read_to_string(dir.join("cell.toml")).is_ok_and(|t| t != cell.config)
+}
+
+/// The evaluation settings of a sweep, as recorded beside a cell's eval.json.
+fn eval_record(sweep: &Sweep) -> String {
+    serde_json::to_string_pretty(&sweep.plan.eval).unwrap_or_default()
+}
+
+/// True when the cell's evaluation is finished and was made with the plan's settings.
+fn eval_done(sweep: &Sweep, dir: &Path) -> bool {
+    let eval = dir.join("eval");
+    let parses = std::fs::read_to_string(eval.join("eval.json"))
+        .is_ok_and(|t| serde_json::from_str::<crate::eval::EvalReport>(&t).is_ok());
+    let same = match std::fs::read_to_string(eval.join("plan.json")) {
+        Ok(t) => t == eval_record(sweep),
+        Err(_) => true, // evaluations made before plan.json
+    };
+    parses && same
 }
 
 /// One manifest row.
@@ -61,7 +103,9 @@ pub struct Manifest {
 /// The status of `cell` from its directory.
 pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
     let dir = sweep.cell_dir(cell);
-    if dir.join("eval").join("eval.json").exists() {
+    if is_stale(&dir, cell) {
+        Status::Stale
+    } else if eval_done(sweep, &dir) {
         Status::Done
     } else if dir.join("failed").exists() {
         Status::Failed
@@ -144,8 +188,27 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
         Err(std::fs::TryLockError::WouldBlock) => return Ok(CellOutcome::Busy),
         Err(std::fs::TryLockError::Error(e)) => return Err(io_err(&lock_path)(e)),
     }
-    if status(sweep, cell) == Status::Done {
-        return Ok(CellOutcome::AlreadyDone);
+    match status(sweep, cell) {
+        Status::Done => return Ok(CellOutcome::AlreadyDone),
+        Status::Stale => {
+            // Keep the old training (it is someone's result), out of the way.
+            let aside = dir.with_file_name(format!(
+                "{}.stale-{}",
+                cell.name,
+                std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_secs())
+            ));
+            drop(lock);
+            std::fs::rename(&dir, &aside).map_err(io_err(&dir))?;
+            eprintln!(
+                "cell {}: trained for other settings (the plan changed); moved to {}, training again",
+                cell.name,
+                aside.display()
+            );
+            return run_cell(sweep, index, exe);
+        }
+        _ => {}
     }
     let _ = std::fs::remove_file(dir.join("failed"));
     let result = train_and_eval(sweep, cell, &dir, exe);
@@ -158,6 +221,11 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
 fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<()> {
     let cfg_path = dir.join("cell.toml");
     crate::io::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
+    let record = serde_json::to_string(&CellRecord {
+        key: cell.key.clone(),
+    })
+    .unwrap_or_default();
+    crate::io::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())?;
     let log_path = dir.join("log.txt");
     let train_dir = dir.join("train");
     let env = sweep.family.name();
@@ -229,7 +297,11 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
             experts.join(","),
         ]);
     }
-    child(exe, &args, &log_path)
+    // An evaluation for other settings is made again; plan.json says which settings made it.
+    let eval_dir = dir.join("eval");
+    let _ = std::fs::remove_file(eval_dir.join("eval.json"));
+    child(exe, &args, &log_path)?;
+    crate::io::checkpoint::write_atomic(&eval_dir.join("plan.json"), eval_record(sweep).as_bytes())
 }
 
 /// Runs `exe args` single-threaded with stdout and stderr appended to `log`.

@@ -20,15 +20,12 @@ pub(super) fn write_policy(
     tensors: &[(String, Tensor)],
     meta: &serde_json::Value,
 ) -> Result<()> {
-    let tmp = dir.join(".policy-export");
-    checkpoint::save(&tmp, tensors, meta)?;
-    let io = |e: std::io::Error| Error::Io {
-        path: dir.join(file),
+    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+        path: dir.to_path_buf(),
         source: e,
-    };
-    std::fs::rename(tmp.join(checkpoint::CHECKPOINT_FILE), dir.join(file)).map_err(io)?;
-    std::fs::remove_dir_all(&tmp).map_err(io)?;
-    Ok(())
+    })?;
+    // One atomic file write: nothing half-written, no temporary folder left on failure.
+    checkpoint::save_file(&dir.join(file), tensors, meta).map(|_| ())
 }
 
 /// Write a scripted point-goal PD expert descriptor to `dir/policy.safetensors`.
@@ -133,6 +130,16 @@ impl Expert {
         } else {
             path.to_path_buf()
         };
+        if path.is_dir() && !file.exists() && path.join(checkpoint::CHECKPOINT_FILE).exists() {
+            return Err(Error::Checkpoint {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "holds an unfinished `smile expert` run (a checkpoint, no {POLICY_FILE} \
+                     yet); finish it with `smile expert --resume {}`",
+                    path.display()
+                ),
+            });
+        }
         let ck = checkpoint::load(&file)?;
         let bad = |r: &str| Error::Checkpoint {
             path: file.clone(),

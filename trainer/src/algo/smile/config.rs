@@ -183,10 +183,18 @@ impl SmileConfig {
                 self.learner_threads
             )));
         }
-        if self.gp_weight < 0.0 || self.logit_clamp <= 0.0 {
-            return Err(Error::Config(
-                "gp_weight must be >= 0 and logit_clamp > 0".into(),
-            ));
+        for (key, v, min_ok) in [
+            ("gp_weight", self.gp_weight, self.gp_weight >= 0.0),
+            ("logit_clamp", self.logit_clamp, self.logit_clamp > 0.0),
+            ("disc_lr", self.disc_lr, self.disc_lr > 0.0),
+            ("enc_lr", self.enc_lr, self.enc_lr > 0.0),
+        ] {
+            if !(v.is_finite() && min_ok) {
+                let range = if key == "gp_weight" { ">= 0" } else { "> 0" };
+                return Err(Error::Config(format!(
+                    "{key} must be a finite number {range}, not {v}"
+                )));
+            }
         }
         Ok(())
     }

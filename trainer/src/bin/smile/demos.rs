@@ -21,11 +21,12 @@ pub struct DemosArgs {
     /// velocities (m/s) or dynamics seeds, comma separated.
     #[arg(long, value_delimiter = ',', allow_hyphen_values = true)]
     task_params: Option<Vec<f64>>,
-    /// Trajectories per task.
-    #[arg(long, default_value_t = 4)]
+    /// Trajectories per task (at least 1).
+    #[arg(long, default_value_t = 4, value_parser = crate::positive)]
     per_task: usize,
-    /// Subsampling factor k (keep step t when t mod k equals a per-trajectory random offset).
-    #[arg(long, default_value_t = 1)]
+    /// Subsampling factor k, at least 1 (keep step t when t mod k equals a per-trajectory
+    /// random offset; 1 keeps every step).
+    #[arg(long, default_value_t = 1, value_parser = crate::positive)]
     subsample: usize,
     /// Expert: a run directory of `smile expert` or its policy.safetensors. Repeat (or give
     /// several, comma separated) for per-task experts: each task uses the expert trained on it
@@ -35,8 +36,8 @@ pub struct DemosArgs {
     /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Episode length override.
-    #[arg(long)]
+    /// Episode length override (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     horizon: Option<usize>,
     /// Output dataset file.
     #[arg(short, long)]
@@ -95,9 +96,11 @@ pub fn run(a: DemosArgs) -> Result<()> {
         },
     };
     let ds = record_demos_with(&ex, &spec)?;
-    if let Some(parent) = a.out.parent() {
-        std::fs::create_dir_all(parent).ok();
+    if let Some(parent) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent)
+            .map_err(|e| anyhow::anyhow!("creating {}: {e}", parent.display()))?;
     }
+    // Atomic: a kill or a full disk leaves the previous file whole.
     ds.write(&a.out)?;
     println!(
         "wrote {}: {} tasks x {} trajectories, {} transitions (subsample {}), expert {}",

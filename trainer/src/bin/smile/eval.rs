@@ -28,14 +28,14 @@ pub struct EvalArgs {
     /// Output directory for eval.json, eval.md and eval.svg.
     #[arg(short, long, default_value = "eval")]
     out: PathBuf,
-    /// Override the protocol's rollouts per context draw.
-    #[arg(long)]
+    /// Override the protocol's rollouts per context draw (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     rollouts: Option<usize>,
     /// Override the protocol's context sizes (demos per context), e.g. `1,2,4`.
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
     context_sizes: Vec<u32>,
-    /// Episode length override.
-    #[arg(long)]
+    /// Episode length override (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     horizon: Option<usize>,
     /// Standard deviation of Gaussian noise added to every action before the plant clips it
     /// (a compounding-error probe; seeded per episode). 0 is the paper's protocol.
@@ -52,6 +52,10 @@ pub struct EvalArgs {
     /// experts, comma separated, each task uses its own; or one general expert). Needs --base.
     #[arg(long, requires = "base", num_args = 1.., value_delimiter = ',')]
     expert: Vec<PathBuf>,
+    /// Evaluate a policy whose training did not finish (killed or still running), with a
+    /// warning, instead of refusing it.
+    #[arg(long)]
+    allow_unfinished: bool,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -98,6 +102,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let mut policies = Vec::with_capacity(a.policy.len());
     for p in &a.policy {
         let mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
+        MetaPolicy::ensure_finished(p, a.allow_unfinished)?;
         if mp.family != family {
             bail!(
                 "{} was trained on {}, not {family} (--env); pass --env {}",
@@ -114,7 +119,8 @@ pub fn run(a: EvalArgs) -> Result<()> {
         Some(base) => Some(References::load(family, base, &a.expert)?),
         None => None,
     };
-    std::fs::create_dir_all(&a.out)?;
+    std::fs::create_dir_all(&a.out)
+        .with_context(|| format!("creating the output directory {}", a.out.display()))?;
     let reference = match &references {
         Some(refs) => {
             let pb = bar(family.tasks(a.split).len(), a.quiet, "base + expert".into());
@@ -179,13 +185,14 @@ pub fn run(a: EvalArgs) -> Result<()> {
             }
         }
     }
-    std::fs::write(
-        a.out.join("eval.json"),
-        serde_json::to_string_pretty(&report)?,
-    )?;
+    // eval.json last: a sweep counts a cell done by it, so it must mean the rest was written.
     let md = report.markdown();
-    std::fs::write(a.out.join("eval.md"), &md)?;
+    trainer::checkpoint::write_atomic(&a.out.join("eval.md"), md.as_bytes())?;
     report.plot_svg(&a.out.join("eval.svg"))?;
+    trainer::checkpoint::write_atomic(
+        &a.out.join("eval.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
     println!("{md}");
     eprintln!("wrote {}/eval.json, eval.md, eval.svg", a.out.display());
     Ok(())

@@ -213,10 +213,11 @@ pub fn run(a: ExpertArgs) -> Result<()> {
             (ExpertTrainer::new(cfg)?, dir)
         }
     };
-    std::fs::create_dir_all(&dir)?;
-    std::fs::write(
-        dir.join("config.toml"),
-        toml::to_string_pretty(run.config())?,
+    // One writer per run directory: a second `smile expert` on it is refused with our pid.
+    let _lock = trainer::DirLock::acquire(&dir)?;
+    trainer::checkpoint::write_atomic(
+        &dir.join("config.toml"),
+        toml::to_string_pretty(run.config())?.as_bytes(),
     )?;
     let pb = trainer::progress_bar(run.config().total_steps, a.quiet, "steps");
     pb.set_position(run.env_steps());

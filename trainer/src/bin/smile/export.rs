@@ -27,12 +27,15 @@ pub struct ExportArgs {
     /// Held-out contexts (e.g. the meta-test demos) for the parity check and the metric.
     #[arg(long)]
     contexts: PathBuf,
-    /// Override the protocol's rollouts per context draw in the metric check.
-    #[arg(long)]
+    /// Override the protocol's rollouts per context draw in the metric check (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     rollouts: Option<usize>,
-    /// Episode length override.
-    #[arg(long)]
+    /// Episode length override (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     horizon: Option<usize>,
+    /// Export a policy whose training did not finish, with a warning, instead of refusing it.
+    #[arg(long)]
+    allow_unfinished: bool,
 }
 
 /// Reads a demo file given with `flag` and checks that it fits the policy (one-line errors).
@@ -48,6 +51,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let quant = export::parse_quant(&a.quant)?;
     let mp =
         MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
+    MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)?;
     let family = mp.family;
     let demos = match &a.demos {
         Some(path) => {
@@ -70,7 +74,18 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let ctx = read_demos(&a.contexts, "--contexts", &mp)?;
     let blob = export::export_blob(&mp, quant, demos.as_ref())?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(dir)?;
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    let json = a.out.with_extension(format!(
+        "{}.json",
+        a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")
+    ));
+    // A previous export's report must not outlive its blob: removed before the new blob lands,
+    // and the new report (written after verification) names the blob by its SHA-256.
+    match std::fs::remove_file(&json) {
+        Ok(()) => {}
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e).with_context(|| format!("removing the old {}", json.display())),
     }
     trainer::checkpoint::write_atomic(&a.out, &blob)?;
     eprintln!(
@@ -104,11 +119,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         report.metric_candle,
         100.0 * report.metric_relative_difference
     );
-    let json = a.out.with_extension(format!(
-        "{}.json",
-        a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")
-    ));
-    std::fs::write(&json, serde_json::to_string_pretty(&report)?)?;
+    trainer::checkpoint::write_atomic(&json, serde_json::to_string_pretty(&report)?.as_bytes())?;
     eprintln!("wrote {}", json.display());
     Ok(())
 }

@@ -27,9 +27,12 @@ pub struct LatentsArgs {
     /// Context sizes (demos per context), e.g. `1,2,4,8`.
     #[arg(long, value_delimiter = ',', default_value = "1", value_parser = clap::value_parser!(u32).range(1..))]
     context_sizes: Vec<u32>,
-    /// Context draws per task and size (the evaluation's draws: the same contexts).
-    #[arg(long, default_value_t = 3)]
+    /// Context draws per task and size (the evaluation's draws: the same contexts; at least 1).
+    #[arg(long, default_value_t = 3, value_parser = crate::positive)]
     draws: usize,
+    /// Use a policy whose training did not finish, with a warning, instead of refusing it.
+    #[arg(long)]
+    allow_unfinished: bool,
     /// Output CSV (task_value, context_size, draw, param_*, z_*).
     #[arg(short, long)]
     out: PathBuf,
@@ -49,6 +52,7 @@ pub fn run(a: LatentsArgs) -> Result<()> {
     }
     let mut policy =
         MetaPolicy::load(&a.policy).with_context(|| format!("--policy {}", a.policy.display()))?;
+    MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)?;
     if policy.family != family {
         bail!(
             "--policy {} is a {} policy but --env is {family}",
@@ -69,7 +73,7 @@ pub fn run(a: LatentsArgs) -> Result<()> {
              them (rows still say {k})"
         );
     }
-    let rows = latents::latents(&mut policy, family, a.split, &ctx, &sizes, a.draws.max(1))?;
+    let rows = latents::latents(&mut policy, family, a.split, &ctx, &sizes, a.draws)?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -80,7 +84,7 @@ pub fn run(a: LatentsArgs) -> Result<()> {
         rows.len(),
         family.tasks(a.split).len(),
         sizes.len(),
-        a.draws.max(1)
+        a.draws
     );
     println!(
         "linear probe of the task parameter from z, leave-one-task-out R^2 per parameter \

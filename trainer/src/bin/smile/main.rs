@@ -26,8 +26,8 @@ mod train;
     about = "SMILe: meta-train a few-shot imitation policy (SMILe, Meta-BC, Meta-DAgger), evaluate it and export it to a no_std device blob"
 )]
 struct Cli {
-    /// Threads for candle's matmul (1 is fastest on 2 vCPUs shared with rollouts).
-    #[arg(long, global = true, default_value_t = 1)]
+    /// Threads for candle's matmul, 1 to 64 (1 is fastest on 2 vCPUs shared with rollouts).
+    #[arg(long, global = true, default_value_t = 1, value_parser = parse_threads)]
     threads: usize,
     #[command(subcommand)]
     cmd: Cmd,
@@ -85,6 +85,37 @@ enum Cmd {
         after_help = "Examples:\n  smile latents --policy runs/wd-smile --env walker-dyn --contexts assets/experts/walker-dyn/demos-test-4x-sub20.safetensors -o runs/wd-smile/latents.csv\n  smile latents --policy runs/alc-smile --env ant-linclass --contexts assets/experts/ant-linclass/demos-test-16x-sub5.safetensors --context-sizes 1,2,4,8 -o z.csv"
     )]
     Latents(latents::LatentsArgs),
+}
+
+/// Most `--threads`: each is a candle worker; far more than cores only thrashes (1000 made a
+/// 0.5 s run take over a minute).
+const MAX_THREADS: usize = 64;
+
+fn parse_threads(text: &str) -> std::result::Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if (1..=MAX_THREADS).contains(&n) => Ok(n),
+        _ => Err(format!(
+            "`{text}`: expected a thread count from 1 to {MAX_THREADS}"
+        )),
+    }
+}
+
+/// A count that must be at least 1 (`--rollouts`, `--horizon`, `--draws`, ...).
+pub(crate) fn positive(text: &str) -> std::result::Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(n) if n >= 1 => Ok(n),
+        Ok(_) => Err("expected at least 1 (0 would do nothing)".into()),
+        Err(e) => Err(format!("`{text}` is not a whole number: {e}")),
+    }
+}
+
+/// A finite number of at least `min` (a learning rate, a weight, a scale), for `flag`.
+pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if v.is_finite() && v >= min => Ok(v),
+        Ok(v) => Err(format!("{v}: expected a finite number >= {min}")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
 }
 
 /// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a

@@ -31,6 +31,10 @@ pub struct QuickstartArgs {
     /// No progress bars.
     #[arg(long)]
     quiet: bool,
+    /// Write into a non-empty `--out` (its files are replaced); without it the quickstart
+    /// refuses one, so an earlier run's results are never overwritten or mixed with these.
+    #[arg(long)]
+    force: bool,
     /// Directory of shipped experts and demos [default: the repository's assets/experts].
     #[arg(long)]
     assets: Option<std::path::PathBuf>,
@@ -42,6 +46,14 @@ pub struct QuickstartArgs {
 
 /// Run `smile quickstart`.
 pub fn run(a: QuickstartArgs) -> Result<()> {
+    let non_empty = std::fs::read_dir(&a.out).is_ok_and(|mut d| d.next().is_some());
+    if non_empty && !a.force {
+        anyhow::bail!(
+            "{} already holds files (an earlier quickstart?); pass --force to replace them, or \
+             choose another --out (nothing was touched)",
+            a.out.display()
+        );
+    }
     let config = QuickstartConfig {
         env: a.env,
         out: a.out,

@@ -25,5 +25,14 @@ pub fn run(a: ReportArgs) -> Result<()> {
     for w in written {
         eprintln!("wrote {}", w.display());
     }
+    if !report.left_out.is_empty() {
+        eprintln!(
+            "warning: {} sweep cell(s) left out of the report (not evaluated yet, or unreadable):",
+            report.left_out.len()
+        );
+        for l in &report.left_out {
+            eprintln!("  {l}");
+        }
+    }
     Ok(())
 }

@@ -49,6 +49,10 @@ struct RunInfo {
     /// Meta-DAgger's relabelling expert: a `smile expert` run, or `scripted-pd`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     expert: Option<String>,
+    /// SHA-256 of the `--demos` file the run started on: `--resume` refuses other demos (their
+    /// normalisation and tasks would silently replace the run's). Absent in older runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    demos_sha256: Option<String>,
 }
 
 /// Arguments of `smile train`.
@@ -69,12 +73,13 @@ pub struct TrainArgs {
     /// TOML file with a SmileConfig or MetaBcConfig (flags given here override it).
     #[arg(long)]
     config: Option<PathBuf>,
-    /// Continue the run in `--out` from its checkpoint (with its saved config.toml; flags
-    /// given here still override it).
+    /// Continue the run in `--out` from its checkpoint, with the configuration it started
+    /// with: only `--updates` may change (a larger budget); other settings given here must
+    /// match the run's or are refused, as are other demos than the run's.
     #[arg(long, conflicts_with = "config")]
     resume: bool,
-    /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger).
-    #[arg(long)]
+    /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger), at least 1.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     updates: Option<u64>,
     /// Seed.
     #[arg(long)]
@@ -82,18 +87,18 @@ pub struct TrainArgs {
     /// SAC / disc / policy hidden widths, e.g. 128,128.
     #[arg(long, value_delimiter = ',')]
     hidden: Option<Vec<usize>>,
-    /// Gradient-penalty weight (SMILe).
-    #[arg(long)]
+    /// Gradient-penalty weight (SMILe), finite and >= 0.
+    #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     gp_weight: Option<f32>,
-    /// Reward scale (SMILe).
-    #[arg(long)]
+    /// Reward scale (SMILe), finite and > 0.
+    #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, f32::MIN_POSITIVE))]
     reward_scale: Option<f32>,
     /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file, or a
     /// folder of per-task experts (point-goal: the scripted PD expert if omitted; `--resume`
     /// reuses the run's expert).
     #[arg(long)]
     expert: Option<PathBuf>,
-    /// Evaluate on the held-out train tasks every N updates.
+    /// Evaluate on the held-out train tasks every N updates (0: never).
     #[arg(long)]
     eval_every: Option<u64>,
     /// No progress bar.
@@ -112,11 +117,16 @@ fn read_toml<T: serde::Serialize + serde::de::DeserializeOwned + Default>(
     } else {
         a.config.clone()
     };
+    let what = if a.resume {
+        format!(" (its {RUN_FILE} names the algorithm whose config this must be)")
+    } else {
+        String::new()
+    };
     match &p {
         Some(p) => trainer::from_toml_over_defaults(
             &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
         )
-        .with_context(|| format!("parsing {}", p.display())),
+        .with_context(|| format!("parsing {}{what}", p.display())),
         None => Ok(T::default()),
     }
 }
@@ -155,6 +165,7 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
     Ok(RunInfo {
         algo: algo.name().into(),
         expert: None,
+        demos_sha256: None,
     })
 }
 
@@ -170,8 +181,25 @@ pub fn run(mut a: TrainArgs) -> Result<()> {
             (ds.family, ds)
         }
     };
+    let demos_sha = trainer::checkpoint::sha256_file(&a.demos)?;
     let algo = if a.resume {
         let rec = recorded_run(&a.out)?;
+        match &rec.demos_sha256 {
+            Some(sha) if *sha != demos_sha => bail!(
+                "--demos {} is not the file {} was trained on (SHA-256 {} here, {} recorded in \
+                 {RUN_FILE}); resume with the run's own demos, or start a new run on these",
+                a.demos.display(),
+                a.out.display(),
+                &demos_sha[..12],
+                &sha[..sha.len().min(12)]
+            ),
+            Some(_) => {}
+            None => eprintln!(
+                "warning: {} records no demo checksum (a run older than that check); make sure \
+                 --demos is the file it started on",
+                a.out.join(RUN_FILE).display()
+            ),
+        }
         let algo = Algo::from_str(&rec.algo, false)
             .map_err(|e| anyhow::anyhow!("{}: unknown algo {:?}: {e}", RUN_FILE, rec.algo))?;
         if let Some(given) = a.algo.filter(|g| *g != algo) {
@@ -191,27 +219,77 @@ pub fn run(mut a: TrainArgs) -> Result<()> {
         a.algo.unwrap_or(Algo::Smile)
     };
     match algo {
-        Algo::Smile | Algo::SmileStateOnly => train_smile(a, algo, family, &ds),
-        Algo::MetaBc | Algo::MetaDagger => train_bc(a, algo, family, &ds),
+        Algo::Smile | Algo::SmileStateOnly => train_smile(a, algo, family, &ds, demos_sha),
+        Algo::MetaBc | Algo::MetaDagger => train_bc(a, algo, family, &ds, demos_sha),
     }
+}
+
+/// On `--resume`: the flags given must agree with the configuration the run continues (its
+/// checkpoint's), and so must its `config.toml` (a reader trusts that file to describe the
+/// run); `total` names the budget field, the one setting `--updates` may change.
+fn check_resume<T: serde::Serialize>(
+    a: &TrainArgs,
+    given: &T,
+    running: &T,
+    total: &str,
+) -> Result<()> {
+    let table = |c: &T| -> Result<toml::Table> { Ok(toml::Table::try_from(c)?) };
+    let (mut g, mut r) = (table(given)?, table(running)?);
+    g.remove(total);
+    r.remove(total);
+    for (key, theirs) in &r {
+        let ours = g.get(key);
+        if ours != Some(theirs) {
+            let flag = match key.as_str() {
+                "seed" => "--seed",
+                "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
+                "gp_weight" => "--gp-weight",
+                "eval_every" => "--eval-every",
+                _ => "config.toml",
+            };
+            bail!(
+                "--resume continues {} with the configuration it started with, but {flag} \
+                 changes `{key}` ({} -> {}); drop the flag (or restore {}), or start a new run \
+                 to change it. Only --updates may change on --resume",
+                a.out.display(),
+                theirs,
+                ours.map_or("missing".into(), ToString::to_string),
+                a.out.join("config.toml").display()
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
 /// nothing behind) and records the run's algorithm and expert.
-fn start_run_dir(a: &TrainArgs, algo: Algo, expert: Option<String>) -> Result<()> {
-    std::fs::create_dir_all(&a.out).with_context(|| format!("creating {}", a.out.display()))?;
+/// The returned lock is held for the whole training: a second writer is refused.
+fn start_run_dir(
+    a: &TrainArgs,
+    algo: Algo,
+    expert: Option<String>,
+    demos_sha256: String,
+) -> Result<trainer::DirLock> {
+    let lock = trainer::DirLock::acquire(&a.out)?;
     let info = RunInfo {
         algo: algo.name().into(),
         expert,
+        demos_sha256: Some(demos_sha256),
     };
     trainer::checkpoint::write_atomic(
         &a.out.join(RUN_FILE),
         serde_json::to_string_pretty(&info)?.as_bytes(),
     )?;
-    Ok(())
+    Ok(lock)
 }
 
-fn train_smile(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Result<()> {
+fn train_smile(
+    a: TrainArgs,
+    algo: Algo,
+    family: Family,
+    ds: &DemoDataset,
+    demos_sha: String,
+) -> Result<()> {
     let mut cfg: SmileConfig = read_toml(&a)?;
     cfg.env = family.name().into();
     cfg.context.state_only = algo == Algo::SmileStateOnly;
@@ -237,13 +315,15 @@ fn train_smile(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Re
     let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
         .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
-        Smile::resume(&a.out, data, a.updates)?
+        let run = Smile::resume(&a.out, data, a.updates.or(Some(cfg.total_updates)))?;
+        check_resume(&a, &cfg, run.config(), "total_updates")?;
+        run
     } else {
         cfg.validate()?;
         Smile::new(cfg, data)?
     };
     let cfg = run.config().clone();
-    start_run_dir(&a, algo, None)?;
+    let _lock = start_run_dir(&a, algo, None, demos_sha)?;
     trainer::checkpoint::write_atomic(
         &a.out.join("config.toml"),
         toml::to_string(&cfg)?.as_bytes(),
@@ -280,7 +360,13 @@ fn train_smile(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Re
     Ok(())
 }
 
-fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Result<()> {
+fn train_bc(
+    a: TrainArgs,
+    algo: Algo,
+    family: Family,
+    ds: &DemoDataset,
+    demos_sha: String,
+) -> Result<()> {
     let mut cfg: MetaBcConfig = read_toml(&a)?;
     cfg.env = family.name().into();
     cfg.dagger = algo == Algo::MetaDagger;
@@ -315,7 +401,9 @@ fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Resul
     let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
         .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
-        MetaBc::resume(&a.out, data, expert, a.updates)?
+        let run = MetaBc::resume(&a.out, data, expert, a.updates.or(Some(cfg.total_steps)))?;
+        check_resume(&a, &cfg, run.config(), "total_steps")?;
+        run
     } else {
         MetaBc::new(cfg, data, expert)?
     };
@@ -325,7 +413,7 @@ fn train_bc(a: TrainArgs, algo: Algo, family: Family, ds: &DemoDataset) -> Resul
         (None, true) => Some(SCRIPTED_PD.to_string()),
         (_, false) => None,
     };
-    start_run_dir(&a, algo, expert_name)?;
+    let _lock = start_run_dir(&a, algo, expert_name, demos_sha)?;
     trainer::checkpoint::write_atomic(
         &a.out.join("config.toml"),
         toml::to_string(&cfg)?.as_bytes(),

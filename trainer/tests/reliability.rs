@@ -1,0 +1,547 @@
+//! Nothing a user runs leaves a result that looks finished but is not (issue 27): killed and
+//! concurrent runs, edited resumes, NaN weights, interrupted writes and values that cannot
+//! train, each called as a user calls the binary. Every case here failed on the code before.
+
+mod common;
+use common::{ok, s, smile};
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use sim::{Family, Split};
+
+fn tmp(name: &str) -> PathBuf {
+    common::fresh_dir("smile-reliability", name)
+}
+
+/// Point-goal PD demos: (train, test) files in `dir`.
+fn demos(dir: &Path) -> (PathBuf, PathBuf) {
+    let fam = Family::PointGoal;
+    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
+    common::pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
+        .write(&train)
+        .unwrap();
+    common::pd_demos(Split::Test, fam.test_tasks(), 1, 20)
+        .write(&test)
+        .unwrap();
+    (train, test)
+}
+
+fn err_of(out: &std::process::Output) -> String {
+    assert!(
+        !out.status.success(),
+        "expected a refusal; stdout: {}\nstderr: {}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Starts a long Meta-BC run in the background and waits until it has written a kept policy.
+fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
+    // No early stop: the run must still be going when the test kills it.
+    let cfg = run.with_extension("toml");
+    std::fs::write(&cfg, "patience = 0\n").unwrap();
+    let child = Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args([
+            "train",
+            "--algo",
+            "meta-bc",
+            "--demos",
+            s(train),
+            "-o",
+            s(run),
+            "--config",
+            s(&cfg),
+            "--updates",
+            "100000000",
+            "--eval-every",
+            "20",
+            "--hidden",
+            "8,8",
+            "--quiet",
+        ])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !run.join(trainer::META_POLICY_FILE).exists()
+        || !run.join(trainer::checkpoint::CHECKPOINT_FILE).exists()
+    {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no policy written");
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    child
+}
+
+/// Items 1 and 6: a second writer is refused with the holder's pid; a killed run's policy is
+/// refused by eval, export and latents (with the command that finishes it) until the run is
+/// finished with --resume; --allow-unfinished uses it with a warning.
+#[test]
+fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
+    let dir = tmp("killed");
+    let (train, test) = demos(&dir);
+    let run = dir.join("bc");
+    let mut child = start_long_bc(&train, &run);
+    let second = smile(&[
+        "train",
+        "--resume",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--quiet",
+    ]);
+    let e = err_of(&second);
+    assert!(
+        e.contains("in use by another process") && e.contains(&child.id().to_string()),
+        "{e}"
+    );
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let ev = dir.join("eval");
+    let eval = |extra: &[&str]| {
+        let mut args = vec![
+            "eval",
+            "--policy",
+            s(&run),
+            "--contexts",
+            s(&test),
+            "-o",
+            s(&ev),
+            "--rollouts",
+            "1",
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        smile(&args)
+    };
+    let e = err_of(&eval(&[]));
+    assert!(
+        e.contains("unfinished run") && e.contains("smile train --resume"),
+        "{e}"
+    );
+    assert!(!ev.join("eval.json").exists());
+    let e = err_of(&smile(&[
+        "export",
+        "--policy",
+        s(&run),
+        "--quant",
+        "f32",
+        "--contexts",
+        s(&test),
+        "-o",
+        s(&dir.join("p.blob")),
+    ]));
+    assert!(e.contains("unfinished run"), "{e}");
+    let e = err_of(&smile(&[
+        "latents",
+        "--policy",
+        s(&run),
+        "--env",
+        "point-goal",
+        "--contexts",
+        s(&test),
+        "-o",
+        s(&dir.join("z.csv")),
+    ]));
+    assert!(e.contains("unfinished run"), "{e}");
+    let warned = ok(&eval(&["--allow-unfinished"]));
+    assert!(
+        warned.contains("warning") && warned.contains("unfinished"),
+        "{warned}"
+    );
+    // Finishing it (a budget already spent) marks the kept policy finished.
+    ok(&smile(&[
+        "train",
+        "--resume",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--updates",
+        "1",
+        "--quiet",
+    ]));
+    ok(&eval(&[]));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Item 7: --resume refuses flags it would ignore, an edited config.toml, and other demos.
+#[test]
+fn resume_refuses_changed_flags_edited_config_and_other_demos() {
+    let dir = tmp("resume");
+    let (train, _) = demos(&dir);
+    let run = dir.join("bc");
+    let base = [
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--hidden",
+        "8,8",
+        "--eval-every",
+        "20",
+        "--quiet",
+    ];
+    ok(&smile(&[&base[..], &["--updates", "40"]].concat()));
+    let resume = |extra: &[&str]| {
+        let mut args = vec![
+            "train",
+            "--resume",
+            "--demos",
+            s(&train),
+            "-o",
+            s(&run),
+            "--quiet",
+        ];
+        args.extend_from_slice(extra);
+        smile(&args)
+    };
+    let e = err_of(&resume(&["--seed", "7", "--updates", "60"]));
+    assert!(e.contains("--seed") && e.contains("Only --updates"), "{e}");
+    let e = err_of(&resume(&["--hidden", "32,32", "--updates", "60"]));
+    assert!(e.contains("policy_hidden"), "{e}");
+    // An edited config.toml is refused, not silently rewritten.
+    let cfg_path = run.join("config.toml");
+    let original = std::fs::read_to_string(&cfg_path).unwrap();
+    let edited = original.replace("seed = 0", "seed = 3");
+    assert_ne!(
+        edited, original,
+        "config.toml has no `seed = 0` line:\n{original}"
+    );
+    std::fs::write(&cfg_path, &edited).unwrap();
+    let e = err_of(&resume(&["--updates", "60"]));
+    assert!(e.contains("`seed`") && e.contains("config.toml"), "{e}");
+    assert_eq!(std::fs::read_to_string(&cfg_path).unwrap(), edited);
+    std::fs::write(&cfg_path, &original).unwrap();
+    // Other demos (another file's checksum) are refused.
+    let other = dir.join("other.safetensors");
+    common::pd_demos(
+        Split::Train,
+        Family::PointGoal.train_tasks()[..8].to_vec(),
+        3,
+        20,
+    )
+    .write(&other)
+    .unwrap();
+    let e = err_of(&smile(&[
+        "train",
+        "--resume",
+        "--demos",
+        s(&other),
+        "-o",
+        s(&run),
+        "--updates",
+        "60",
+        "--quiet",
+    ]));
+    assert!(
+        e.contains("is not the file") && e.contains("SHA-256"),
+        "{e}"
+    );
+    // What may change, changes: the budget.
+    ok(&resume(&["--updates", "60"]));
+    let cfg = std::fs::read_to_string(&cfg_path).unwrap();
+    assert!(cfg.contains("total_steps = 60"), "{cfg}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Item 8: a policy file holding NaN weights is refused by name, not evaluated to a number.
+#[test]
+fn nan_weights_are_refused() {
+    let dir = tmp("nan");
+    let (train, test) = demos(&dir);
+    let run = dir.join("bc");
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--updates",
+        "20",
+        "--eval-every",
+        "10",
+        "--hidden",
+        "8,8",
+        "--quiet",
+    ]));
+    // Overwrite the first f32 of the first tensor's data with NaN.
+    let file = run.join(trainer::META_POLICY_FILE);
+    let mut bytes = std::fs::read(&file).unwrap();
+    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&file, &bytes).unwrap();
+    let e = err_of(&smile(&[
+        "eval",
+        "--policy",
+        s(&run),
+        "--contexts",
+        s(&test),
+        "-o",
+        s(&dir.join("ev")),
+        "--rollouts",
+        "1",
+        "--quiet",
+    ]));
+    assert!(e.contains("non-finite") && e.contains("diverged"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Item 4: `smile demos` onto an existing file replaces it atomically: a refused or failed
+/// recording leaves the old file whole, and no temporary file is left beside it.
+#[test]
+fn demos_never_truncate_an_existing_file() {
+    let dir = tmp("demos");
+    let pd = dir.join("pd");
+    ok(&smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--kind",
+        "scripted-pd",
+        "-o",
+        s(&pd),
+    ]));
+    let out = dir.join("d.safetensors");
+    let rec = |extra: &[&str]| {
+        let mut args = vec![
+            "demos",
+            "--env",
+            "point-goal",
+            "--horizon",
+            "10",
+            "--expert",
+            s(&pd),
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        smile(&args)
+    };
+    ok(&rec(&["--per-task", "1"]));
+    let before = std::fs::read(&out).unwrap();
+    // The output's folder made read-only: the write fails, the old file stays.
+    use std::os::unix::fs::PermissionsExt;
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o555)).unwrap();
+    let result = rec(&["--per-task", "2"]);
+    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o755)).unwrap();
+    // Root ignores permissions: then the rewrite succeeds, and is still whole.
+    if !result.status.success() {
+        assert_eq!(std::fs::read(&out).unwrap(), before);
+    }
+    sim::DemoDataset::read(&out).unwrap();
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!names.iter().any(|n| n.contains("tmp")), "{names:?}");
+    // Zero trajectories or subsampling by 0 are refused at the door.
+    for bad in [["--per-task", "0"], ["--subsample", "0"]] {
+        let e = err_of(&rec(&bad));
+        assert!(e.contains(bad[0]) && e.contains("at least 1"), "{e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Items 11 and 12: numeric flags are checked at the door with the flag's name and range.
+#[test]
+fn numeric_flags_are_validated_by_name() {
+    let dir = tmp("flags");
+    let (train, test) = demos(&dir);
+    let run = dir.join("r");
+    let train_with = |flag: &str, value: &str| {
+        smile(&[
+            "train",
+            "--demos",
+            s(&train),
+            "-o",
+            s(&run),
+            "--updates",
+            "5",
+            flag,
+            value,
+            "--quiet",
+        ])
+    };
+    for (flag, value) in [
+        ("--gp-weight", "nan"),
+        ("--gp-weight=-1", ""),
+        ("--reward-scale", "0"),
+        ("--reward-scale", "inf"),
+        ("--updates", "0"),
+    ] {
+        let e = if value.is_empty() {
+            err_of(&smile(&[
+                "train",
+                "--demos",
+                s(&train),
+                "-o",
+                s(&run),
+                flag,
+                "--quiet",
+            ]))
+        } else {
+            err_of(&train_with(flag, value))
+        };
+        let name = flag.split('=').next().unwrap();
+        assert!(e.contains(name), "{flag} {value}: {e}");
+        assert!(!run.exists(), "{flag} {value} created the run directory");
+    }
+    // Config files: NaN and negative values are refused by key (log_std_min = nan panicked).
+    for (text, key) in [
+        ("gp_weight = nan\n", "gp_weight"),
+        ("logit_clamp = nan\n", "logit_clamp"),
+        ("[sac]\nlog_std_min = nan\n", "sac.log_std_min"),
+        ("[sac]\nactor_lr = -0.001\n", "sac.actor_lr"),
+    ] {
+        let cfg = dir.join("bad.toml");
+        std::fs::write(&cfg, text).unwrap();
+        let e = err_of(&smile(&[
+            "train",
+            "--demos",
+            s(&train),
+            "-o",
+            s(&run),
+            "--config",
+            s(&cfg),
+            "--quiet",
+        ]));
+        assert!(e.contains(key) && e.contains("finite"), "{text}: {e}");
+        assert!(!e.contains("panicked"), "{e}");
+    }
+    let e = err_of(&smile(&[
+        "--threads",
+        "1000",
+        "train",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--quiet",
+    ]));
+    assert!(e.contains("--threads") && e.contains("1 to 64"), "{e}");
+    let e = err_of(&smile(&[
+        "eval",
+        "--policy",
+        s(&run),
+        "--contexts",
+        s(&test),
+        "--rollouts",
+        "0",
+    ]));
+    assert!(e.contains("--rollouts") && e.contains("at least 1"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Item 5: the quickstart refuses a non-empty output directory unless told --force.
+#[test]
+fn quickstart_refuses_a_non_empty_directory() {
+    let dir = tmp("quickstart");
+    let out = dir.join("qs");
+    std::fs::create_dir_all(&out).unwrap();
+    std::fs::write(out.join("eval.json"), "{}").unwrap();
+    let e = err_of(&smile(&[
+        "quickstart",
+        "--budget",
+        "tiny",
+        "--out",
+        s(&out),
+        "--quiet",
+    ]));
+    assert!(
+        e.contains("--force") && e.contains("nothing was touched"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("eval.json")).unwrap(),
+        "{}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Item 13: messages that name what is wrong: `eval -o` onto a file names the path; an
+/// unfinished expert directory says how to finish it.
+#[test]
+fn messages_name_the_path_and_the_fix() {
+    let dir = tmp("messages");
+    let (train, test) = demos(&dir);
+    let run = dir.join("bc");
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(&train),
+        "-o",
+        s(&run),
+        "--updates",
+        "20",
+        "--eval-every",
+        "10",
+        "--hidden",
+        "8,8",
+        "--quiet",
+    ]));
+    let file = dir.join("a-file");
+    std::fs::write(&file, "x").unwrap();
+    let e = err_of(&smile(&[
+        "eval",
+        "--policy",
+        s(&run),
+        "--contexts",
+        s(&test),
+        "-o",
+        s(&file),
+        "--rollouts",
+        "1",
+        "--quiet",
+    ]));
+    assert!(e.contains(s(&file)), "{e}");
+    // An expert run with a checkpoint but no policy yet.
+    let ex = dir.join("expert");
+    ok(&smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--total-steps",
+        "300",
+        "--learning-starts",
+        "100",
+        "--checkpoint-every",
+        "100",
+        "--hidden",
+        "8,8",
+        "--batch-size",
+        "16",
+        "-o",
+        s(&ex),
+        "--quiet",
+    ]));
+    std::fs::remove_file(ex.join("policy.safetensors")).unwrap();
+    let e = err_of(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--per-task",
+        "1",
+        "--expert",
+        s(&ex),
+        "-o",
+        s(&dir.join("d.safetensors")),
+    ]));
+    assert!(
+        e.contains("unfinished `smile expert` run") && e.contains("--resume"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
