@@ -406,3 +406,24 @@ fn the_export_is_deterministic() {
     assert_eq!(a.encoder, b.encoder);
     assert_eq!(a.policy, b.policy);
 }
+
+/// tract on directories written by `smile export --format onnx` (trained policies), against
+/// the reference each one holds: the figures of the README's "Deploy with ONNX".
+/// `SMILE_ONNX_DIRS=dir1:dir2 cargo test --release -p trainer --test onnx -- --ignored --nocapture`
+#[test]
+#[ignore = "needs SMILE_ONNX_DIRS: export directories of trained policies"]
+fn tract_on_exported_directories() {
+    let dirs = std::env::var("SMILE_ONNX_DIRS").expect("SMILE_ONNX_DIRS");
+    for dir in dirs.split(':').filter(|d| !d.is_empty()).map(PathBuf::from) {
+        let meta: onnx::OnnxMeta =
+            serde_json::from_slice(&std::fs::read(dir.join(onnx::META_FILE)).unwrap()).unwrap();
+        let r = read_reference(&dir.join(onnx::REFERENCE_FILE), &meta);
+        let d = tract_parity(&dir, &r);
+        eprintln!(
+            "tract {:<12} {:<16} contexts {:>3} actions {:>6}: z max |diff| {:.2e} (max |z| \
+             {:.2}), action max |diff| {:.2e} end to end, {:.2e} on the trainer's z",
+            meta.family, meta.algo, d.contexts, d.actions, d.z, d.z_abs, d.action, d.action_same_z
+        );
+        assert!(d.z <= TOL && d.action <= TOL, "{}: {d:?}", dir.display());
+    }
+}
