@@ -17,7 +17,8 @@
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
-//! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], progress bars.
+//! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export,
+//!   progress bars.
 //! * [`sweep`]: grids of runs (`smile sweep`), locally or as a Slurm array;
 //!   [`eval::report`] aggregates them (`smile report`).
 //! * [`quickstart`]: the whole pipeline in one call (`smile quickstart`); [`bench`](mod@bench):
@@ -63,8 +64,9 @@ pub use data::{
     record_with as record_demos_with, run_episode, sample_context,
 };
 
-/// Checkpoints and blob export keep their namespaces (`checkpoint::load`, `export::verify`).
-pub use io::{checkpoint, export};
+/// Checkpoints, blob export and ONNX export keep their namespaces (`checkpoint::load`,
+/// `export::verify`, `onnx::export`).
+pub use io::{checkpoint, export, onnx};
 
 /// One writer per output directory.
 pub use io::{DirLock, lock};

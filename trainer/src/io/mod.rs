@@ -1,12 +1,13 @@
 //! What the trainer writes and reads: configuration files (over the defaults), atomic
 //! checkpoints, the metrics log (JSON lines and TensorBoard events), the infer-core blob export
-//! with its verification, and progress bars.
+//! with its verification, the ONNX export, and progress bars.
 
 pub mod checkpoint;
 mod config;
 pub mod export;
 pub mod lock;
 mod metrics;
+pub mod onnx;
 pub mod progress;
 
 pub use config::from_toml_over_defaults;

@@ -1,9 +1,10 @@
-//! `smile export`: a meta-policy as an infer-core blob, verified against the float policy.
+//! `smile export`: a meta-policy as an infer-core blob, verified against the float policy, or
+//! (`--format onnx`) as two ONNX graphs with a description and a parity reference.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use sim::{DemoDataset, Split};
 use trainer::MetaPolicy;
 use trainer::eval::Protocol;
@@ -15,10 +16,15 @@ pub struct ExportArgs {
     /// Trained run directory (or meta_policy.safetensors).
     #[arg(long)]
     policy: PathBuf,
-    /// Quantization: f32, w8a32 or w8a8.
+    /// What to write: an infer-core blob, or ONNX graphs (encoder.onnx, policy.onnx, onnx.json
+    /// and reference.safetensors in the directory -o).
+    #[arg(long, value_enum, default_value_t = Format::Blob)]
+    format: Format,
+    /// Quantization: f32, w8a32 or w8a8 (blob only; ONNX is float32).
     #[arg(long, default_value = "w8a8")]
     quant: String,
-    /// Output blob file; a JSON report is written next to it (`<blob>.json`).
+    /// Output blob file, with a JSON report next to it (`<blob>.json`); with --format onnx, the
+    /// output directory.
     #[arg(short, long)]
     out: PathBuf,
     /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
@@ -38,6 +44,15 @@ pub struct ExportArgs {
     allow_unfinished: bool,
 }
 
+/// The export formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+enum Format {
+    /// The infer-core blob (quantized or f32), verified on the held-out contexts.
+    Blob,
+    /// ONNX opset 17: the context encoder and the conditioned policy, normalisation inside.
+    Onnx,
+}
+
 /// Reads a demo file given with `flag` and checks that it fits the policy (one-line errors).
 fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
     let demos =
@@ -46,12 +61,47 @@ fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
     Ok(demos)
 }
 
+/// `--format onnx`: the graphs, their description and the trainer's z and actions on the
+/// contexts, written to the directory `a.out` in one rename.
+fn run_onnx(a: &ExportArgs, mp: &MetaPolicy) -> Result<()> {
+    if let Some(path) = &a.demos {
+        read_demos(path, "--demos", mp)?;
+    }
+    let ctx = read_demos(&a.contexts, "--contexts", mp)?;
+    let ex = trainer::onnx::export(mp)?;
+    let reference = trainer::onnx::reference(mp, &ctx)?;
+    let source = a.contexts.display().to_string();
+    let files = trainer::onnx::write_dir(&a.out, &ex, Some((&reference, &source)))?;
+    eprintln!(
+        "wrote {} (ONNX opset {}, {} {}: encoder {} bytes, policy {} bytes; trainer z and \
+         actions on {} contexts for the parity check)",
+        a.out.display(),
+        trainer::onnx::OPSET,
+        mp.algo,
+        mp.family,
+        ex.encoder.len(),
+        ex.policy.len(),
+        reference.contexts.len()
+    );
+    for f in files {
+        eprintln!("  {}", f.display());
+    }
+    eprintln!(
+        "check with onnxruntime: python3 docs/scripts/onnx_parity.py {}",
+        a.out.display()
+    );
+    Ok(())
+}
+
 /// Run `smile export`.
 pub fn run(a: ExportArgs) -> Result<()> {
-    let quant = export::parse_quant(&a.quant)?;
     let mp =
         MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
     MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)?;
+    if a.format == Format::Onnx {
+        return run_onnx(&a, &mp);
+    }
+    let quant = export::parse_quant(&a.quant)?;
     let family = mp.family;
     let demos = match &a.demos {
         Some(path) => {

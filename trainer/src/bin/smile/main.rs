@@ -62,7 +62,7 @@ enum Cmd {
     Eval(eval::EvalArgs),
     /// Export a meta-policy as an infer-core blob and verify it (parity + metric).
     #[command(
-        after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob"
+        after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob\n  smile export --policy runs/pg-smile --format onnx --contexts demos/pg-test.safetensors -o runs/pg-smile/onnx"
     )]
     Export(export::ExportArgs),
     /// The whole pipeline on point-goal: expert, demos, SMILe + Meta-BC, eval, blob, device.
