@@ -117,3 +117,42 @@ fn same_seed_same_update() {
     };
     assert_eq!(run(), run());
 }
+
+/// SAC v1 style (the authors' SMILe): a fixed temperature, with the reward scale acting as the
+/// inverse temperature. On the contextual bandit, scale 24 makes a much sharper policy than
+/// scale 1 under the same fixed alpha = 1, and alpha does not move.
+#[test]
+fn with_a_fixed_temperature_the_reward_scale_sets_the_entropy() {
+    trainer::threads::set_compute_threads(1);
+    let entropy_at = |scale: f32| {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let cfg = SacConfig {
+            learn_alpha: false,
+            init_alpha: 1.0,
+            reward_scale: scale,
+            policy_reg: 1e-3,
+            ..small_cfg()
+        };
+        let mut sac = Sac::new(1, 1, cfg, &mut rng).unwrap();
+        let mut rb = ReplayBuffer::new(1, 1, 10_000).unwrap();
+        let mut entropy = Vec::new();
+        for step in 0..1200 {
+            let s = rng.random_range(-1.0f32..1.0);
+            let a = sac.actor.act(&[s], false, &mut rng).unwrap();
+            rb.push(&[s], &a, -(a[0] - 0.5 * s).powi(2), &[0.0], true)
+                .unwrap();
+            if step >= 100 {
+                let b = rb.sample(64, &mut rng).unwrap();
+                let st = sac.update(&b, &mut rng).unwrap();
+                assert_eq!(st.alpha, 1.0, "a fixed temperature moved");
+                if step >= 1100 {
+                    entropy.push(st.entropy);
+                }
+            }
+        }
+        entropy.iter().sum::<f32>() / entropy.len() as f32
+    };
+    let (h1, h24) = (entropy_at(1.0), entropy_at(24.0));
+    eprintln!("fixed alpha 1: entropy {h1:.3} at reward scale 1, {h24:.3} at 24");
+    assert!(h24 < h1 - 0.5, "entropy {h1} at scale 1, {h24} at scale 24");
+}
