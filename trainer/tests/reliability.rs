@@ -330,15 +330,43 @@ fn demos_never_truncate_an_existing_file() {
     };
     ok(&rec(&["--per-task", "1"]));
     let before = std::fs::read(&out).unwrap();
-    // The output's folder made read-only: the write fails, the old file stays.
-    use std::os::unix::fs::PermissionsExt;
-    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o555)).unwrap();
-    let result = rec(&["--per-task", "2"]);
-    std::fs::set_permissions(&dir, std::fs::Permissions::from_mode(0o755)).unwrap();
-    // Root ignores permissions: then the rewrite succeeds, and is still whole.
-    if !result.status.success() {
-        assert_eq!(std::fs::read(&out).unwrap(), before);
+    // A full disk, as the kernel reports it: the child may write files of at most 4 KiB
+    // (RLIMIT_FSIZE, with SIGXFSZ ignored so the write fails with EFBIG instead of killing
+    // it). Recording 16 demos a task needs more: the write fails, the old file stays whole.
+    let mut args = vec![
+        "demos",
+        "--env",
+        "point-goal",
+        "--horizon",
+        "10",
+        "--expert",
+    ];
+    args.extend([s(&pd), "-o", s(&out), "--per-task", "16"]);
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_smile"));
+    cmd.args(&args);
+    use std::os::unix::process::CommandExt;
+    // SAFETY: only async-signal-safe calls (setrlimit, signal) between fork and exec.
+    unsafe {
+        cmd.pre_exec(|| {
+            let lim = libc::rlimit {
+                rlim_cur: 4096,
+                rlim_max: 4096,
+            };
+            libc::signal(libc::SIGXFSZ, libc::SIG_IGN);
+            if libc::setrlimit(libc::RLIMIT_FSIZE, &lim) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
     }
+    let result = cmd.output().unwrap();
+    let e = err_of(&result);
+    assert!(e.contains(s(&out)), "{e}");
+    assert_eq!(
+        std::fs::read(&out).unwrap(),
+        before,
+        "the old file was damaged"
+    );
     sim::DemoDataset::read(&out).unwrap();
     let names: Vec<String> = std::fs::read_dir(&dir)
         .unwrap()
