@@ -326,15 +326,6 @@ fn read_blob(path: &std::path::Path) -> Result<Vec<u8>> {
     Ok(blob)
 }
 
-/// SHA-256 of `bytes`, lower-case hex (as `smile export` records it).
-fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
-
 #[derive(Args, Debug)]
 struct CompareArgs {
     /// The policy blob (from `smile export`).
@@ -401,7 +392,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     // beside the previous export's report.
     match reference["blob_sha256"].as_str().filter(|s| !s.is_empty()) {
         Some(sha) => {
-            let here = sha256_hex(&blob);
+            let here = sim::sha256_hex(&blob);
             if sha != here {
                 bail!(
                     "{} describes another blob (SHA-256 {}), not {} ({}): run `smile export` \

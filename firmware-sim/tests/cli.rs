@@ -265,11 +265,7 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
     };
     let err = fails(&compare("1"));
     assert!(err.contains("describes another blob"), "{err}");
-    use sha2::Digest;
-    let sha: String = sha2::Sha256::digest(std::fs::read(&blob).unwrap())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
+    let sha = sim::sha256_hex(&std::fs::read(&blob).unwrap());
     std::fs::write(&reference, report(&sha)).unwrap();
     ok(&compare("1"));
     let e = String::from_utf8_lossy(&compare("0").stderr).into_owned();

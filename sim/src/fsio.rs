@@ -40,6 +40,15 @@ pub fn write_atomic_with(
     result
 }
 
+/// SHA-256 of `bytes`, lower-case hex: how a run names its demos and an export report its blob.
+pub fn sha256_hex(bytes: &[u8]) -> String {
+    use sha2::Digest;
+    sha2::Sha256::digest(bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

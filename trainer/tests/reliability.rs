@@ -28,6 +28,26 @@ fn demos(dir: &Path) -> (PathBuf, PathBuf) {
     (train, test)
 }
 
+/// A finished 20-step Meta-BC run in `run`.
+fn tiny_bc(train: &Path, run: &Path) {
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(train),
+        "-o",
+        s(run),
+        "--updates",
+        "20",
+        "--eval-every",
+        "10",
+        "--hidden",
+        "8,8",
+        "--quiet",
+    ]));
+}
+
 fn err_of(out: &std::process::Output) -> String {
     assert!(
         !out.status.success(),
@@ -259,22 +279,7 @@ fn nan_weights_are_refused() {
     let dir = tmp("nan");
     let (train, test) = demos(&dir);
     let run = dir.join("bc");
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--updates",
-        "20",
-        "--eval-every",
-        "10",
-        "--hidden",
-        "8,8",
-        "--quiet",
-    ]));
+    tiny_bc(&train, &run);
     // Overwrite the first f32 of the first tensor's data with NaN.
     let file = run.join(trainer::META_POLICY_FILE);
     let mut bytes = std::fs::read(&file).unwrap();
@@ -504,22 +509,7 @@ fn messages_name_the_path_and_the_fix() {
     let dir = tmp("messages");
     let (train, test) = demos(&dir);
     let run = dir.join("bc");
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--updates",
-        "20",
-        "--eval-every",
-        "10",
-        "--hidden",
-        "8,8",
-        "--quiet",
-    ]));
+    tiny_bc(&train, &run);
     let file = dir.join("a-file");
     std::fs::write(&file, "x").unwrap();
     let e = err_of(&smile(&[

@@ -124,14 +124,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     })
 }
 
-/// SHA-256 of `bytes`, lower-case hex: how a run names its demos and a report its blob.
-pub fn sha256_hex(bytes: &[u8]) -> String {
-    use sha2::Digest;
-    sha2::Sha256::digest(bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect()
-}
+/// SHA-256 of `bytes`, lower-case hex ([`sim::sha256_hex`]).
+pub use sim::sha256_hex;
 
 /// SHA-256 of the file at `path` ([`sha256_hex`]), an error naming the file.
 pub fn sha256_file(path: &Path) -> Result<String> {
