@@ -8,7 +8,9 @@
 #   docs/scripts/walker-experts.sh BIN OUT_DIR LANE [SEEDS...]
 #
 # SEEDS default to the 25 meta-test then the 50 meta-train dynamics seeds; STEPS (env steps
-# per expert) defaults to 50000. A lane stops
+# per expert) defaults to 50000, EVERY (env steps between evaluations and checkpoints) to
+# 12500; CONFIG, if set, is an expert config file under the flags (e.g. `eval_episodes = 3`,
+# so that --keep-best picks on three episodes, not one). A lane stops
 # before its next task while OUT_DIR/pause-LANE exists (e.g. to free a core for a build).
 # After an interruption, `rm -r OUT_DIR/claims` before starting the lanes again.
 set -euo pipefail
@@ -29,8 +31,10 @@ for seed in "${seeds[@]}"; do
   else
     rm -rf "$dir"
     "$bin" expert --env walker-dyn --task-value "$seed" --hidden 128,128 --batch-size 128 \
+      ${CONFIG:+--config "$CONFIG"} \
       --init-from "$out/base" --total-steps "${STEPS:-50000}" --learning-starts 2000 \
-      --checkpoint-every 12500 --eval-every 12500 --keep-best --quiet -o "$dir"
+      --checkpoint-every "${EVERY:-12500}" --eval-every "${EVERY:-12500}" --keep-best --quiet \
+      -o "$dir"
   fi
 done
 echo "lane $lane: done ($(date +%T))"

@@ -193,3 +193,135 @@ fn walker_training_rollouts_run_to_the_horizon_unless_termination_is_asked_for()
     let terminated = steps(true);
     assert!(terminated < 4 * 300 / 2, "{terminated} steps");
 }
+
+/// The deterministic actor's squared action error on every expert transition of the training
+/// tasks, each task conditioned on its own whole context (posterior mean z).
+fn clone_error(run: &Smile) -> f32 {
+    let mp = run.meta_policy();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+    let (mut sum, mut rows) = (0.0f32, 0usize);
+    let (od, ad) = (Family::PointGoal.obs_dim(), Family::PointGoal.act_dim());
+    for td in &run.data().train {
+        let ctx: Vec<_> = td.trajectories.iter().collect();
+        let z = mp.latent(&ctx).unwrap();
+        for tr in &td.trajectories {
+            for k in 0..tr.len() {
+                let a = mp
+                    .act(&tr.obs[k * od..(k + 1) * od], &z, true, &mut rng)
+                    .unwrap();
+                let e = &tr.actions[k * ad..(k + 1) * ad];
+                sum += a.iter().zip(e).map(|(x, y)| (x - y) * (x - y)).sum::<f32>();
+                rows += 1;
+            }
+        }
+    }
+    sum / rows as f32
+}
+
+/// SMILe + BC (issue 29): the cloning term pulls the actor toward the demos, weight 0 is SMILe
+/// bit for bit (the term's machinery draws nothing), and a decayed weight reaches 0.
+#[test]
+fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
+    trainer::threads::set_compute_threads(1);
+    let ds = demos(8, 2, 30);
+    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let train = |bc_weight: f32, bc_decay_updates: u64, pairs: usize| {
+        let cfg = SmileConfig {
+            bc_weight,
+            bc_decay_updates,
+            ..tiny(false)
+        };
+        let mut run = Smile::new(cfg, data.clone()).unwrap();
+        run.warm_start().unwrap();
+        let before = clone_error(&run);
+        let mut bc_losses = Vec::new();
+        for _ in 0..pairs {
+            let (_, ss, _) = run.update_pair().unwrap();
+            bc_losses.push(ss.bc_loss);
+        }
+        (run, before, bc_losses)
+    };
+    let (plain, before, plain_bc) = train(0.0, 0, 150);
+    let (cloned, before_bc, bc) = train(4.0, 0, 150);
+    assert_eq!(before, before_bc, "same seed, same initial policy");
+    assert!(plain_bc.iter().all(Option::is_none));
+    assert!(bc.iter().all(Option::is_some));
+    let (e_plain, e_bc) = (clone_error(&plain), clone_error(&cloned));
+    eprintln!("action error: before {before:.3}, SMILe {e_plain:.3}, SMILe + BC {e_bc:.3}");
+    // Measured (seed 3, one thread, 150 pairs, w 4): before 0.550, SMILe 0.555, SMILe + BC 0.224.
+    assert!(
+        e_bc < 0.5 * e_plain && e_bc < 0.5 * before,
+        "action error on the demos: before {before:.3}, SMILe {e_plain:.3}, SMILe + BC {e_bc:.3}"
+    );
+
+    // Weight 0 with a decay set is still SMILe: identical weights after the same pairs.
+    let (zero, _, _) = train(0.0, 50, 150);
+    let w = |r: &Smile| -> Vec<f32> {
+        r.sac
+            .actor
+            .net()
+            .vars()
+            .iter()
+            .flat_map(|v| {
+                v.as_tensor()
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f32>()
+                    .unwrap()
+            })
+            .collect()
+    };
+    assert_eq!(w(&zero), w(&plain), "weight 0 must be SMILe bit for bit");
+
+    // Decayed over 40 pairs: the term acts before, and the run is plain SMILe after.
+    let cfg = SmileConfig {
+        bc_weight: 2.0,
+        bc_decay_updates: 40,
+        ..tiny(false)
+    };
+    assert_eq!(cfg.bc_weight_at(0), 2.0);
+    assert_eq!(cfg.bc_weight_at(20), 1.0);
+    assert_eq!(cfg.bc_weight_at(40), 0.0);
+    assert_eq!(cfg.bc_weight_at(1000), 0.0);
+    let dir = std::env::temp_dir().join(format!("smile-bc-decay-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let mut run = Smile::new(
+        SmileConfig {
+            total_updates: 60,
+            ..cfg
+        },
+        data.clone(),
+    )
+    .unwrap();
+    smile::train(&mut run, &dir, &mut |_| {}).unwrap();
+    let log = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
+    let rows: Vec<serde_json::Value> = log
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .filter(|r: &serde_json::Value| r.get("charts/bc_weight").is_some())
+        .collect();
+    assert_eq!(rows.len(), 6, "one row per iteration of 10 pairs: {log}");
+    for r in &rows {
+        let (step, w) = (
+            r["step"].as_u64().unwrap(),
+            r["charts/bc_weight"].as_f64().unwrap(),
+        );
+        // The weight of the iteration's last pair, step - 1.
+        let want = (2.0 * (1.0 - (step - 1) as f64 / 40.0)).max(0.0);
+        assert!(
+            (w - want).abs() < 1e-6,
+            "step {step}: weight {w}, want {want}"
+        );
+        assert_eq!(r.get("losses/bc").is_some(), step <= 40, "step {step}: {r}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+
+    // State-only has no expert actions to clone.
+    let mut so = SmileConfig {
+        bc_weight: 1.0,
+        ..tiny(true)
+    };
+    so.context.state_only = true;
+    let e = Smile::new(so, data).err().expect("refused").to_string();
+    assert!(e.contains("bc_weight") && e.contains("state-only"), "{e}");
+}

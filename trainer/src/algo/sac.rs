@@ -9,6 +9,8 @@
 //!    `a' ~ pi(.|s')`; `L_Q = sum_j mean (Q_j(s, a) - y)^2`
 //! 2. actor:       `L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~))`, `a~ = tanh(mu + sigma eps)`;
 //!    the critic weights are constants here, so no critic gradient is computed.
+//!    With an auxiliary cloning term ([`BcTerm`], SMILe + BC) on expert rows `(s_E, a_E)`:
+//!    `L_pi += w mean_rows ||tanh(mu(s_E)) - a_E||^2` (squared error summed over action dims).
 //! 3. temperature: `L_alpha = mean -log(alpha) (log pi(a~|s) + H_target)`
 //! 4. targets:     `theta'_j <- (1 - tau) theta'_j + tau theta_j`
 
@@ -146,6 +148,23 @@ pub struct SacStats {
     pub alpha: f32,
     /// `charts/entropy`: `-mean log pi(a~|s)`.
     pub entropy: f32,
+    /// `losses/bc`: the cloning term's `mean ||tanh(mu(s_E)) - a_E||^2` before its weight
+    /// (`None` without a [`BcTerm`]).
+    pub bc_loss: Option<f32>,
+}
+
+/// An auxiliary behaviour-cloning term on the actor's loss (SMILe + BC, after Jena et al.
+/// 2020's BC-augmented GAIL): expert rows and their actions, and the weight of
+/// `mean ||tanh(mu(s_E)) - a_E||^2` in the actor loss.
+#[derive(Debug, Clone)]
+pub struct BcTerm {
+    /// Policy inputs of the expert rows `(rows, obs_dim)` (for SMILe `[norm(s_E), z]`, z the
+    /// task's detached latent).
+    pub obs: Tensor,
+    /// The expert's actions `(rows, act_dim)`.
+    pub act: Tensor,
+    /// The term's weight `w` (> 0).
+    pub weight: f32,
 }
 
 /// A SAC agent: actor, twin critics, their targets, optimisers and temperature.
@@ -252,6 +271,17 @@ impl Sac {
     /// A non-finite loss aborts before the corresponding optimiser step with
     /// [`Error::NonFinite`].
     pub fn update(&mut self, b: &Batch, rng: &mut impl Rng) -> Result<SacStats> {
+        self.update_with_bc(b, None, rng)
+    }
+
+    /// [`Sac::update`] with an optional cloning term added to the actor's loss (step 2 of the
+    /// module doc). `None` is exactly [`Sac::update`]: same arithmetic, same draws from `rng`.
+    pub fn update_with_bc(
+        &mut self,
+        b: &Batch,
+        bc: Option<&BcTerm>,
+        rng: &mut impl Rng,
+    ) -> Result<SacStats> {
         self.updates += 1;
         let alpha = self.alpha()?;
         let (gamma, c) = (self.cfg.gamma as f64, self.cfg.reward_scale as f64);
@@ -282,6 +312,14 @@ impl Sac {
             let reg = (cur.mean.sqr()?.mean_all()? + cur.log_std.sqr()?.mean_all()?)?;
             actor_loss = (actor_loss + (reg * self.cfg.policy_reg as f64)?)?;
         }
+        //    + BC: L_pi += w mean_rows ||tanh(mu(s_E)) - a_E||^2
+        let mut bc_loss_v = None;
+        if let Some(bc) = bc {
+            let err = (self.actor.mean_action(&bc.obs)? - &bc.act)?;
+            let bc_loss = err.sqr()?.sum_keepdim(1)?.mean_all()?;
+            bc_loss_v = Some(self.finite("losses/bc", scalar(&bc_loss)?)?);
+            actor_loss = (actor_loss + (bc_loss * bc.weight as f64)?)?;
+        }
         let actor_loss_v = self.finite("losses/actor", scalar(&actor_loss)?)?;
         self.actor_opt.backward_step(&actor_loss)?;
 
@@ -307,6 +345,7 @@ impl Sac {
             alpha_loss: alpha_loss_v,
             alpha,
             entropy: -mean_logp,
+            bc_loss: bc_loss_v,
         })
     }
 

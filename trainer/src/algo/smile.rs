@@ -29,21 +29,32 @@
 //! policy input `[norm(s), z]` with z **detached** (SAC never updates the encoder), reward
 //! `r = clamp(D(x, z), -10, 10)` (= log D - log(1 - D)), multiplied by `sac.reward_scale`.
 //! SAC is v2 (twin Q, targets, learned temperature), the reference's accepted substitute.
+//!
+//! SMILe + BC (`bc_weight > 0`, beyond the paper): the SAC step's actor loss also clones the
+//! demos of the batch's tasks, `sac_per_task` expert transitions `(s_E, a_E)` per task with
+//! that task's detached z, the same z its replay rows use:
+//!
+//! ```text
+//! L_pi += w(u) mean ||tanh(mu([norm(s_E), z])) - a_E||^2,
+//! w(u) = bc_weight (1 - u / bc_decay_updates)+   (or bc_weight when bc_decay_updates = 0)
+//! ```
 
 use std::path::Path;
 
-use candle_core::{DType, Device, Tensor};
+use candle_core::{Device, Tensor};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim::Environment;
 
 mod config;
+mod disc;
 mod overlap;
 mod persist;
 
 pub use config::SmileConfig;
+pub(crate) use disc::{DiscBatch, DiscLearner, disc_update};
 
-use crate::algo::sac::{Sac, SacStats};
+use crate::algo::sac::{BcTerm, Sac, SacStats};
 use crate::data::{
     Batch, BatchVecs, MetaData, TaskReplay, better, distinct_tasks, quick_eval, run_episode,
     sample_context,
@@ -51,8 +62,8 @@ use crate::data::{
 use crate::io::MetricsLog;
 use crate::model::scalar;
 use crate::model::{
-    ContextBatch, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, MetaPolicy,
-    TrainingMark, bce_with_logits, policy_input,
+    ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, MetaPolicy, TrainingMark,
+    policy_input,
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::{Error, Result};
@@ -96,48 +107,6 @@ pub struct Smile {
     best: f32,
     /// The second learner thread of `learner_threads = 2`, started at the first update pair.
     worker: Option<overlap::DiscWorker>,
-}
-
-/// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
-/// `per_task` policy rows of `x` (row `r` belongs to task `r / per_task`).
-pub(crate) struct DiscBatch {
-    context: ContextBatch,
-    x_expert: Tensor,
-    x_policy: Tensor,
-    tasks: usize,
-    per_task: usize,
-}
-
-impl DiscBatch {
-    /// A batch from encoder inputs and row-major `x` rows (`tasks * per_task` each).
-    pub(crate) fn new(
-        context: ContextBatch,
-        x_expert: Vec<f32>,
-        x_policy: Vec<f32>,
-        tasks: usize,
-        per_task: usize,
-    ) -> Result<Self> {
-        let rows = tasks * per_task;
-        let x_dim = x_expert.len() / rows.max(1);
-        Ok(Self {
-            context,
-            x_expert: Tensor::from_vec(x_expert, (rows, x_dim), &Device::Cpu)?,
-            x_policy: Tensor::from_vec(x_policy, (rows, x_dim), &Device::Cpu)?,
-            tasks,
-            per_task,
-        })
-    }
-
-    /// Each task's `z` (rows of `z`, shape `(tasks, z)`) repeated for its rows, through a
-    /// one-hot matrix so that gradients flow back into `z`.
-    fn z_rows(&self, z: &Tensor) -> Result<Tensor> {
-        let (t, n) = (self.tasks, self.per_task);
-        let mut onehot = vec![0.0f32; t * n * t];
-        for r in 0..t * n {
-            onehot[r * t + r / n] = 1.0;
-        }
-        Ok(Tensor::from_vec(onehot, (t * n, t), &Device::Cpu)?.matmul(z)?)
-    }
 }
 
 impl Smile {
@@ -297,14 +266,8 @@ impl Smile {
             specs.push(sample_context(demos, cfg.context_draw(), &mut self.rng));
             // Expert rows: uniform over the task's demo transitions.
             let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-            let total: usize = lens.iter().sum();
             for _ in 0..per_task {
-                let mut k = self.rng.random_range(0..total);
-                let mut j = 0;
-                while k >= lens[j] {
-                    k -= lens[j];
-                    j += 1;
-                }
+                let (j, k) = draw_transition(&lens, &mut self.rng);
                 let tr = &demos.trajectories[j];
                 self.disc.push_x(
                     norm,
@@ -353,8 +316,10 @@ impl Smile {
     /// One SAC step on fresh tasks and contexts with the discriminator's reward (Algorithm 1's
     /// inner loop, second half).
     pub fn sac_step(&mut self) -> Result<(SacStats, f32)> {
-        let (batch, reward_mean) = self.sac_batch()?;
-        let stats = self.sac.update(&batch, &mut self.rng)?;
+        let (batch, reward_mean, bc) = self.sac_batch()?;
+        let stats = self
+            .sac
+            .update_with_bc(&batch, bc.as_ref(), &mut self.rng)?;
         Ok((stats, reward_mean))
     }
 
@@ -370,7 +335,7 @@ impl Smile {
         // Everything that reads the discriminator or draws from the run's RNG happens here,
         // in a fixed order; then the two updates touch disjoint weights and optimisers.
         let disc_batch = self.sample_disc_batch()?;
-        let (sac_batch, reward_mean) = self.sac_batch()?;
+        let (sac_batch, reward_mean, bc) = self.sac_batch()?;
         let disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
         let worker = match &mut self.worker {
             Some(w) => w,
@@ -392,7 +357,9 @@ impl Smile {
             (self.disc_opt, self.enc_opt) = (job.disc_opt, job.enc_opt);
             return Err(overlap::DiscWorker::lost());
         }
-        let ss = self.sac.update(&sac_batch, &mut self.rng);
+        let ss = self
+            .sac
+            .update_with_bc(&sac_batch, bc.as_ref(), &mut self.rng);
         let done = worker.finish()?;
         self.disc_opt = done.disc_opt;
         self.enc_opt = done.enc_opt;
@@ -400,8 +367,8 @@ impl Smile {
     }
 
     /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's
-    /// reward; returns it with the reward's mean.
-    fn sac_batch(&mut self) -> Result<(Batch, f32)> {
+    /// reward; returns it with the reward's mean and, for SMILe + BC, the cloning term's rows.
+    fn sac_batch(&mut self) -> Result<(Batch, f32, Option<BcTerm>)> {
         let cfg = &self.cfg;
         let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
         let n = cfg.sac_per_task;
@@ -456,7 +423,30 @@ impl Smile {
             next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
             done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
         };
-        Ok((batch, reward_mean))
+        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
+        // when the weight is 0, so such a run is SMILe's, bit for bit.
+        let w = self.cfg.bc_weight_at(self.updates);
+        let bc = if w > 0.0 {
+            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
+            for &ti in &tasks {
+                let demos = &self.data.train[ti];
+                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+                for _ in 0..n {
+                    let (j, k) = draw_transition(&lens, &mut self.rng);
+                    let tr = &demos.trajectories[j];
+                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
+                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
+                }
+            }
+            Some(BcTerm {
+                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
+                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
+                weight: w,
+            })
+        } else {
+            None
+        };
+        Ok((batch, reward_mean, bc))
     }
 
     /// Deterministic evaluation on the held-out train tasks (contexts of
@@ -473,80 +463,15 @@ impl Smile {
     }
 }
 
-/// What one discriminator + encoder update changes: the networks and their optimisers.
-pub(crate) struct DiscLearner<'a> {
-    pub encoder: &'a ContextEncoder,
-    pub disc: &'a Discriminator,
-    pub disc_opt: &'a mut Adam,
-    pub enc_opt: &'a mut Adam,
-    pub gp_weight: f32,
-}
-
-/// One discriminator + encoder update on `batch` (shared by [`Smile::disc_step`] and
-/// `smile bench --workload disc`); `update` only names the step in a non-finite-loss error.
-pub(crate) fn disc_update(
-    l: DiscLearner<'_>,
-    batch: &DiscBatch,
-    update: u64,
-    rng: &mut impl Rng,
-) -> Result<DiscStats> {
-    let rows = batch.tasks * batch.per_task;
-    let z = l.encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
-    let z_rows = batch.z_rows(&z)?; // (t n, z)
-    let inp = Tensor::cat(
-        &[
-            &Tensor::cat(&[&batch.x_expert, &z_rows], 1)?,
-            &Tensor::cat(&[&batch.x_policy, &z_rows], 1)?,
-        ],
-        0,
-    )?;
-    let logits = l.disc.logits(&inp)?; // (2 t n, 1): expert rows, then policy rows
-    let labels = Tensor::cat(
-        &[
-            Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?,
-            Tensor::zeros((rows, 1), DType::F32, &Device::Cpu)?,
-        ],
-        0,
-    )?;
-    // L_bce = mean[softplus(l) - y l]
-    let bce = bce_with_logits(&logits, &labels)?;
-    // L_gp = mean[(||dD/dx~|| - 1)^2], x~ = u x_E + (1 - u) x_pi, z detached
-    let mut loss = bce.clone();
-    let mut gp_v = 0.0;
-    if l.gp_weight > 0.0 {
-        let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
-        let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu)?;
-        let gp = l
-            .disc
-            .gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u)?;
-        gp_v = scalar(&gp)?;
-        // L_D = L_bce + lambda_gp L_gp
-        loss = (loss + (gp * l.gp_weight as f64)?)?;
+/// A transition drawn uniformly from trajectories of `lens` transitions: (trajectory, step).
+fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
+    let mut k = rng.random_range(0..lens.iter().sum::<usize>());
+    let mut j = 0;
+    while k >= lens[j] {
+        k -= lens[j];
+        j += 1;
     }
-    let bce_v = scalar(&bce)?;
-    for (what, v) in [("losses/disc_bce", bce_v), ("losses/disc_gp", gp_v)] {
-        if !v.is_finite() {
-            return Err(Error::NonFinite {
-                what,
-                value: v,
-                update,
-            });
-        }
-    }
-    // One backward pass, two optimisers: the discriminator (betas (0, 0.999)) and the
-    // encoder (trained only through this loss).
-    let grads = loss.backward()?;
-    l.disc_opt.step(&grads)?;
-    l.enc_opt.step(&grads)?;
-    let lg = logits.detach().flatten_all()?.to_vec1::<f32>()?;
-    let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
-    let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
-    Ok(DiscStats {
-        bce: bce_v,
-        gp: gp_v,
-        acc_expert: acc_e,
-        acc_policy: acc_p,
-    })
+    (j, k)
 }
 
 /// Trains until `total_updates`, logging to `dir/metrics.jsonl`, evaluating on held-out train
@@ -601,6 +526,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         ];
         if let Some(s) = &ss {
             fields.extend(crate::io::sac_fields(s));
+        }
+        if cfg.bc_weight > 0.0 {
+            // The weight of the pair just done.
+            let w = cfg.bc_weight_at(run.updates.saturating_sub(1));
+            fields.push(("charts/bc_weight", w as f64));
         }
         log.log(run.updates, &fields)?;
         if run.updates >= next_eval || (run.updates >= cfg.total_updates && cfg.eval_every > 0) {

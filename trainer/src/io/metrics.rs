@@ -98,15 +98,19 @@ impl MetricsLog {
 }
 
 /// The SAC scalars under their log names.
-pub fn sac_fields(s: &SacStats) -> [(&'static str, f64); 6] {
-    [
+pub fn sac_fields(s: &SacStats) -> Vec<(&'static str, f64)> {
+    let mut f = vec![
         ("losses/qf", s.qf_loss as f64),
         ("losses/qf1_value", s.qf1_mean as f64),
         ("losses/actor", s.actor_loss as f64),
         ("losses/alpha", s.alpha_loss as f64),
         ("charts/alpha", s.alpha as f64),
         ("charts/entropy", s.entropy as f64),
-    ]
+    ];
+    if let Some(bc) = s.bc_loss {
+        f.push(("losses/bc", bc as f64));
+    }
+    f
 }
 
 /// CRC-32C (Castagnoli), as TFRecord uses.

@@ -8,6 +8,7 @@ pub mod export;
 pub mod lock;
 mod metrics;
 pub mod onnx;
+pub(crate) mod os_path;
 pub mod progress;
 
 pub use config::from_toml_over_defaults;

@@ -118,6 +118,7 @@ pub struct Cell {
     /// `smile train --algo`.
     pub algo: String,
     /// The demo file.
+    #[serde(with = "crate::io::os_path")]
     pub demos: PathBuf,
     /// The seed.
     pub seed: u64,
@@ -126,6 +127,7 @@ pub struct Cell {
     /// The full config given to `smile train --config` (base file + set + params + seed).
     pub config: String,
     /// Meta-DAgger's expert.
+    #[serde(with = "crate::io::os_path::option", default)]
     pub expert: Option<PathBuf>,
     /// What the training depends on (algorithm, full config, demo and expert paths), hashed:
     /// a cell directory trained for another key is stale, and two cells with one key are one

@@ -14,6 +14,7 @@
 //! finished evaluation is one whose `eval.json` parses, written last (atomically) by
 //! `smile eval`.
 
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -94,6 +95,7 @@ pub struct ManifestCell {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Manifest {
     /// The plan file.
+    #[serde(with = "crate::io::os_path")]
     pub plan: PathBuf,
     /// The family.
     pub env: String,
@@ -230,14 +232,16 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
     let log_path = dir.join("log.txt");
     let train_dir = dir.join("train");
     let env = sweep.family.name();
-    let demos = cell.demos.to_string_lossy().into_owned();
-    let s = |p: &Path| p.to_string_lossy().into_owned();
+    // Arguments as OS strings: a plan under a folder whose name is not UTF-8 passes its paths
+    // through unchanged (a lossy conversion would name files that do not exist).
+    let demos: OsString = cell.demos.clone().into_os_string();
+    let s = |p: &Path| -> OsString { p.as_os_str().to_owned() };
     if !train_dir
         .join("last")
         .join(crate::META_POLICY_FILE)
         .exists()
     {
-        let mut args: Vec<String> = vec!["train".into()];
+        let mut args: Vec<OsString> = vec!["train".into()];
         if train_dir
             .join(crate::io::checkpoint::CHECKPOINT_FILE)
             .exists()
@@ -246,7 +250,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
         } else {
             args.extend([
                 "--algo".into(),
-                cell.algo.clone(),
+                cell.algo.clone().into(),
                 "--config".into(),
                 s(&cfg_path),
             ]);
@@ -266,7 +270,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
         child(exe, &args, &log_path)?;
     }
     let e = &sweep.plan.eval;
-    let mut args: Vec<String> = vec![
+    let mut args: Vec<OsString> = vec![
         "eval".into(),
         "--policy".into(),
         s(&train_dir),
@@ -280,23 +284,24 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
         s(&dir.join("eval")),
     ];
     if let Some(h) = e.horizon {
-        args.extend(["--horizon".into(), h.to_string()]);
+        args.extend(["--horizon".into(), h.to_string().into()]);
     }
     if let Some(r) = e.rollouts {
-        args.extend(["--rollouts".into(), r.to_string()]);
+        args.extend(["--rollouts".into(), r.to_string().into()]);
     }
     if !e.context_sizes.is_empty() {
         let k: Vec<String> = e.context_sizes.iter().map(usize::to_string).collect();
-        args.extend(["--context-sizes".into(), k.join(",")]);
+        args.extend(["--context-sizes".into(), k.join(",").into()]);
     }
     if let Some(base) = &e.base {
-        let experts: Vec<String> = e.experts.iter().map(|p| s(p)).collect();
-        args.extend([
-            "--base".into(),
-            s(base),
-            "--expert".into(),
-            experts.join(","),
-        ]);
+        let mut experts = OsString::new();
+        for (i, p) in e.experts.iter().enumerate() {
+            if i > 0 {
+                experts.push(",");
+            }
+            experts.push(p);
+        }
+        args.extend(["--base".into(), s(base), "--expert".into(), experts]);
     }
     // An evaluation for other settings is made again; plan.json says which settings made it.
     let eval_dir = dir.join("eval");
@@ -306,7 +311,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
 }
 
 /// Runs `exe args` single-threaded with stdout and stderr appended to `log`.
-fn child(exe: &Path, args: &[String], log: &Path) -> Result<()> {
+fn child(exe: &Path, args: &[OsString], log: &Path) -> Result<()> {
     let open = || {
         std::fs::OpenOptions::new()
             .create(true)
@@ -319,7 +324,8 @@ fn child(exe: &Path, args: &[String], log: &Path) -> Result<()> {
     {
         use std::io::Write;
         let mut f = open()?;
-        let _ = writeln!(f, "$ smile {}", args.join(" "));
+        let shown: Vec<_> = args.iter().map(|a| a.to_string_lossy()).collect();
+        let _ = writeln!(f, "$ smile {}", shown.join(" "));
     }
     let status = Command::new(exe)
         .args(args)
@@ -333,7 +339,10 @@ fn child(exe: &Path, args: &[String], log: &Path) -> Result<()> {
         Ok(())
     } else {
         Err(Error::Child {
-            command: format!("smile {}", args.first().map_or("", String::as_str)),
+            command: format!(
+                "smile {}",
+                args.first().map_or("".into(), |a| a.to_string_lossy())
+            ),
             status: status.to_string(),
             log: log.to_path_buf(),
         })

@@ -52,6 +52,17 @@ pub fn write_scripts(
     })?;
     let (exe, plan) = (abs(exe)?, abs(plan_path)?);
     let out = abs(&sweep.out)?;
+    // A batch script is text: a path that is not UTF-8 cannot be written into it faithfully
+    // (a lossy copy would name another file), so it is refused by name.
+    for p in [&cwd, &dir, &exe, &plan, &out] {
+        if p.to_str().is_none() {
+            return Err(Error::Config(format!(
+                "Slurm batch scripts are text, and this path is not UTF-8: {}; run the sweep \
+                 from a UTF-8 path (or locally, `smile sweep PLAN` without --slurm, which passes paths as they are)",
+                p.display()
+            )));
+        }
+    }
     // `#SBATCH` lines are not parsed by a shell: no quoting there, so no whitespace either.
     for p in [&cwd, &dir] {
         if p.to_string_lossy().chars().any(char::is_whitespace) {

@@ -79,6 +79,15 @@ pub struct SmileConfig {
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
+    /// SMILe + BC (beyond the paper; issue 29): weight `w` of an auxiliary cloning term
+    /// `w mean ||tanh(mu([norm(s_E), z])) - a_E||^2` on SAC's actor loss, over `sac_per_task`
+    /// expert transitions of each task of the SAC batch, z that task's detached latent
+    /// (as in BC-augmented GAIL, Jena et al. 2020). State-action only: the state-only
+    /// variant has no expert actions. 0 is SMILe itself, bit for bit. Default 0.
+    pub bc_weight: f32,
+    /// Decay `bc_weight` linearly to 0 over this many update pairs (0: keep it constant);
+    /// after that the run is plain SMILe. Default 0.
+    pub bc_decay_updates: u64,
     /// walker-dyn: end the *training* rollouts when the walker falls. AIRL's reward is signed
     /// (log D - log(1 - D)): early in training the policy's transitions score below zero, and
     /// with termination the quickest way to stop losing reward is to fall. Without it a fallen
@@ -123,6 +132,8 @@ impl Default for SmileConfig {
             eval_context_size: 1,
             learner_threads: 1,
             checkpoint_every: 2000,
+            bc_weight: 0.0,
+            bc_decay_updates: 0,
             rollout_termination: false,
             horizon: None,
             seed: 0,
@@ -188,15 +199,37 @@ impl SmileConfig {
             ("logit_clamp", self.logit_clamp, self.logit_clamp > 0.0),
             ("disc_lr", self.disc_lr, self.disc_lr > 0.0),
             ("enc_lr", self.enc_lr, self.enc_lr > 0.0),
+            ("bc_weight", self.bc_weight, self.bc_weight >= 0.0),
         ] {
             if !(v.is_finite() && min_ok) {
-                let range = if key == "gp_weight" { ">= 0" } else { "> 0" };
+                let range = if matches!(key, "gp_weight" | "bc_weight") {
+                    ">= 0"
+                } else {
+                    "> 0"
+                };
                 return Err(Error::Config(format!(
                     "{key} must be a finite number {range}, not {v}"
                 )));
             }
         }
+        if self.bc_weight > 0.0 && self.context.state_only {
+            return Err(Error::Config(
+                "bc_weight > 0 (SMILe + BC) clones the expert's actions, and the state-only \
+                 variant has none: set bc_weight = 0 or train state-action SMILe"
+                    .into(),
+            ));
+        }
         Ok(())
+    }
+
+    /// The cloning term's weight for the update pair after `updates` pairs: `bc_weight`,
+    /// decayed linearly to 0 over `bc_decay_updates` pairs when that is set.
+    pub fn bc_weight_at(&self, updates: u64) -> f32 {
+        if self.bc_decay_updates == 0 {
+            return self.bc_weight;
+        }
+        let left = 1.0 - updates as f64 / self.bc_decay_updates as f64;
+        (self.bc_weight as f64 * left.max(0.0)) as f32
     }
 
     /// Algorithm name as used on the command line.

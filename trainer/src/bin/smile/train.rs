@@ -49,6 +49,10 @@ struct RunInfo {
     /// Meta-DAgger's relabelling expert: a `smile expert` run, or `scripted-pd`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     expert: Option<String>,
+    /// The expert's path as the OS gave it, when it is not UTF-8 (`expert` then holds a lossy
+    /// copy for people to read): `--resume` must find the very same file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    expert_os: Option<std::ffi::OsString>,
     /// SHA-256 of the `--demos` file the run started on: `--resume` refuses other demos (their
     /// normalisation and tasks would silently replace the run's). Absent in older runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -93,6 +97,10 @@ pub struct TrainArgs {
     /// Reward scale (SMILe), finite and > 0.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, f32::MIN_POSITIVE))]
     reward_scale: Option<f32>,
+    /// SMILe + BC: weight of the auxiliary cloning term on SAC's actor loss (state-action
+    /// SMILe), finite and >= 0; 0 is plain SMILe. `bc_decay_updates` in a config decays it.
+    #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
+    bc_weight: Option<f32>,
     /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file, or a
     /// folder of per-task experts (point-goal: the scripted PD expert if omitted; `--resume`
     /// reuses the run's expert).
@@ -165,6 +173,7 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
     Ok(RunInfo {
         algo: algo.name().into(),
         expert: None,
+        expert_os: None,
         demos_sha256: None,
     })
 }
@@ -211,7 +220,10 @@ pub fn run(mut a: TrainArgs) -> Result<()> {
             );
         }
         if a.expert.is_none() {
-            a.expert = rec.expert.map(PathBuf::from);
+            a.expert = rec
+                .expert_os
+                .map(PathBuf::from)
+                .or(rec.expert.map(PathBuf::from));
         }
         algo
     } else {
@@ -244,6 +256,7 @@ fn check_resume<T: serde::Serialize>(
                 "seed" => "--seed",
                 "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
                 "gp_weight" => "--gp-weight",
+                "bc_weight" => "--bc-weight",
                 "eval_every" => "--eval-every",
                 _ => "config.toml",
             };
@@ -267,13 +280,16 @@ fn check_resume<T: serde::Serialize>(
 fn start_run_dir(
     a: &TrainArgs,
     algo: Algo,
-    expert: Option<String>,
+    expert: Option<&std::path::Path>,
     demos_sha256: String,
 ) -> Result<trainer::DirLock> {
     let lock = trainer::DirLock::acquire(&a.out)?;
     let info = RunInfo {
         algo: algo.name().into(),
-        expert,
+        expert: expert.map(|p| p.to_string_lossy().into_owned()),
+        expert_os: expert
+            .filter(|p| p.to_str().is_none())
+            .map(|p| p.as_os_str().to_owned()),
         demos_sha256: Some(demos_sha256),
     };
     trainer::checkpoint::write_atomic(
@@ -308,6 +324,9 @@ fn train_smile(
     }
     if let Some(v) = a.reward_scale {
         cfg.sac.reward_scale = v;
+    }
+    if let Some(v) = a.bc_weight {
+        cfg.bc_weight = v;
     }
     if let Some(v) = a.eval_every {
         cfg.eval_every = v;
@@ -367,6 +386,18 @@ fn train_bc(
     ds: &DemoDataset,
     demos_sha: String,
 ) -> Result<()> {
+    for (flag, given) in [
+        ("--gp-weight", a.gp_weight.is_some()),
+        ("--reward-scale", a.reward_scale.is_some()),
+        ("--bc-weight", a.bc_weight.is_some()),
+    ] {
+        if given {
+            bail!(
+                "{flag} is a SMILe setting; {} has no such setting",
+                algo.name()
+            );
+        }
+    }
     let mut cfg: MetaBcConfig = read_toml(&a)?;
     cfg.env = family.name().into();
     cfg.dagger = algo == Algo::MetaDagger;
@@ -408,12 +439,12 @@ fn train_bc(
         MetaBc::new(cfg, data, expert)?
     };
     let cfg = run.config().clone();
-    let expert_name = match (&a.expert, cfg.dagger) {
-        (Some(p), true) => Some(p.display().to_string()),
-        (None, true) => Some(SCRIPTED_PD.to_string()),
+    let expert_path = match (&a.expert, cfg.dagger) {
+        (Some(p), true) => Some(p.as_path()),
+        (None, true) => Some(std::path::Path::new(SCRIPTED_PD)),
         (_, false) => None,
     };
-    let _lock = start_run_dir(&a, algo, expert_name, demos_sha)?;
+    let _lock = start_run_dir(&a, algo, expert_path, demos_sha)?;
     trainer::checkpoint::write_atomic(
         &a.out.join("config.toml"),
         toml::to_string(&cfg)?.as_bytes(),
