@@ -32,3 +32,54 @@ fn results_configs_parse_and_validate() {
         assert_eq!(bc.context.enc_hidden, vec![128, 128], "{name}");
     }
 }
+
+/// The authors' presets (issue 32; docs/PRESETS.md): one per family, each with the values of
+/// their spec that the table there lists.
+#[test]
+fn the_authors_presets_hold_their_recipe() {
+    for (name, reward_scale, actor, max_context) in [
+        ("authors-cv-smile.toml", 24.0, None, 4),
+        ("authors-wd-smile.toml", 24.0, None, 4),
+        ("authors-ag-smile.toml", 4.0, Some(vec![512; 3]), 4),
+        ("authors-alc-smile.toml", 4.0, Some(vec![512; 3]), 8),
+    ] {
+        let c: SmileConfig = toml::from_str(&read(name)).unwrap();
+        c.validate().unwrap();
+        assert_eq!(c.disc_hidden, vec![512; 3], "{name}");
+        assert_eq!((c.gp_weight, c.logit_clamp), (10.0, 10.0), "{name}");
+        assert_eq!(
+            (
+                c.context.enc_hidden.clone(),
+                c.context.r_dim,
+                c.context.z_dim
+            ),
+            (vec![256, 256], 64, 64),
+            "{name}"
+        );
+        assert_eq!(c.sac.hidden, vec![256; 3], "{name}");
+        assert_eq!(c.sac.actor_hidden, actor, "{name}");
+        assert!(!c.sac.learn_alpha && c.sac.init_alpha == 1.0, "{name}");
+        assert_eq!(
+            (c.sac.reward_scale, c.sac.policy_reg),
+            (reward_scale, 1e-3),
+            "{name}"
+        );
+        assert_eq!(
+            (c.tasks_per_batch, c.sac_per_task, c.disc_per_task),
+            (8, 128, 128),
+            "{name}"
+        );
+        assert_eq!(
+            (c.rollouts_per_iter, c.updates_per_iter, c.replay_per_task),
+            (5, 100, 50_000),
+            "{name}"
+        );
+        assert_eq!(c.max_context, max_context, "{name}");
+        // The actor takes its own widths where the preset gives them; the critics keep theirs.
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+        let sac = trainer::sac::Sac::new(10, 2, c.sac.clone(), &mut rng).unwrap();
+        let want = actor.unwrap_or(vec![256; 3]);
+        assert_eq!(sac.actor.net().widths()[1..4], want[..], "{name}");
+        assert_eq!(sac.q1.widths()[1..4], [256; 3], "{name}");
+    }
+}

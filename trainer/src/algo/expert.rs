@@ -206,7 +206,10 @@ impl ExpertTrainer {
             ));
         }
         let source: ExpertConfig = ck.meta_field("config")?;
-        if source.env != self.cfg.env || source.sac.hidden != self.cfg.sac.hidden {
+        if source.env != self.cfg.env
+            || source.sac.hidden != self.cfg.sac.hidden
+            || source.sac.actor_hidden != self.cfg.sac.actor_hidden
+        {
             return Err(foreign(format!(
                 "a {} expert with hidden {:?} cannot start a {} expert with hidden {:?}",
                 source.env, source.sac.hidden, self.cfg.env, self.cfg.sac.hidden

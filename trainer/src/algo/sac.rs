@@ -32,6 +32,10 @@ pub struct SacConfig {
     /// Hidden widths of the actor and of each critic. Default `[256, 256]` (SAC-v2; proto's
     /// HalfCheetah expert; ref used 3 x 256).
     pub hidden: Vec<usize>,
+    /// Hidden widths of the actor when they differ from the critics' (`hidden`). Default
+    /// None: the actor uses `hidden` (ref's ant policy was 3 x 512 beside 3 x 256 critics).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub actor_hidden: Option<Vec<usize>>,
     /// Discount factor. Default 0.99 (SAC-v2, ref).
     pub gamma: f32,
     /// Polyak rate of the target critics. Default 0.005 (SAC-v2, ref).
@@ -67,6 +71,7 @@ impl Default for SacConfig {
     fn default() -> Self {
         Self {
             hidden: vec![256, 256],
+            actor_hidden: None,
             gamma: 0.99,
             tau: 0.005,
             actor_lr: 3e-4,
@@ -91,6 +96,11 @@ impl SacConfig {
         let bad = |m: String| Err(Error::Config(m));
         if self.hidden.is_empty() || self.hidden.contains(&0) {
             return bad("sac.hidden needs at least one positive width".into());
+        }
+        if let Some(h) = self.actor_hidden.as_ref().filter(|h| h.is_empty() || h.contains(&0)) {
+            return bad(format!(
+                "sac.actor_hidden needs at least one positive width, not {h:?}"
+            ));
         }
         for (key, v) in [("sac.gamma", self.gamma), ("sac.tau", self.tau)] {
             if !(0.0..=1.0).contains(&v) {
@@ -193,7 +203,8 @@ impl Sac {
     pub fn new(obs_dim: usize, act_dim: usize, cfg: SacConfig, rng: &mut impl Rng) -> Result<Self> {
         cfg.validate()?;
         let bounds = (cfg.log_std_min, cfg.log_std_max);
-        let actor = TanhGaussianPolicy::new(obs_dim, act_dim, &cfg.hidden, bounds, rng)?;
+        let actor_widths = cfg.actor_hidden.as_ref().unwrap_or(&cfg.hidden);
+        let actor = TanhGaussianPolicy::new(obs_dim, act_dim, actor_widths, bounds, rng)?;
         let mut qw = vec![obs_dim + act_dim];
         qw.extend_from_slice(&cfg.hidden);
         qw.push(1);

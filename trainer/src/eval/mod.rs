@@ -71,9 +71,32 @@ pub struct Protocol {
     /// from a stream seeded by the episode's seed, so evaluations repeat exactly.
     #[serde(default)]
     pub action_noise: f32,
+    /// walker-dyn: the SMILe authors' walker evaluation (their `terminal = False`): every
+    /// episode runs the whole horizon and the alive bonus keeps accruing after a fall, so
+    /// returns compare with the paper's. false, this project's protocol: a fall ends the
+    /// episode. Reports record which one made them.
+    #[serde(default)]
+    pub run_through_falls: bool,
 }
 
 impl Protocol {
+    /// The episode options of this protocol.
+    pub fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            horizon: self.horizon,
+            healthy_termination: !self.run_through_falls,
+        }
+    }
+
+    /// The protocol's name in reports: which walker evaluation made the numbers.
+    pub fn label(&self) -> &'static str {
+        if self.run_through_falls {
+            "authors' (episodes run through falls)"
+        } else {
+            "falls end episodes"
+        }
+    }
+
     /// The reference protocol of `family` (§5).
     pub fn for_family(family: Family) -> Self {
         match family {
@@ -83,6 +106,7 @@ impl Protocol {
                 rollouts: 5,
                 horizon: None,
                 action_noise: 0.0,
+                run_through_falls: false,
             },
             Family::WalkerDyn => Self {
                 context_sizes: vec![1],
@@ -90,6 +114,7 @@ impl Protocol {
                 rollouts: 1,
                 horizon: None,
                 action_noise: 0.0,
+                run_through_falls: false,
             },
             // Aggregating demos is what this family tests: the success per context size.
             Family::AntLinClass => Self {
@@ -98,6 +123,7 @@ impl Protocol {
                 rollouts: 5,
                 horizon: None,
                 action_noise: 0.0,
+                run_through_falls: false,
             },
             // point-goal and ant-goal (the paper's Figure 2 protocol).
             _ => Self {
@@ -106,6 +132,7 @@ impl Protocol {
                 rollouts: 10,
                 horizon: None,
                 action_noise: 0.0,
+                run_through_falls: false,
             },
         }
     }
@@ -377,11 +404,7 @@ pub fn evaluate(
 ) -> Result<MethodResult> {
     let tasks = family.tasks(split);
     let demos = contexts_for(contexts, family, &tasks)?;
-    let env_cfg = EnvConfig {
-        horizon: protocol.horizon,
-        ..EnvConfig::default()
-    };
-    let mut env = sim::make_env(family, env_cfg)?;
+    let mut env = sim::make_env(family, protocol.env_config())?;
     let mut results = Vec::with_capacity(tasks.len());
     let mut no_op_rows: Vec<Option<Vec<f32>>> = Vec::with_capacity(tasks.len());
     let mut all = Vec::new();

@@ -14,7 +14,7 @@
 
 use std::path::Path;
 
-use sim::{EnvConfig, Environment, Family, Split, Task};
+use sim::{Environment, Family, Split, Task};
 
 use crate::algo::expert::{Expert, ExpertSet};
 use crate::data::run_episode;
@@ -102,10 +102,7 @@ impl References {
             .iter()
             .map(|t| self.experts.for_task(t))
             .collect::<Result<Vec<_>>>()?;
-        let env_cfg = EnvConfig {
-            horizon: protocol.horizon,
-            ..EnvConfig::default()
-        };
+        let env_cfg = protocol.env_config();
         let mut env = sim::make_env(self.family, env_cfg)?;
         let nominal = self.nominal.parameter();
         let (mut base_returns, mut expert_returns) = (Vec::new(), Vec::new());

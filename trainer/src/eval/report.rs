@@ -142,6 +142,15 @@ impl Report {
         let mut head: Option<EvalReport> = None;
         let mut take = |rep: EvalReport, origin: &Path| -> Result<Vec<MethodResult>> {
             if let Some(h) = &head {
+                if h.protocol.run_through_falls != rep.protocol.run_through_falls {
+                    return Err(Error::Data(format!(
+                        "{} was evaluated with the walker protocol \"{}\", the first with \"{}\": \
+                         returns of the two are not comparable",
+                        origin.display(),
+                        rep.protocol.label(),
+                        h.protocol.label()
+                    )));
+                }
                 if (h.env.as_str(), h.metric.as_str(), &h.protocol.context_sizes)
                     != (
                         rep.env.as_str(),

@@ -10,7 +10,7 @@ impl EvalReport {
     /// means (and per-context-size means when there are several sizes).
     pub fn markdown(&self) -> String {
         let mut s = format!(
-            "# {} on {} ({} tasks), metric: {} ({} is better)\n\nProtocol: context sizes {:?}, {} draws x {} deterministic rollouts, z = posterior mean.\n\n| task |",
+            "# {} on {} ({} tasks), metric: {} ({} is better)\n\nProtocol: context sizes {:?}, {} draws x {} deterministic rollouts, z = posterior mean{}.\n\n| task |",
             self.env,
             self.split,
             self.methods.first().map_or(0, |m| m.tasks.len()),
@@ -22,7 +22,12 @@ impl EvalReport {
             },
             self.protocol.context_sizes,
             self.protocol.draws,
-            self.protocol.rollouts
+            self.protocol.rollouts,
+            if self.env == sim::Family::WalkerDyn.name() {
+                format!("; walker protocol: {}", self.protocol.label())
+            } else {
+                String::new()
+            }
         );
         let refs = self.reference.as_ref();
         for m in &self.methods {

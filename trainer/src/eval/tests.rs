@@ -141,6 +141,7 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
         rollouts: 1,
         horizon: Some(4),
         action_noise: 0.0,
+        run_through_falls: false,
     };
     let family = Family::AntLinClass;
     let m = evaluate(
@@ -190,6 +191,7 @@ fn action_noise_perturbs_every_episode_reproducibly_and_zero_changes_nothing() {
             rollouts: 2,
             horizon: Some(20),
             action_noise: sigma,
+            run_through_falls: false,
         };
         evaluate(
             &mut StandStill,
@@ -211,4 +213,44 @@ fn action_noise_perturbs_every_episode_reproducibly_and_zero_changes_nothing() {
     let old: Protocol =
         serde_json::from_str(r#"{"context_sizes": [1], "draws": 1, "rollouts": 1}"#).unwrap();
     assert_eq!(old.action_noise, 0.0);
+}
+
+/// The SMILe authors' walker evaluation (`terminal = False`) runs every episode to the horizon
+/// with the alive bonus after a fall; this project's protocol ends an episode at the fall. A
+/// walker given no torque falls within the first second.
+#[test]
+fn the_authors_walker_protocol_runs_through_falls() {
+    let contexts = DemoDataset::read(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../assets/experts/walker-dyn/demos-test-4x-sub20.safetensors"),
+    )
+    .unwrap();
+    let run = |run_through_falls: bool| {
+        let protocol = Protocol {
+            horizon: Some(300),
+            run_through_falls,
+            ..Protocol::for_family(Family::WalkerDyn)
+        };
+        evaluate(
+            &mut StandStill,
+            "still",
+            Family::WalkerDyn,
+            Split::Test,
+            &contexts,
+            &protocol,
+            &mut |_, _| {},
+        )
+        .unwrap()
+    };
+    let (falls_end, authors) = (run(false), run(true));
+    // 300 steps of alive bonus 1, give or take the fall's velocity.
+    assert!(
+        authors.mean > 250.0 && falls_end.mean < 0.5 * authors.mean,
+        "mean return: falls end {:.1}, authors' {:.1}",
+        falls_end.mean,
+        authors.mean
+    );
+    let old: Protocol =
+        serde_json::from_str(r#"{"context_sizes": [1], "draws": 1, "rollouts": 1}"#).unwrap();
+    assert!(!old.run_through_falls, "an older eval.json is this project's protocol");
 }

@@ -84,9 +84,11 @@ pub struct SmileConfig {
     /// expert transitions of each task of the SAC batch, z that task's detached latent
     /// (as in BC-augmented GAIL, Jena et al. 2020). State-action only: the state-only
     /// variant has no expert actions. 0 is SMILe itself, bit for bit. Default 0.
+    #[serde(skip_serializing_if = "is_zero_f32")]
     pub bc_weight: f32,
     /// Decay `bc_weight` linearly to 0 over this many update pairs (0: keep it constant);
     /// after that the run is plain SMILe. Default 0.
+    #[serde(skip_serializing_if = "is_zero_u64")]
     pub bc_decay_updates: u64,
     /// walker-dyn: end the *training* rollouts when the walker falls. AIRL's reward is signed
     /// (log D - log(1 - D)): early in training the policy's transitions score below zero, and
@@ -99,6 +101,16 @@ pub struct SmileConfig {
     pub horizon: Option<usize>,
     /// Seed of everything. Default 0.
     pub seed: u64,
+}
+
+// Settings that are off are not written, so plain SMILe runs' config.toml and checkpoints
+// read as they did before these settings existed.
+fn is_zero_f32(v: &f32) -> bool {
+    *v == 0.0
+}
+
+fn is_zero_u64(v: &u64) -> bool {
+    *v == 0
 }
 
 impl Default for SmileConfig {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use indicatif::ProgressBar;
-use sim::{EnvConfig, Family, Split};
+use sim::{Family, Split};
 use trainer::MetaPolicy;
 use trainer::eval::norm::References;
 use trainer::eval::{self, EvalReport, Protocol};
@@ -41,6 +41,12 @@ pub struct EvalArgs {
     /// (a compounding-error probe; seeded per episode). 0 is the paper's protocol.
     #[arg(long, default_value_t = 0.0, value_parser = parse_noise)]
     action_noise: f32,
+    /// walker-dyn evaluation protocol: `falls-end` (this project's: a fall ends the episode)
+    /// or `authors` (the SMILe authors' `terminal = False`: every episode runs the whole
+    /// horizon and the alive bonus keeps accruing after a fall; returns compare with the
+    /// paper's). The report records which.
+    #[arg(long, value_enum, default_value_t = WalkerProtocol::FallsEnd)]
+    walker_protocol: WalkerProtocol,
     /// Also save one animated SVG episode per method (first task, first context trajectory).
     #[arg(long)]
     render: bool,
@@ -61,11 +67,13 @@ pub struct EvalArgs {
     quiet: bool,
 }
 
-fn env_cfg(horizon: Option<usize>) -> EnvConfig {
-    EnvConfig {
-        horizon,
-        ..EnvConfig::default()
-    }
+/// `--walker-protocol`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum WalkerProtocol {
+    /// A fall ends the episode (this project's protocol).
+    FallsEnd,
+    /// Episodes run through falls, alive bonus included (the SMILe authors' walker evaluation).
+    Authors,
 }
 
 fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
@@ -97,6 +105,13 @@ pub fn run(a: EvalArgs) -> Result<()> {
     }
     protocol.horizon = a.horizon;
     protocol.action_noise = a.action_noise;
+    if a.walker_protocol == WalkerProtocol::Authors {
+        if family != Family::WalkerDyn {
+            bail!("--walker-protocol authors is walker-dyn's evaluation, not {family}'s");
+        }
+        protocol.run_through_falls = true;
+        eprintln!("walker protocol: {}", protocol.label());
+    }
     // Everything is loaded and checked before any rollout, so a wrong policy, context file,
     // base or expert fails fast.
     let mut policies = Vec::with_capacity(a.policy.len());
@@ -164,7 +179,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
                 family,
                 &task,
                 &[&tds[0].trajectories[0]],
-                env_cfg(a.horizon),
+                protocol.env_config(),
                 &path,
             )?;
             eprintln!("rendered {} (metric {m:.3})", path.display());
