@@ -89,6 +89,7 @@ fn run(a: &Args) -> trainer::Result<serde_json::Value> {
             rollouts: a.rollouts,
             horizon: None,
             action_noise: sigma,
+            run_through_falls: false,
         };
         let m = eval::evaluate(
             &mut policy,

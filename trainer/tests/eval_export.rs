@@ -49,6 +49,7 @@ fn eval_report_and_blob_parity() {
         rollouts: 1,
         horizon: Some(30),
         action_noise: 0.0,
+        run_through_falls: false,
     };
     let r = eval::evaluate(
         &mut mp,

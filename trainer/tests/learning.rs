@@ -26,6 +26,7 @@ fn test_metric(mp: &mut MetaPolicy, contexts: &DemoDataset) -> f32 {
         rollouts: 1,
         horizon: Some(HORIZON),
         action_noise: 0.0,
+        run_through_falls: false,
     };
     eval::evaluate(
         mp,

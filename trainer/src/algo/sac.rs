@@ -97,7 +97,11 @@ impl SacConfig {
         if self.hidden.is_empty() || self.hidden.contains(&0) {
             return bad("sac.hidden needs at least one positive width".into());
         }
-        if let Some(h) = self.actor_hidden.as_ref().filter(|h| h.is_empty() || h.contains(&0)) {
+        if let Some(h) = self
+            .actor_hidden
+            .as_ref()
+            .filter(|h| h.is_empty() || h.contains(&0))
+        {
             return bad(format!(
                 "sac.actor_hidden needs at least one positive width, not {h:?}"
             ));

@@ -252,5 +252,8 @@ fn the_authors_walker_protocol_runs_through_falls() {
     );
     let old: Protocol =
         serde_json::from_str(r#"{"context_sizes": [1], "draws": 1, "rollouts": 1}"#).unwrap();
-    assert!(!old.run_through_falls, "an older eval.json is this project's protocol");
+    assert!(
+        !old.run_through_falls,
+        "an older eval.json is this project's protocol"
+    );
 }
