@@ -65,8 +65,8 @@ impl FromStr for Sensing {
 pub fn default_accel_std(family: Family) -> f32 {
     match family {
         Family::PointGoal => 2.0,
-        // The legged robots (and any later family): joints accelerate fast.
-        _ => 50.0,
+        // The legged robots: joints accelerate fast.
+        Family::CheetahVel | Family::WalkerDyn | Family::AntGoal | Family::AntLinClass => 50.0,
     }
 }
 

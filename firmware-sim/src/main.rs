@@ -428,7 +428,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
         for i in 0..episodes {
             let context = [&trajectories[i % trajectories.len()]];
             let control = LoopConfig {
-                seed: 7_000_000 + i as u64,
+                seed: sim::seeds::EVALUATION_SEED + i as u64,
                 ..LoopConfig::default()
             };
             let session = run_session(

@@ -72,7 +72,10 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
             // Where the family observes its (x, y): point-goal first, the ant's torso last.
             let xy = match family {
                 Family::AntGoal => sim::ant::obs::XY,
-                _ => 0,
+                Family::PointGoal
+                | Family::CheetahVel
+                | Family::WalkerDyn
+                | Family::AntLinClass => 0,
             };
             let mut chart = ChartBuilder::on(&root)
                 .caption(title, ("sans-serif", 18))
@@ -107,7 +110,7 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
                 .border_style(BLACK)
                 .draw()?;
         }
-        _ => {
+        Family::CheetahVel | Family::WalkerDyn | Family::AntLinClass => {
             let t_max = report.records.last().map_or(1.0, |r| r.time.max(1e-3));
             let target = if family == Family::CheetahVel {
                 report.task.value() as f32

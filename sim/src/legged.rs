@@ -92,7 +92,9 @@ impl PlanarLeggedEnv {
     fn velocity_clip(&self) -> f32 {
         match self.family {
             Family::WalkerDyn => WALKER_VELOCITY_CLIP,
-            _ => f32::INFINITY,
+            Family::CheetahVel | Family::PointGoal | Family::AntGoal | Family::AntLinClass => {
+                f32::INFINITY
+            }
         }
     }
 

@@ -34,6 +34,7 @@ pub mod planar;
 pub mod point_goal;
 pub mod render;
 mod robots;
+pub mod seeds;
 mod sensing;
 mod task;
 

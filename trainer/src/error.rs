@@ -26,7 +26,7 @@ pub enum Error {
     /// A loss or statistic became NaN or infinite.
     #[error("non-finite {what} ({value}) at update {update}")]
     NonFinite {
-        /// Which quantity diverged, e.g. `losses/qf`.
+        /// Which quantity diverged, e.g. `losses/qf_loss`.
         what: &'static str,
         /// Its value.
         value: f32,

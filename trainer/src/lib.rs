@@ -72,6 +72,4 @@ pub use io::{checkpoint, export, onnx};
 pub use io::{DirLock, lock};
 
 /// The metrics log (JSON lines + TensorBoard events) and the progress-bar style.
-pub use io::{
-    METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults, sac_fields,
-};
+pub use io::{METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults};

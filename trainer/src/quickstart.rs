@@ -166,7 +166,7 @@ fn shipped_demos(family: Family) -> (&'static str, &'static str) {
             "demos-train-16x-sub5.safetensors",
             "demos-test-16x-sub5.safetensors",
         ),
-        _ => (
+        Family::PointGoal | Family::CheetahVel | Family::WalkerDyn | Family::AntGoal => (
             "demos-train-4x-sub20.safetensors",
             "demos-test-4x-sub20.safetensors",
         ),
@@ -338,7 +338,7 @@ fn smile_config(args: &QuickstartConfig) -> SmileConfig {
         // cheetah-vel and walker-dyn: the reference's section 7 cheetah prototype, 4 rollouts
         // then 200 update pairs, encoder 2 x 128; 40k pairs at the paper's horizon
         // (docs/configs/cv1000-smile.toml).
-        _ => {
+        Family::CheetahVel | Family::WalkerDyn => {
             (cfg.rollouts_per_iter, cfg.updates_per_iter) = (4, 200);
             cfg.context.enc_hidden = vec![128, 128];
             (cfg.total_updates, cfg.eval_every, cfg.checkpoint_every) = (60_000, 2_000, 4_000);

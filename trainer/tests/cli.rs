@@ -59,7 +59,7 @@ fn expert_resume_demos_pipeline() {
     }
     let m = last_metrics(&run);
     assert_eq!(m["step"], 60);
-    assert!(m["losses/qf"].is_number() && m["charts/sps"].is_number());
+    assert!(m["losses/qf_loss"].is_number() && m["charts/sps"].is_number());
 
     ok(&smile(&[
         "expert",

@@ -213,7 +213,7 @@ fn non_finite_loss_names_the_update() {
     let b = rb.sample(4, &mut rng).unwrap();
     match sac.update(&b, &mut rng) {
         Err(trainer::Error::NonFinite { what, update, .. }) => {
-            assert_eq!((what, update), ("losses/qf", 1));
+            assert_eq!((what, update), ("losses/qf_loss", 1));
         }
         other => panic!("expected NonFinite, got {other:?}"),
     }

@@ -265,7 +265,7 @@ impl ExpertTrainer {
         let reset_seed = self
             .cfg
             .seed
-            .wrapping_mul(1_000_003)
+            .wrapping_mul(sim::seeds::TRAINING_SEED_STRIDE)
             .wrapping_add(self.episodes);
         self.env.reset(&task, reset_seed)?;
         let (od, ad) = (self.family.oracle_obs_dim(), self.family.act_dim());
@@ -443,7 +443,7 @@ pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> 
             ("charts/updates", run.sac.updates() as f64),
         ];
         if let Some(s) = &rep.last_update {
-            fields.extend(crate::io::sac_fields(s));
+            fields.extend(s.fields());
         }
         log.log(rep.env_steps, &fields)?;
         on(Event::Episode(rep, sps));

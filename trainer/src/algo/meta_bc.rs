@@ -293,7 +293,7 @@ impl MetaBc {
             let z = mp.latent(&ctx)?;
             let task = self.data.train[ti].task;
             let expert = expert.for_task(&task)?;
-            let seed = 5_000_000 + self.episodes;
+            let seed = sim::seeds::DAGGER_SEED + self.episodes;
             let (rng, pairs) = (&mut self.rng, &mut self.pairs[ti]);
             let mut a_exp = vec![0.0f32; self.data.family.act_dim()];
             run_episode(

@@ -147,24 +147,43 @@ impl SacConfig {
     }
 }
 
-/// Scalars reported by one update (names as in the metrics log).
+/// Scalars reported by one update, under the names CleanRL's SAC logs them with (so a CleanRL
+/// user overlaying the curves reads each one as what it is).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SacStats {
-    /// `losses/qf`: summed critic MSE.
+    /// `losses/qf_loss`: the critics' mean squared TD error, averaged over the two critics.
     pub qf_loss: f32,
-    /// `losses/qf1_value`: mean Q1(s, a) on the batch.
+    /// `losses/qf1_values`: mean Q1(s, a) on the batch.
     pub qf1_mean: f32,
-    /// `losses/actor`.
+    /// `losses/actor_loss`.
     pub actor_loss: f32,
-    /// `losses/alpha`.
+    /// `losses/alpha_loss`: the temperature's loss (0 with a fixed temperature).
     pub alpha_loss: f32,
-    /// `charts/alpha`: temperature used in this update.
+    /// `charts/alpha`: the temperature's value used in this update.
     pub alpha: f32,
     /// `charts/entropy`: `-mean log pi(a~|s)`.
     pub entropy: f32,
     /// `losses/bc`: the cloning term's `mean ||tanh(mu(s_E)) - a_E||^2` before its weight
     /// (`None` without a [`BcTerm`]).
     pub bc_loss: Option<f32>,
+}
+
+impl SacStats {
+    /// The scalars under their metric names, for the metrics log.
+    pub fn fields(&self) -> Vec<(&'static str, f64)> {
+        let mut f = vec![
+            ("losses/qf_loss", self.qf_loss as f64),
+            ("losses/qf1_values", self.qf1_mean as f64),
+            ("losses/actor_loss", self.actor_loss as f64),
+            ("losses/alpha_loss", self.alpha_loss as f64),
+            ("charts/alpha", self.alpha as f64),
+            ("charts/entropy", self.entropy as f64),
+        ];
+        if let Some(bc) = self.bc_loss {
+            f.push(("losses/bc", bc as f64));
+        }
+        f
+    }
 }
 
 /// An auxiliary behaviour-cloning term on the actor's loss (SMILe + BC, after Jena et al.
@@ -316,7 +335,8 @@ impl Sac {
         let q1 = self.q1.forward(&sa)?;
         let q2 = self.q2.forward(&sa)?;
         let qf_loss = ((&q1 - &y)?.sqr()?.mean_all()? + (&q2 - &y)?.sqr()?.mean_all()?)?;
-        let qf_loss_v = self.finite("losses/qf", scalar(&qf_loss)?)?;
+        // Summed over the two critics for the step; logged as their mean, as CleanRL does.
+        let qf_loss_v = self.finite("losses/qf_loss", scalar(&qf_loss)?)? / 2.0;
         self.critic_opt.backward_step(&qf_loss)?;
 
         // 2. actor. L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
@@ -335,7 +355,7 @@ impl Sac {
             bc_loss_v = Some(self.finite("losses/bc", scalar(&bc_loss)?)?);
             actor_loss = (actor_loss + (bc_loss * bc.weight as f64)?)?;
         }
-        let actor_loss_v = self.finite("losses/actor", scalar(&actor_loss)?)?;
+        let actor_loss_v = self.finite("losses/actor_loss", scalar(&actor_loss)?)?;
         self.actor_opt.backward_step(&actor_loss)?;
 
         // 3. temperature. L_alpha = -log(alpha) * mean(log pi(a~|s) + H_target)
@@ -345,7 +365,7 @@ impl Sac {
             let alpha_loss = (self.log_alpha.as_tensor()
                 * -(mean_logp + self.target_entropy) as f64)?
                 .sum_all()?;
-            alpha_loss_v = self.finite("losses/alpha", scalar(&alpha_loss)?)?;
+            alpha_loss_v = self.finite("losses/alpha_loss", scalar(&alpha_loss)?)?;
             self.alpha_opt.backward_step(&alpha_loss)?;
         }
 

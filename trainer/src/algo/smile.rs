@@ -221,7 +221,7 @@ impl Smile {
         let seed = self
             .cfg
             .seed
-            .wrapping_mul(1_000_003)
+            .wrapping_mul(sim::seeds::TRAINING_SEED_STRIDE)
             .wrapping_add(self.episodes);
         let (actor, norm, rng) = (&self.sac.actor, &self.data.norm, &mut self.rng);
         let replay = self.replay.task_mut(ti);
@@ -525,7 +525,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             ("charts/env_steps", run.env_steps as f64),
         ];
         if let Some(s) = &ss {
-            fields.extend(crate::io::sac_fields(s));
+            fields.extend(s.fields());
         }
         if cfg.bc_weight > 0.0 {
             // The weight of the pair just done.

@@ -125,7 +125,7 @@ pub fn quick_eval(
                 (0..k).map(|j| trajs[(d * k + j) % trajs.len()]).collect();
             let z = mp.latent(&context)?;
             for e in 0..episodes.max(1) {
-                let seed = 3_000_000 + (d * 1000 + e) as u64;
+                let seed = sim::seeds::VALIDATION_SEED + (d * 1000 + e) as u64;
                 let ep = run_episode(
                     env.as_mut(),
                     &td.task,

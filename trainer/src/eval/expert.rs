@@ -206,7 +206,7 @@ pub fn evaluate_under_noise(
     for task in tasks {
         let mut sum = 0.0f32;
         for k in 0..episodes {
-            let seed = 1_000_000 + k as u64;
+            let seed = sim::seeds::EXPERT_EVAL_SEED + k as u64;
             env.reset(task, seed)?;
             let mut noise = super::ActionNoise::new(action_noise, seed);
             let mut m = EpisodeMetric::new(family);

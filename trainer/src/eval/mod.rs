@@ -126,7 +126,7 @@ impl Protocol {
                 run_through_falls: false,
             },
             // point-goal and ant-goal (the paper's Figure 2 protocol).
-            _ => Self {
+            Family::PointGoal | Family::AntGoal => Self {
                 context_sizes: vec![1],
                 draws: 3,
                 rollouts: 10,
@@ -266,7 +266,7 @@ pub fn normalised_score(method: &[f32], base: &[f32], expert: &[f32]) -> Result<
 /// the reference policies of the normalised metric reuse them too, so all face the same
 /// initial states.
 pub fn episode_seed(draw: usize, rollout: usize) -> u64 {
-    7_000_000 + (draw * 1000 + rollout) as u64
+    sim::seeds::EVALUATION_SEED + (draw * 1000 + rollout) as u64
 }
 
 /// A whole evaluation.
@@ -554,7 +554,7 @@ pub fn render_episode(
 ) -> Result<f32> {
     let mut env = sim::make_env(family, env_cfg)?;
     let z = actor.latent(context)?;
-    env.reset(task, 7_000_000)?;
+    env.reset(task, sim::seeds::EVALUATION_SEED)?;
     let mut frames = vec![env.frame()];
     let mut metric = sim::EpisodeMetric::new(family);
     let mut action = vec![0.0f32; family.act_dim()];

@@ -161,12 +161,7 @@ impl EvalReport {
         let mut svg = String::new();
         let root = SVGBackend::with_string(&mut svg, (760, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let x_desc = match self.env.as_str() {
-            "point-goal" | "ant-goal" => "goal angle (rad)",
-            "cheetah-vel" => "target velocity (m/s)",
-            "walker-dyn" | "ant-linclass" => "task seed",
-            _ => "task",
-        };
+        let x_desc = task_axis(&self.env);
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 format!("{} {} tasks: {}", self.env, self.split, self.metric),
@@ -208,5 +203,15 @@ impl EvalReport {
         drop(chart);
         drop(root);
         crate::io::checkpoint::write_atomic(path, svg.as_bytes())
+    }
+}
+
+/// What a family's task value is, for a plot's x axis ("task" for a name no family has).
+pub(super) fn task_axis(env: &str) -> &'static str {
+    match env.parse::<sim::Family>() {
+        Ok(sim::Family::PointGoal | sim::Family::AntGoal) => "goal angle (rad)",
+        Ok(sim::Family::CheetahVel) => "target velocity (m/s)",
+        Ok(sim::Family::WalkerDyn | sim::Family::AntLinClass) => "task seed",
+        Err(_) => "task",
     }
 }

@@ -1,5 +1,5 @@
 //! Metrics log: one JSON object per line (`metrics.jsonl` in the run directory) with stable
-//! CleanRL-style names: `losses/qf`, `losses/actor`, `losses/alpha`, `charts/alpha`,
+//! CleanRL's names: `losses/qf_loss`, `losses/actor_loss`, `losses/alpha_loss`, `charts/alpha`,
 //! `charts/entropy`, `charts/episodic_return`, `charts/metric`, `charts/sps`. Every line has
 //! `step` (environment steps) and `wall_s` (seconds since the log was opened).
 //!
@@ -17,7 +17,6 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use crate::algo::sac::SacStats;
 use crate::{Error, Result};
 
 /// File name of the metrics log inside a run directory.
@@ -95,22 +94,6 @@ impl MetricsLog {
             })?;
         self.tb.scalars(step, values)
     }
-}
-
-/// The SAC scalars under their log names.
-pub fn sac_fields(s: &SacStats) -> Vec<(&'static str, f64)> {
-    let mut f = vec![
-        ("losses/qf", s.qf_loss as f64),
-        ("losses/qf1_value", s.qf1_mean as f64),
-        ("losses/actor", s.actor_loss as f64),
-        ("losses/alpha", s.alpha_loss as f64),
-        ("charts/alpha", s.alpha as f64),
-        ("charts/entropy", s.entropy as f64),
-    ];
-    if let Some(bc) = s.bc_loss {
-        f.push(("losses/bc", bc as f64));
-    }
-    f
 }
 
 /// CRC-32C (Castagnoli), as TFRecord uses.
@@ -248,7 +231,7 @@ mod tests {
         assert_eq!(crc32c(b"123456789"), 0xe306_9283);
         let dir = std::env::temp_dir().join(format!("smile-tb-{}", std::process::id()));
         let mut w = TbWriter::create(&dir).unwrap();
-        w.scalars(7, &[("losses/qf", 0.5), ("charts/sps", f64::NAN)])
+        w.scalars(7, &[("losses/qf_loss", 0.5), ("charts/sps", f64::NAN)])
             .unwrap();
         let bytes = std::fs::read(&w.path).unwrap();
         // Walk the records: every length and payload CRC must check out; two records.
@@ -265,7 +248,7 @@ mod tests {
         }
         assert_eq!(n, 2);
         let text = String::from_utf8_lossy(&bytes);
-        assert!(text.contains("losses/qf") && !text.contains("charts/sps"));
+        assert!(text.contains("losses/qf_loss") && !text.contains("charts/sps"));
         std::fs::remove_dir_all(&dir).ok();
     }
 }

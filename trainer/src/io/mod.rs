@@ -14,5 +14,5 @@ pub mod progress;
 pub use config::from_toml_over_defaults;
 pub(crate) use config::merge_tables;
 pub use lock::DirLock;
-pub use metrics::{METRICS_FILE, MetricsLog, TbWriter, sac_fields};
+pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};
 pub use progress::bar;
