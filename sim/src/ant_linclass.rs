@@ -56,38 +56,8 @@ pub const TRAIN_TASKS: u64 = 64;
 /// Number of meta-test tasks (the paper's).
 pub const TEST_TASKS: u64 = 32;
 
-/// The latched classification decision of an episode, as the per-step metric sample encodes it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Decision {
-    /// Neither target reached yet (sample 0).
-    Undecided,
-    /// The correct target was reached first (sample 1).
-    Correct,
-    /// The wrong target was reached first (sample -1).
-    Wrong,
-}
-
-impl Decision {
-    /// The metric sample of this decision: 0, 1 or -1.
-    pub fn sample(self) -> f32 {
-        match self {
-            Decision::Undecided => 0.0,
-            Decision::Correct => 1.0,
-            Decision::Wrong => -1.0,
-        }
-    }
-
-    /// The decision a metric sample encodes (anything but 1 and -1 is undecided).
-    pub fn from_sample(sample: f32) -> Self {
-        if sample == 1.0 {
-            Decision::Correct
-        } else if sample == -1.0 {
-            Decision::Wrong
-        } else {
-            Decision::Undecided
-        }
-    }
-}
+/// The latched decision, defined beside the metric that decodes it.
+pub use crate::env::Decision;
 
 /// The unit normal of hyperplane `seed`: a standard normal 4-vector, normalised (uniform on the
 /// sphere, so every orientation is equally likely).

@@ -21,6 +21,40 @@ impl Default for EnvConfig {
     }
 }
 
+/// The latched classification decision of an ant-linclass episode, as the per-step metric
+/// sample encodes it (and [`EpisodeMetric`] decodes it).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Decision {
+    /// Neither target reached yet (sample 0).
+    Undecided,
+    /// The correct target was reached first (sample 1).
+    Correct,
+    /// The wrong target was reached first (sample -1).
+    Wrong,
+}
+
+impl Decision {
+    /// The metric sample of this decision: 0, 1 or -1.
+    pub fn sample(self) -> f32 {
+        match self {
+            Decision::Undecided => 0.0,
+            Decision::Correct => 1.0,
+            Decision::Wrong => -1.0,
+        }
+    }
+
+    /// The decision a metric sample encodes (anything but 1 and -1 is undecided).
+    pub fn from_sample(sample: f32) -> Self {
+        if sample == 1.0 {
+            Decision::Correct
+        } else if sample == -1.0 {
+            Decision::Wrong
+        } else {
+            Decision::Undecided
+        }
+    }
+}
+
 /// What one control step reports besides observation, reward and done.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct StepInfo {
@@ -157,22 +191,18 @@ impl EpisodeMetric {
             MetricKind::MeanVelocityError => (self.sum / self.steps as f64) as f32,
             MetricKind::Return => self.sum as f32,
             MetricKind::ClassificationSuccess if self.steps == 0 => f32::NAN,
-            MetricKind::ClassificationSuccess => {
-                match crate::ant_linclass::Decision::from_sample(self.last) {
-                    crate::ant_linclass::Decision::Correct => 1.0,
-                    _ => 0.0,
-                }
-            }
+            MetricKind::ClassificationSuccess => match Decision::from_sample(self.last) {
+                Decision::Correct => 1.0,
+                _ => 0.0,
+            },
         }
     }
 
     /// For a classification metric, whether the episode so far made no decision (a no-op);
     /// `None` for the other metrics and before any step.
     pub fn no_op(&self) -> Option<bool> {
-        (self.kind == MetricKind::ClassificationSuccess && self.steps > 0).then(|| {
-            crate::ant_linclass::Decision::from_sample(self.last)
-                == crate::ant_linclass::Decision::Undecided
-        })
+        (self.kind == MetricKind::ClassificationSuccess && self.steps > 0)
+            .then(|| Decision::from_sample(self.last) == Decision::Undecided)
     }
 }
 

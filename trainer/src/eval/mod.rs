@@ -580,7 +580,7 @@ pub mod expert;
 pub mod latents;
 pub mod norm;
 pub mod report;
-mod report_plot;
+mod report_files;
 mod show;
 
 #[cfg(test)]

@@ -328,32 +328,6 @@ impl Report {
         }
         s
     }
-
-    /// Writes `report.md`, `report.json`, `tasks.svg` and (with several context sizes)
-    /// `context-sizes.svg` into `dir`.
-    pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-            path: dir.to_path_buf(),
-            source: e,
-        })?;
-        let md = dir.join("report.md");
-        crate::io::checkpoint::write_atomic(&md, self.markdown().as_bytes())?;
-        let json = dir.join("report.json");
-        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Serialise {
-            what: "report.json",
-            reason: e.to_string(),
-        })?;
-        crate::io::checkpoint::write_atomic(&json, text.as_bytes())?;
-        let tasks = dir.join("tasks.svg");
-        super::report_plot::per_task(self, &tasks)?;
-        let mut written = vec![md, json, tasks];
-        if self.context_sizes.len() > 1 {
-            let sizes = dir.join("context-sizes.svg");
-            super::report_plot::by_context_size(self, &sizes)?;
-            written.push(sizes);
-        }
-        Ok(written)
-    }
 }
 
 fn row(method: &str, setting: &str, entries: &[Entry]) -> Result<Row> {

@@ -1,13 +1,42 @@
-//! The report's SVG plots: the metric per test task with a band of +- one std over seeds (one
-//! line per method and setting, as the paper's Figure 2), and the metric against the number of
-//! context demos.
+//! The report's files: `report.md`, `report.json` and its SVG plots, the metric per test task
+//! with a band of +- one std over seeds (one line per method and setting, as the paper's
+//! Figure 2), and the metric against the number of context demos. Above `report`, which only
+//! aggregates: the arrow runs one way.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
 use super::report::Report;
 use crate::{Error, Result};
+
+impl Report {
+    /// Writes `report.md`, `report.json`, `tasks.svg` and (with several context sizes)
+    /// `context-sizes.svg` into `dir`.
+    pub fn write(&self, dir: &Path) -> Result<Vec<PathBuf>> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+            path: dir.to_path_buf(),
+            source: e,
+        })?;
+        let md = dir.join("report.md");
+        crate::io::checkpoint::write_atomic(&md, self.markdown().as_bytes())?;
+        let json = dir.join("report.json");
+        let text = serde_json::to_string_pretty(self).map_err(|e| Error::Serialise {
+            what: "report.json",
+            reason: e.to_string(),
+        })?;
+        crate::io::checkpoint::write_atomic(&json, text.as_bytes())?;
+        let tasks = dir.join("tasks.svg");
+        per_task(self, &tasks)?;
+        let mut written = vec![md, json, tasks];
+        if self.context_sizes.len() > 1 {
+            let sizes = dir.join("context-sizes.svg");
+            by_context_size(self, &sizes)?;
+            written.push(sizes);
+        }
+        Ok(written)
+    }
+}
 
 fn err(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> Error + '_ {
     move |e| Error::Io {
