@@ -47,9 +47,13 @@ pub enum SimError {
     },
     /// A task family name that is not one of the known CLI names.
     #[error(
-        "unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn, ant-goal"
+        "unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn, \
+         ant-goal, ant-linclass"
     )]
     UnknownFamily(String),
+    /// A split name that is neither `train` nor `test`.
+    #[error("unknown split {0:?}; expected train or test")]
+    UnknownSplit(String),
     /// A task parameter that is out of range or not finite.
     #[error("invalid task parameter for {family}: {reason}")]
     InvalidTask {

@@ -334,13 +334,13 @@ impl fmt::Display for Split {
 }
 
 impl FromStr for Split {
-    type Err = String;
+    type Err = SimError;
 
     fn from_str(s: &str) -> Result<Self, Self::Err> {
         match s {
             "train" => Ok(Split::Train),
             "test" => Ok(Split::Test),
-            other => Err(format!("unknown split {other:?}; expected train or test")),
+            other => Err(SimError::UnknownSplit(other.to_string())),
         }
     }
 }

@@ -89,9 +89,15 @@ pub enum Error {
     /// A demo dataset could not be read, written or used (from `sim`, its format's owner).
     #[error("dataset: {0}")]
     Dataset(#[from] sim::DatasetError),
-    /// A policy blob could not be written, loaded or run by infer-core.
-    #[error("blob: {0}")]
-    Blob(String),
+    /// infer-core could not write a blob from the policy.
+    #[error("blob writer: {0}")]
+    BlobWrite(#[from] infer_core::WriteError),
+    /// infer-core refused a blob (corrupt, truncated, of another version or shape).
+    #[error("blob does not load: {0}")]
+    Blob(#[from] infer_core::BlobError),
+    /// infer-core could not run a loaded blob on an input (wrong length, non-finite).
+    #[error("blob inference: {0}")]
+    Inference(#[from] infer_core::InferError),
     /// The simulated device (firmware-sim) refused the blob or failed to run it.
     #[error("device: {0}")]
     Device(String),

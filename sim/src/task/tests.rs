@@ -46,6 +46,16 @@ fn family_names_round_trip_and_unknown_names_fail() {
         "ant".parse::<Family>(),
         Err(SimError::UnknownFamily("ant".into()))
     );
+    // The message lists every family the parser accepts.
+    let msg = SimError::UnknownFamily("ant".into()).to_string();
+    for family in Family::ALL {
+        assert!(msg.contains(family.name()), "{msg}");
+    }
+    assert_eq!("test".parse::<Split>(), Ok(Split::Test));
+    assert_eq!(
+        "val".parse::<Split>(),
+        Err(SimError::UnknownSplit("val".into()))
+    );
 }
 
 #[test]

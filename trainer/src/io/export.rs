@@ -117,14 +117,13 @@ pub fn export_blob(
         },
     };
     let fm = mp.to_float_model()?;
-    infer_core::write_blob(&fm, quant, &calib).map_err(|e| Error::Blob(format!("writer: {e}")))
+    Ok(infer_core::write_blob(&fm, quant, &calib)?)
 }
 
 /// Loads (and fully validates) `blob` with infer-core, refusing layers wider than the
 /// runners' capacity [`BLOB_CAPACITY`].
 pub fn load_blob(blob: &[u8]) -> Result<infer_core::Model<'_>> {
-    let model = infer_core::Model::from_bytes(blob)
-        .map_err(|e| Error::Blob(format!("does not load: {e}")))?;
+    let model = infer_core::Model::from_bytes(blob)?;
     if model.max_width() > BLOB_CAPACITY {
         return Err(Error::Shape(format!(
             "blob layer width {} exceeds {BLOB_CAPACITY}",
@@ -155,34 +154,28 @@ impl<'m, 'a> BlobActor<'m, 'a> {
     }
 }
 
-fn infer_err(e: infer_core::InferError) -> Error {
-    Error::Blob(format!("inference: {e}"))
-}
-
 impl ConditionedActor for BlobActor<'_, '_> {
     fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
         let h = *self.model.header();
         let (od, ad) = (h.obs_dim as usize, h.act_dim as usize);
-        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(self.model)
-            .map_err(|e| Error::Blob(e.to_string()))?;
+        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(self.model)?;
         for t in context {
             for i in 0..t.len() {
                 enc.push(
                     &t.obs[i * od..(i + 1) * od],
                     &t.actions[i * ad..(i + 1) * ad],
                     &t.next_obs[i * od..(i + 1) * od],
-                )
-                .map_err(infer_err)?;
+                )?;
             }
             enc.end_trajectory();
         }
         let mut z = vec![0.0f32; h.z_dim as usize];
-        enc.latent(&mut z).map_err(infer_err)?;
+        enc.latent(&mut z)?;
         Ok(z)
     }
 
     fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
-        self.policy.act(obs, z, action).map_err(infer_err)
+        Ok(self.policy.act(obs, z, action)?)
     }
 }
 
