@@ -313,6 +313,31 @@ impl fmt::Display for Family {
     }
 }
 
+/// A family is written as its CLI name (`"cheetah-vel"`) in every config, report and run file,
+/// and read back through [`FromStr`]: an unknown name fails when the file is parsed, with the
+/// list of known ones.
+impl serde::Serialize for Family {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for Family {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Name;
+        impl serde::de::Visitor<'_> for Name {
+            type Value = Family;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a task family name such as \"cheetah-vel\"")
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> Result<Family, E> {
+                v.parse().map_err(E::custom)
+            }
+        }
+        d.deserialize_str(Name)
+    }
+}
+
 impl FromStr for Family {
     type Err = SimError;
 

@@ -142,7 +142,7 @@ fn a_slow_family_is_refused_at_the_short_budget_and_its_tiny_run_has_cheetah_art
         ..short
     };
     let summary = run(&tiny).unwrap();
-    assert_eq!(summary.env, "cheetah-vel");
+    assert_eq!(summary.env, sim::Family::CheetahVel);
     assert!(
         summary.expert.starts_with("SAC expert"),
         "{}",

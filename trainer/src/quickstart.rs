@@ -246,7 +246,7 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
         return Ok((expert, note));
     }
     let mut cfg = expert::ExpertConfig {
-        env: args.env.name().into(),
+        env: args.env,
         horizon: horizon(args),
         seed: args.seed,
         ..expert::ExpertConfig::default()
@@ -317,7 +317,7 @@ fn demos(
 /// The SMILe configuration the quickstart trains with, per family and budget.
 fn smile_config(args: &QuickstartConfig) -> SmileConfig {
     let mut cfg = SmileConfig {
-        env: args.env.name().into(),
+        env: args.env,
         seed: args.seed,
         // The discriminator step on a second thread (1.5x pairs per second on two free cores,
         // docs/BENCHMARKS.md "Threads"): Meta-BC shares the cores for its first minute or so,
@@ -401,7 +401,7 @@ fn train_meta_bc(
     bars: &MultiProgress,
 ) -> Result<MetaPolicy> {
     let mut cfg = MetaBcConfig {
-        env: args.env.name().into(),
+        env: args.env,
         seed: args.seed,
         ..MetaBcConfig::default()
     };
@@ -590,7 +590,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         blob_sha256: crate::io::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),
         algo: smile_policy.algo.clone(),
-        env: args.env.name().into(),
+        env: args.env,
         parity: parity.clone(),
         metric: eval::metric_name(args.env.metric_kind()).into(),
         split: Split::Test.to_string(),
@@ -620,7 +620,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
 
     let (_, median, p99, _) = device.compute_percentiles();
     let summary = Summary {
-        env: args.env.name().into(),
+        env: args.env,
         budget: format!("{:?}", args.budget).to_lowercase(),
         seed: args.seed,
         expert: expert_note,

@@ -253,7 +253,7 @@ fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
     trainer::threads::set_compute_threads(1);
     let d = tmp("ant-goal");
     let cfg = ExpertConfig {
-        env: Family::AntGoal.name().into(),
+        env: Family::AntGoal,
         ..tiny(60)
     };
     let mut run = ExpertTrainer::new(cfg.clone()).unwrap();

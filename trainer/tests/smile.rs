@@ -179,7 +179,7 @@ fn walker_training_rollouts_run_to_the_horizon_unless_termination_is_asked_for()
     let data = MetaData::from_dataset(&ds, Family::WalkerDyn, 0).unwrap();
     let steps = |rollout_termination: bool| {
         let cfg = SmileConfig {
-            env: "walker-dyn".into(),
+            env: Family::WalkerDyn,
             rollout_termination,
             horizon: Some(300),
             ..tiny(false)

@@ -34,8 +34,9 @@ pub use policy::{Expert, export_scripted_linclass, export_scripted_pd};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ExpertConfig {
-    /// Task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`). Default `point-goal`.
-    pub env: String,
+    /// Task family, written by its name (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`,
+    /// `ant-linclass`). Default `point-goal`.
+    pub env: Family,
     /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
     pub task_index: Option<usize>,
     /// Train on this one task given by its parameter instead (goal angle in rad, target
@@ -81,7 +82,7 @@ pub struct ExpertConfig {
 impl Default for ExpertConfig {
     fn default() -> Self {
         Self {
-            env: "point-goal".into(),
+            env: Family::PointGoal,
             task_index: None,
             task_value: None,
             total_steps: 30_000,
@@ -101,11 +102,9 @@ impl Default for ExpertConfig {
 }
 
 impl ExpertConfig {
-    /// The family named by `env`.
+    /// The family (`env`).
     pub fn family(&self) -> Result<Family> {
-        self.env
-            .parse::<Family>()
-            .map_err(|e| Error::Config(e.to_string()))
+        Ok(self.env)
     }
 
     fn env_config(&self) -> EnvConfig {

@@ -25,7 +25,7 @@ use std::path::Path;
 use candle_core::{Device, Tensor};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sim::{Environment, Family, TaskDemos};
+use sim::{Environment, TaskDemos};
 
 use crate::algo::expert::ExpertSet;
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
@@ -94,10 +94,7 @@ impl MetaBc {
     /// A fresh run; Meta-DAgger needs `expert` (one expert, or per-task experts covering the
     /// meta-train tasks: `Some(expert.into())` for one).
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
-        let family: Family = cfg
-            .env
-            .parse()
-            .map_err(|e: sim::SimError| Error::Config(e.to_string()))?;
+        let family = cfg.env;
         if data.family != family {
             return Err(Error::Data(format!(
                 "demos are {}, config says {family}",

@@ -74,8 +74,9 @@ pub struct Protocol {
     /// walker-dyn: the SMILe authors' walker evaluation (their `terminal = False`): every
     /// episode runs the whole horizon and the alive bonus keeps accruing after a fall, so
     /// returns compare with the paper's. false, this project's protocol: a fall ends the
-    /// episode. Reports record which one made them.
-    #[serde(default)]
+    /// episode. Reports record which one made them (the field is written only when true, so
+    /// reports of this project's protocol read as they did before it existed).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub run_through_falls: bool,
 }
 

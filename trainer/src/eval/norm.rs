@@ -179,7 +179,7 @@ mod tests {
     /// test loading rules).
     fn walker_policy(dir: &Path, task_value: Option<f64>) {
         let cfg = ExpertConfig {
-            env: "walker-dyn".into(),
+            env: sim::Family::WalkerDyn,
             task_value,
             buffer_capacity: 10,
             sac: SacConfig {

@@ -261,8 +261,8 @@ pub struct ExportReport {
     pub quant: String,
     /// Algorithm of the exported policy.
     pub algo: String,
-    /// Family name.
-    pub env: String,
+    /// The family, written by its name.
+    pub env: sim::Family,
     /// z / action differences on held-out contexts.
     pub parity: Parity,
     /// Metric name.
@@ -319,7 +319,7 @@ pub fn verify(
         blob_sha256: crate::io::checkpoint::sha256_hex(blob),
         quant: quant.into(),
         algo: mp.algo.clone(),
-        env: family.name().into(),
+        env: family,
         parity,
         metric: crate::eval::metric_name(family.metric_kind()).into(),
         split: split.to_string(),

@@ -11,7 +11,7 @@ use crate::io::export::Parity;
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Summary {
     /// Task family.
-    pub env: String,
+    pub env: sim::Family,
     /// Budget name.
     pub budget: String,
     /// Seed.

@@ -84,7 +84,7 @@ fn smile_configs_are_the_documented_ones() {
             crate::from_toml_over_defaults(&std::fs::read_to_string(docs.join(file)).unwrap())
                 .unwrap();
         // What the quickstart sets on top: the family, the seed, two learner threads.
-        want.env = family.name().into();
+        want.env = family;
         want.learner_threads = 2;
         assert_eq!(smile_config(&args), want, "{family} vs {file}");
     }

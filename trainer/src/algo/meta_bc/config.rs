@@ -24,8 +24,8 @@ pub enum Selection {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct MetaBcConfig {
-    /// Task family. Default `point-goal`.
-    pub env: String,
+    /// Task family, written by its name (`cheetah-vel`). Default `point-goal`.
+    pub env: Family,
     /// Encoder and latent (as SMILe's).
     pub context: ContextConfig,
     /// Policy hidden widths. Default [128, 128] (as SMILe's SAC actor).
@@ -75,7 +75,7 @@ pub struct MetaBcConfig {
 impl Default for MetaBcConfig {
     fn default() -> Self {
         Self {
-            env: "point-goal".into(),
+            env: Family::PointGoal,
             context: ContextConfig::default(),
             policy_hidden: vec![128, 128],
             lr: 3e-4,
@@ -126,12 +126,8 @@ impl MetaBcConfig {
         }
     }
 
-    /// Checks the values: family name, positive batch sizes and rates, a finite positive
-    /// learning rate.
+    /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
-        self.env
-            .parse::<Family>()
-            .map_err(|e| Error::Config(e.to_string()))?;
         if self.tasks_per_batch == 0
             || self.per_task == 0
             || self.max_context == 0

@@ -15,8 +15,8 @@ use crate::{Error, Result};
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SmileConfig {
-    /// Task family. Default `point-goal`.
-    pub env: String,
+    /// Task family, written by its name (`cheetah-vel`). Default `point-goal`.
+    pub env: Family,
     /// Encoder and latent (its `state_only` selects the state-only variant everywhere).
     pub context: ContextConfig,
     /// SAC on `[norm(s), z]`. Default: hidden [128, 128], reward scale 8, learned alpha.
@@ -116,7 +116,7 @@ fn is_zero_u64(v: &u64) -> bool {
 impl Default for SmileConfig {
     fn default() -> Self {
         Self {
-            env: "point-goal".into(),
+            env: Family::PointGoal,
             context: ContextConfig::default(),
             sac: SacConfig {
                 hidden: vec![128, 128],
@@ -154,11 +154,9 @@ impl Default for SmileConfig {
 }
 
 impl SmileConfig {
-    /// The family named by `env`.
+    /// The family (`env`).
     pub fn family(&self) -> Result<Family> {
-        self.env
-            .parse::<Family>()
-            .map_err(|e| Error::Config(e.to_string()))
+        Ok(self.env)
     }
 
     /// How training draws contexts.

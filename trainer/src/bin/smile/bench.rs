@@ -112,7 +112,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 );
                 for &h in &a.hidden {
                     let mut cfg = trainer::smile::SmileConfig {
-                        env: demos.family.name().into(),
+                        env: demos.family,
                         rollouts_per_iter: 4,
                         updates_per_iter: 100,
                         sac_per_task: 32,

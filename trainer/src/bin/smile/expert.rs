@@ -106,7 +106,7 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         None => ExpertConfig::default(),
     };
     if let Some(v) = &a.env {
-        cfg.env = v.clone();
+        cfg.env = v.parse().map_err(|e| anyhow::anyhow!("--env: {e}"))?;
     }
     macro_rules! set {
         ($($f:ident).+ <- $v:expr) => { if let Some(v) = $v.clone() { cfg.$($f).+ = v; } };

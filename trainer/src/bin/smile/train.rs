@@ -307,7 +307,7 @@ fn train_smile(
     demos_sha: String,
 ) -> Result<()> {
     let mut cfg: SmileConfig = read_toml(&a)?;
-    cfg.env = family.name().into();
+    cfg.env = family;
     cfg.context.state_only = algo == Algo::SmileStateOnly;
     if let Some(v) = a.updates {
         cfg.total_updates = v;
@@ -399,7 +399,7 @@ fn train_bc(
         }
     }
     let mut cfg: MetaBcConfig = read_toml(&a)?;
-    cfg.env = family.name().into();
+    cfg.env = family;
     cfg.dagger = algo == Algo::MetaDagger;
     if let Some(v) = a.updates {
         cfg.total_steps = v;
