@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Copy the walker-dyn base and per-task experts trained by walker-experts.sh into
 # assets/experts/walker-dyn/ (policies, configs, evaluations; not the 50 MB checkpoints), and
-# list each expert's training budget and evaluations in per-task/index.json.
+# list each expert's training budget and evaluations in per-task/index.json. Shipping a subset
+# (e.g. the 25 meta-test experts trained again) replaces those entries and keeps the others.
 #
 #   docs/scripts/walker-ship.sh RUNS_DIR [ASSETS_DIR]
 set -euo pipefail
@@ -11,6 +12,8 @@ cp "$runs/base/"{policy.safetensors,config.toml,eval.json} "$assets/base/"
 python3 - "$runs" "$assets" <<'PY'
 import json, os, shutil, sys
 runs, assets = sys.argv[1], sys.argv[2]
+index_path = os.path.join(assets, "per-task", "index.json")
+kept = json.load(open(index_path)) if os.path.exists(index_path) else []
 index = []
 for name in sorted(os.listdir(runs), key=lambda n: (len(n), n)):
     d = os.path.join(runs, name)
@@ -30,8 +33,11 @@ for name in sorted(os.listdir(runs), key=lambda n: (len(n), n)):
         "periodic_evals": [[e["step"], round(e["eval/metric"], 1)] for e in evals],
         "final_return_2_episodes": round(ev["report"]["mean"], 1),
     })
-with open(os.path.join(assets, "per-task", "index.json"), "w") as f:
+shipped = {e["dynamics_seed"] for e in index}
+index += [e for e in kept if e["dynamics_seed"] not in shipped]
+index.sort(key=lambda e: (e["split"] != "train", e["dynamics_seed"]))
+with open(index_path, "w") as f:
     json.dump(index, f, indent=1)
     f.write("\n")
-print(f"{len(index)} per-task experts -> {assets}/per-task")
+print(f"{len(shipped)} per-task experts shipped, {len(index)} listed -> {assets}/per-task")
 PY

@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Learning curves of a sweep's cells: the held-out train-task metric (`eval/val_metric` in each
+cell's train/metrics.jsonl) against update pairs (SMILe) or gradient steps (Meta-BC) and
+against wall-clock seconds, one line per cell, coloured by method; with each cell's final
+meta-test metric (eval/eval.json) and its training's last step and wall-clock, so a table can
+state each method's updates and time.
+
+    python3 docs/scripts/learning_curves.py SWEEP_DIR OUT_PREFIX [TITLE]
+
+writes OUT_PREFIX.json (the curves and the per-cell summary) and OUT_PREFIX.svg (needs
+matplotlib), and prints a markdown table: method, seeds, test metric mean +- std over seeds,
+steps and wall-clock per cell.
+"""
+import json
+import os
+import statistics
+import sys
+
+
+def cells(sweep):
+    for name in sorted(os.listdir(sweep)):
+        train = os.path.join(sweep, name, "train", "metrics.jsonl")
+        if os.path.exists(train):
+            yield name, os.path.join(sweep, name)
+
+
+def method_of(name):
+    return name.rsplit("-s", 1)[0]
+
+
+def main():
+    sweep, out = sys.argv[1], sys.argv[2]
+    title = sys.argv[3] if len(sys.argv) > 3 else os.path.basename(sweep.rstrip("/"))
+    data = []
+    for name, d in cells(sweep):
+        steps, walls, vals, last_step, last_wall = [], [], [], 0, 0.0
+        for line in open(os.path.join(d, "train", "metrics.jsonl")):
+            r = json.loads(line)
+            last_step, last_wall = max(last_step, r["step"]), max(last_wall, r.get("wall_s", 0.0))
+            if "eval/val_metric" in r:
+                steps.append(r["step"])
+                walls.append(round(r["wall_s"], 1))
+                vals.append(r["eval/val_metric"])
+        test = None
+        ev = os.path.join(d, "eval", "eval.json")
+        if os.path.exists(ev):
+            test = json.load(open(ev))["methods"][0]["mean"]
+        data.append({"cell": name, "method": method_of(name), "steps": steps, "wall_s": walls,
+                     "val_metric": vals, "last_step": last_step, "last_wall_s": round(last_wall),
+                     "test_metric": test})
+    with open(out + ".json", "w") as f:
+        json.dump({"sweep": sweep, "cells": data}, f, indent=1)
+        f.write("\n")
+    methods = sorted({c["method"] for c in data})
+    print("| method | seeds | meta-test metric (mean +- std over seeds) | steps per cell | wall-clock per cell (s) |")
+    print("|---|---|---|---|---|")
+    for m in methods:
+        cs = [c for c in data if c["method"] == m and c["test_metric"] is not None]
+        if not cs:
+            continue
+        t = [c["test_metric"] for c in cs]
+        sd = statistics.stdev(t) if len(t) > 1 else 0.0
+        print(f"| {m} | {len(cs)} | {statistics.mean(t):.3f} +- {sd:.3f} ({', '.join(f'{x:.3f}' for x in t)}) "
+              f"| {', '.join(str(c['last_step']) for c in cs)} | {', '.join(str(c['last_wall_s']) for c in cs)} |")
+    try:
+        import matplotlib
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+    except ImportError:
+        print("matplotlib missing: no plot (pip install matplotlib)", file=sys.stderr)
+        return
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    colours = {m: f"C{i}" for i, m in enumerate(methods)}
+    for c in data:
+        label = c["method"] if c["cell"].endswith("-s0") else None
+        axes[0].plot(c["steps"], c["val_metric"], color=colours[c["method"]], label=label, lw=1)
+        axes[1].plot(c["wall_s"], c["val_metric"], color=colours[c["method"]], lw=1)
+    axes[0].set_xlabel("update pairs (SMILe) / gradient steps (Meta-BC)")
+    axes[1].set_xlabel("wall-clock (s)")
+    for a in axes:
+        a.set_ylabel("held-out train-task metric")
+        a.grid(alpha=0.3)
+    axes[0].legend()
+    fig.suptitle(title)
+    fig.tight_layout()
+    fig.savefig(out + ".svg")
+
+
+if __name__ == "__main__":
+    main()
