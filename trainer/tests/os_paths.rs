@@ -13,8 +13,6 @@ use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use sim::{Family, Split};
-
 /// A fresh directory whose own name is not UTF-8 (Latin-1 "café").
 fn non_utf8_dir(name: &str) -> PathBuf {
     let parent = common::fresh_dir("smile-os-paths", name);
@@ -41,17 +39,9 @@ fn as_refs(v: &[OsString]) -> Vec<&OsStr> {
     v.iter().map(OsString::as_os_str).collect()
 }
 
-/// Point-goal PD demos (train: 8 tasks x 2, test: all 16 x 1) in `dir`.
+/// Point-goal PD demos: (train, test) files in `dir`.
 fn demos(dir: &Path) -> (PathBuf, PathBuf) {
-    let fam = Family::PointGoal;
-    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
-    common::pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
-        .write(&train)
-        .unwrap();
-    common::pd_demos(Split::Test, fam.test_tasks(), 1, 20)
-        .write(&test)
-        .unwrap();
-    (train, test)
+    common::point_goal_demo_files(dir)
 }
 
 #[test]

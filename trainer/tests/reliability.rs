@@ -17,15 +17,7 @@ fn tmp(name: &str) -> PathBuf {
 
 /// Point-goal PD demos: (train, test) files in `dir`.
 fn demos(dir: &Path) -> (PathBuf, PathBuf) {
-    let fam = Family::PointGoal;
-    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
-    common::pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
-        .write(&train)
-        .unwrap();
-    common::pd_demos(Split::Test, fam.test_tasks(), 1, 20)
-        .write(&test)
-        .unwrap();
-    (train, test)
+    common::point_goal_demo_files(dir)
 }
 
 /// A finished 20-step Meta-BC run in `run`.

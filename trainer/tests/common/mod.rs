@@ -98,3 +98,17 @@ pub fn train_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset
         horizon,
     )
 }
+
+/// Point-goal PD demo files in `dir`: `train.safetensors` (8 meta-train tasks x 2 demos of 20
+/// steps) and `test.safetensors` (every meta-test task x 1); returns (train, test).
+pub fn point_goal_demo_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let fam = Family::PointGoal;
+    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
+    pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
+        .write(&train)
+        .unwrap();
+    pd_demos(Split::Test, fam.test_tasks(), 1, 20)
+        .write(&test)
+        .unwrap();
+    (train, test)
+}
