@@ -153,20 +153,7 @@ fn a_run_json_naming_another_algorithm_is_named_in_the_refusal() {
     let dir = common::fresh_dir("smile-os-paths", "algo");
     let (train, _) = demos(&dir);
     let run = dir.join("run");
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--updates",
-        "10",
-        "--hidden",
-        "8,8",
-        "--quiet",
-    ]));
+    common::tiny_bc(&train, &run);
     let info = run.join("run.json");
     let text = std::fs::read_to_string(&info).unwrap();
     std::fs::write(&info, text.replace("\"meta-bc\"", "\"smile\"")).unwrap();
@@ -178,7 +165,7 @@ fn a_run_json_naming_another_algorithm_is_named_in_the_refusal() {
         "-o",
         s(&run),
         "--updates",
-        "20",
+        "40",
     ]);
     assert!(!o.status.success());
     let e = String::from_utf8_lossy(&o.stderr);

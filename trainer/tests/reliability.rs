@@ -22,22 +22,7 @@ fn demos(dir: &Path) -> (PathBuf, PathBuf) {
 
 /// A finished 20-step Meta-BC run in `run`.
 fn tiny_bc(train: &Path, run: &Path) {
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(train),
-        "-o",
-        s(run),
-        "--updates",
-        "20",
-        "--eval-every",
-        "10",
-        "--hidden",
-        "8,8",
-        "--quiet",
-    ]));
+    common::tiny_bc(train, run)
 }
 
 fn err_of(out: &std::process::Output) -> String {

@@ -112,3 +112,23 @@ pub fn point_goal_demo_files(dir: &std::path::Path) -> (std::path::PathBuf, std:
         .unwrap();
     (train, test)
 }
+
+/// A finished 20-step Meta-BC run in `run`.
+pub fn tiny_bc(train: &std::path::Path, run: &std::path::Path) {
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(train),
+        "-o",
+        s(run),
+        "--updates",
+        "20",
+        "--eval-every",
+        "10",
+        "--hidden",
+        "8,8",
+        "--quiet",
+    ]));
+}
