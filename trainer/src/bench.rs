@@ -1,13 +1,22 @@
 //! Learner micro-benchmarks, matching `../shared/bench/torch_reference.py`'s workloads, each
 //! update timed on its own and the median reported:
 //! - `sac`: one SAC-v2 update (critic, actor, temperature, targets) on a fixed random batch,
-//!   obs 20 + z 16, act 6, two hidden layers of width H, batch 256.
+//!   obs 20 + z 16, act 6, two hidden layers of width H, batch 256 (any widths, depth, batch
+//!   and z: [`SacBenchShape`]; the SMILe authors': 3 x 256 at batch 1024, z 64).
 //! - `disc`: one context-encoder + discriminator update, SMILe's own code
 //!   ([`crate::algo::smile`]): 8 tasks, each a context of 4 trajectories x 16 transitions
 //!   `[s, a, s']` through the encoder MLP (H, H) -> r 32, mean over time, sum over
 //!   trajectories, linear head -> z 16 (deterministic); discriminator MLP (H, H) on `[s, a, z]`
 //!   for 128 expert + 128 policy rows per task; BCE with logits + 10 x gradient penalty on
 //!   interpolated `(s, a)`; Adam. (Our head also outputs log-sigma: 32 instead of 16 outputs.)
+//!   Any widths and depths: [`DiscBenchShape`]; the authors': discriminator 3 x 512, encoder
+//!   2 x 256 -> r 64 -> z 64.
+//!
+//! Each shape also states the floating-point work of its matrix products
+//! ([`SacBenchShape::flops`], [`DiscBenchShape::flops`]): the products the algorithm needs,
+//! counted the same way for both sides (an implementation that skips an unneeded gradient is
+//! not credited for it), so `flops / time` is the achieved GFLOP/s to set beside the
+//! machine's single-core sgemm rate.
 
 use std::time::Instant;
 
@@ -23,10 +32,10 @@ use crate::model::{ContextConfig, ContextEncoder, ContextSpec, DiscInput, Discri
 use crate::optim::{Adam, AdamConfig};
 
 /// Shape of the benchmarked SAC update.
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
 pub struct SacBenchShape {
-    /// Hidden width H (two hidden layers).
-    pub hidden: usize,
+    /// Hidden widths of the critics and the policy (torch_reference: `--layers` x `--hidden`).
+    pub hidden: Vec<usize>,
     /// Batch size.
     pub batch: usize,
     /// Observation dimension (the policy input is obs + z).
@@ -38,8 +47,14 @@ pub struct SacBenchShape {
 }
 
 impl SacBenchShape {
-    /// The torch reference's shape at width `hidden`: batch 256, obs 20, z 16, act 6.
+    /// The torch reference's shape at width `hidden`: two layers, batch 256, obs 20, z 16,
+    /// act 6.
     pub fn reference(hidden: usize) -> Self {
+        Self::with_hidden(vec![hidden; 2])
+    }
+
+    /// The torch reference's batch and dimensions with these hidden widths.
+    pub fn with_hidden(hidden: Vec<usize>) -> Self {
         Self {
             hidden,
             batch: 256,
@@ -48,6 +63,50 @@ impl SacBenchShape {
             act_dim: 6,
         }
     }
+
+    /// The SMILe authors' SAC (issue "SMILe as its authors ran it"): 3 x 256 critics and
+    /// policy at batch 1024 (8 tasks x 128), z 64; torch_reference's obs 20 and act 6.
+    pub fn authors() -> Self {
+        Self {
+            batch: 1024,
+            z_dim: 64,
+            ..Self::with_hidden(vec![256; 3])
+        }
+    }
+
+    /// Floating-point operations of the update's matrix products (multiply-add = 2): target
+    /// (policy and both target critics forward on the next states), critic loss (both critics
+    /// forward, weight and hidden gradients back), actor loss (policy forward, both critics
+    /// forward and input gradients back, policy weight and hidden gradients back).
+    pub fn flops(&self) -> f64 {
+        let d_in = self.obs_dim + self.z_dim;
+        let q = widths(d_in + self.act_dim, &self.hidden, 1);
+        let pi = widths(d_in, &self.hidden, 2 * self.act_dim);
+        let b = self.batch as f64;
+        let fwd = |w: &[usize]| b * mlp_products(w);
+        // backward: weight gradients everywhere, input gradients below the first layer
+        let bwd_params =
+            |w: &[usize]| b * (2.0 * mlp_products(w) - w[0] as f64 * w[1] as f64 * 2.0);
+        // input gradients only (the critics in the actor loss): every layer's input gradient
+        let bwd_input = |w: &[usize]| b * mlp_products(w);
+        let target = fwd(&pi) + 2.0 * fwd(&q);
+        let critic = 2.0 * (fwd(&q) + bwd_params(&q));
+        let actor = fwd(&pi) + 2.0 * (fwd(&q) + bwd_input(&q)) + bwd_params(&pi);
+        target + critic + actor
+    }
+}
+
+/// `[d_in, hidden..., d_out]`.
+fn widths(d_in: usize, hidden: &[usize], d_out: usize) -> Vec<usize> {
+    let mut w = vec![d_in];
+    w.extend_from_slice(hidden);
+    w.push(d_out);
+    w
+}
+
+/// `sum_l 2 w_l w_{l+1}`: the multiply-adds of one row through an MLP of these widths.
+fn mlp_products(w: &[usize]) -> f64 {
+    w.windows(2).map(|p| 2.0 * p[0] as f64 * p[1] as f64).sum()
 }
 
 /// Timing summary of one workload, in microseconds.
@@ -107,7 +166,7 @@ pub fn sac_fixture(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let d_in = shape.obs_dim + shape.z_dim;
     let cfg = SacConfig {
-        hidden: vec![shape.hidden; 2],
+        hidden: shape.hidden.clone(),
         batch_size: shape.batch,
         ..Default::default()
     };
@@ -138,10 +197,12 @@ pub fn bench_sac_update(shape: SacBenchShape, warmup: usize, iters: usize) -> Re
 }
 
 /// Shape of the benchmarked discriminator + encoder update (torch_reference's `disc`).
-#[derive(Debug, Clone, Copy, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct DiscBenchShape {
-    /// Hidden width H of the encoder and discriminator MLPs (two hidden layers each).
-    pub hidden: usize,
+    /// Hidden widths of the discriminator (torch_reference: `--layers` x `--disc-hidden`).
+    pub hidden: Vec<usize>,
+    /// Hidden widths of the encoder's per-transition MLP (torch_reference: 2 x `--enc-hidden`).
+    pub enc_hidden: Vec<usize>,
     /// Tasks per batch.
     pub tasks: usize,
     /// Context trajectories per task.
@@ -164,10 +225,27 @@ pub struct DiscBenchShape {
 
 impl DiscBenchShape {
     /// torch_reference's defaults at width `hidden`: 8 tasks x 4 trajectories x 16 steps,
-    /// 128 samples, obs 20, act 6, r 32, z 16, gradient penalty 10.
+    /// 128 samples, obs 20, act 6, r 32, z 16, gradient penalty 10, two hidden layers in the
+    /// discriminator and the encoder.
     pub fn reference(hidden: usize) -> Self {
+        Self::with_hidden(vec![hidden; 2], vec![hidden; 2])
+    }
+
+    /// The SMILe authors' shapes: discriminator 3 x 512, encoder 2 x 256 -> r 64 -> z 64;
+    /// torch_reference's batch and dimensions otherwise (2,048 discriminator rows).
+    pub fn authors() -> Self {
+        Self {
+            r_dim: 64,
+            z_dim: 64,
+            ..Self::with_hidden(vec![512; 3], vec![256; 2])
+        }
+    }
+
+    /// torch_reference's batch and dimensions with these discriminator and encoder widths.
+    pub fn with_hidden(hidden: Vec<usize>, enc_hidden: Vec<usize>) -> Self {
         Self {
             hidden,
+            enc_hidden,
             tasks: 8,
             ctx_trajs: 4,
             ctx_len: 16,
@@ -179,14 +257,41 @@ impl DiscBenchShape {
             gp_weight: 10.0,
         }
     }
+
+    /// Floating-point operations of the step's matrix products (multiply-add = 2): the
+    /// encoder forward and back on every context transition (weight and hidden gradients;
+    /// the head r -> z as torch_reference's, one linear layer); the discriminator forward and
+    /// back on the expert and policy rows (input gradients too: z trains the encoder); the
+    /// penalty's forward on the interpolates, its input-gradient chain `g W^T` down to the
+    /// input, and that chain's backward (each product's operand and weight gradients).
+    pub fn flops(&self) -> f64 {
+        let x_dim = self.obs_dim + self.act_dim;
+        let enc = widths(
+            2 * self.obs_dim + self.act_dim,
+            &self.enc_hidden,
+            self.r_dim,
+        );
+        let ctx_rows = (self.tasks * self.ctx_trajs * self.ctx_len) as f64;
+        let encoder = ctx_rows * (2.0 * mlp_products(&enc) - 2.0 * enc[0] as f64 * enc[1] as f64)
+            + 3.0 * self.tasks as f64 * 2.0 * (self.r_dim * self.z_dim) as f64;
+        let d = widths(x_dim + self.z_dim, &self.hidden, 1);
+        let rows = (self.tasks * self.samples) as f64;
+        let disc = 2.0 * rows * 3.0 * mlp_products(&d);
+        // penalty: forward through the hidden layers, then the chain and its backward (three
+        // products per weight matrix; the output layer's row is one product and its gradient)
+        let hidden_products = mlp_products(&d[..d.len() - 1]);
+        let last_hidden = d[d.len() - 2] as f64;
+        let gp = rows * (4.0 * hidden_products + 2.0 * 2.0 * last_hidden);
+        encoder + disc + gp
+    }
 }
 
 /// Median time of one discriminator + encoder update at `shape` on a fixed random batch.
 pub fn bench_disc_step(shape: DiscBenchShape, warmup: usize, iters: usize) -> Result<Timing> {
     let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let (od, ad, h) = (shape.obs_dim, shape.act_dim, shape.hidden);
+    let (od, ad) = (shape.obs_dim, shape.act_dim);
     let cfg = ContextConfig {
-        enc_hidden: vec![h, h],
+        enc_hidden: shape.enc_hidden.clone(),
         r_dim: shape.r_dim,
         z_dim: shape.z_dim,
         head_hidden: vec![],
@@ -198,7 +303,7 @@ pub fn bench_disc_step(shape: DiscBenchShape, warmup: usize, iters: usize) -> Re
         od,
         ad,
         shape.z_dim,
-        &[h, h],
+        &shape.hidden,
         DiscInput::StateAction,
         10.0,
         &mut rng,

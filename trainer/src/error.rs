@@ -119,6 +119,14 @@ pub enum Error {
         /// Where its output went.
         log: PathBuf,
     },
+    /// The learner's thread pool could not be started (the OS refused a thread).
+    #[error("cannot start {threads} learner threads: {reason}")]
+    Threads {
+        /// Threads asked for.
+        threads: usize,
+        /// The OS's or rayon's message.
+        reason: String,
+    },
     /// A file could not be read or written.
     #[error("{}: {source}", path.display())]
     Io {

@@ -1,4 +1,13 @@
-//! Compute thread layout, and the allocator setting that keeps freed tensor memory.
+//! Compute thread layout, the learner's thread pool, and the allocator setting that keeps
+//! freed tensor memory.
+//!
+//! **The learner's cores** ([`LearnerPool`]): a run given N learner threads (SMILe's
+//! `learner_threads`, `smile expert --learner-threads`) runs its updates inside a rayon pool of
+//! N threads. Inside it, every large matrix product of the fused layers is cut into N blocks
+//! that idle threads steal (`model::fused::gemm_into`), and SMILe runs its discriminator and
+//! SAC steps as the two sides of a `rayon::join`: the thread that finishes its step first
+//! helps with the other's products instead of waiting. Outside a pool everything runs on the
+//! calling thread.
 //!
 //! Measured on the project's 2-vCPU machines (DESIGN.md): candle's matmul with its default
 //! thread count (one per core) made a 256-wide MLP train step about 8x *slower* than with one
@@ -31,6 +40,58 @@ pub fn set_compute_threads(n: usize) -> Option<String> {
         std::env::set_var("CANDLE_NUM_THREADS", &n);
     }
     prev
+}
+
+/// N learner threads (see the module doc); one thread is no pool at all.
+#[derive(Debug)]
+pub struct LearnerPool {
+    pool: Option<rayon::ThreadPool>,
+    threads: usize,
+}
+
+impl LearnerPool {
+    /// A pool of `threads` threads (`smile-learner-{i}`); 0 or 1 runs on the caller's thread.
+    pub fn new(threads: usize) -> crate::Result<Self> {
+        let threads = threads.max(1);
+        let pool = if threads > 1 {
+            Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .thread_name(|i| format!("smile-learner-{i}"))
+                    .build()
+                    .map_err(|e| crate::Error::Threads {
+                        threads,
+                        reason: e.to_string(),
+                    })?,
+            )
+        } else {
+            None
+        };
+        Ok(Self { pool, threads })
+    }
+
+    /// Its thread count.
+    pub fn threads(&self) -> usize {
+        self.threads
+    }
+
+    /// Runs `f` inside the pool (on the calling thread without one), the caller waiting.
+    pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
+        match &self.pool {
+            Some(p) => p.install(f),
+            None => f(),
+        }
+    }
+}
+
+/// The learner thread count a run gets by default: every core the process may use, capped at
+/// `cap` (where more threads stop paying, e.g. 2 for SMILe's two overlapping steps on a
+/// small machine), at least 1.
+pub fn default_learner_threads(cap: usize) -> usize {
+    std::thread::available_parallelism()
+        .map(|n| n.get())
+        .unwrap_or(1)
+        .clamp(1, cap.max(1))
 }
 
 /// The thread count candle's matmul currently uses.

@@ -48,10 +48,9 @@ use sim::Environment;
 
 mod config;
 mod disc;
-mod overlap;
 mod persist;
 
-pub use config::SmileConfig;
+pub use config::{MAX_LEARNER_THREADS, SmileConfig};
 pub(crate) use disc::{DiscBatch, DiscLearner, disc_update};
 
 use crate::algo::sac::{BcTerm, Sac, SacStats};
@@ -66,6 +65,7 @@ use crate::model::{
     policy_input,
 };
 use crate::optim::{Adam, AdamConfig};
+use crate::threads::LearnerPool;
 use crate::{Error, Result};
 
 /// Events reported to the caller of [`train`].
@@ -105,8 +105,8 @@ pub struct Smile {
     env_steps: u64,
     episodes: u64,
     best: f32,
-    /// The second learner thread of `learner_threads = 2`, started at the first update pair.
-    worker: Option<overlap::DiscWorker>,
+    /// The learner threads of `learner_threads > 1`, started at the first update pair.
+    pool: Option<LearnerPool>,
 }
 
 impl Smile {
@@ -163,7 +163,7 @@ impl Smile {
             env_steps: 0,
             episodes: 0,
             best: f32::NAN,
-            worker: None,
+            pool: None,
         })
     }
 
@@ -324,46 +324,48 @@ impl Smile {
     }
 
     /// One update pair: a discriminator (+ encoder) step and a SAC step, one after the other
-    /// (`learner_threads = 1`) or at the same time on two threads (2; SAC's reward then comes
-    /// from the discriminator before this pair's update).
+    /// (`learner_threads = 1`), or with N > 1 learner threads both at once inside the run's
+    /// thread pool (SAC's reward then comes from the discriminator before this pair's
+    /// update): the two steps are the sides of a `rayon::join`, their large matrix products
+    /// are split across the pool, and the side that finishes first steals the other's blocks
+    /// (`crate::threads`). Deterministic for a seed: the order of every draw from the run's
+    /// RNG is fixed before the two steps start, and a split product equals an unsplit one.
     pub fn update_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
         if self.cfg.learner_threads < 2 {
             let ds = self.disc_step()?;
             let (ss, r) = self.sac_step()?;
             return Ok((ds, ss, r));
         }
+        let pool = match self.pool.take() {
+            Some(p) => p,
+            None => LearnerPool::new(self.cfg.learner_threads)?,
+        };
+        let out = pool.install(|| self.overlapped_pair());
+        self.pool = Some(pool);
+        out
+    }
+
+    /// [`Self::update_pair`] with N > 1 learner threads, run inside the pool.
+    fn overlapped_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
         // Everything that reads the discriminator or draws from the run's RNG happens here,
         // in a fixed order; then the two updates touch disjoint weights and optimisers.
         let disc_batch = self.sample_disc_batch()?;
         let (sac_batch, reward_mean, bc) = self.sac_batch()?;
-        let disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
-        let worker = match &mut self.worker {
-            Some(w) => w,
-            empty => empty.insert(overlap::DiscWorker::spawn()?),
-        };
-        // The optimisers travel with the job and always come back (see `overlap`).
-        let placeholder = || Adam::new(Vec::new(), AdamConfig::with_lr(0.0));
-        let started = worker.start(overlap::DiscJob {
-            encoder: self.encoder.clone(),
-            disc: self.disc.clone(),
-            disc_opt: std::mem::replace(&mut self.disc_opt, placeholder()),
-            enc_opt: std::mem::replace(&mut self.enc_opt, placeholder()),
-            batch: disc_batch,
-            update: self.updates,
-            rng: disc_rng,
+        let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
+        let update = self.updates;
+        let learner = DiscLearner {
+            encoder: &self.encoder,
+            disc: &self.disc,
+            disc_opt: &mut self.disc_opt,
+            enc_opt: &mut self.enc_opt,
             gp_weight: self.cfg.gp_weight,
-        });
-        if let Err(job) = started {
-            (self.disc_opt, self.enc_opt) = (job.disc_opt, job.enc_opt);
-            return Err(overlap::DiscWorker::lost());
-        }
-        let ss = self
-            .sac
-            .update_with_bc(&sac_batch, bc.as_ref(), &mut self.rng);
-        let done = worker.finish()?;
-        self.disc_opt = done.disc_opt;
-        self.enc_opt = done.enc_opt;
-        Ok((done.stats?, ss?, reward_mean))
+        };
+        let (sac, rng) = (&mut self.sac, &mut self.rng);
+        let (ds, ss) = rayon::join(
+            || disc_update(learner, &disc_batch, update, &mut disc_rng),
+            || sac.update_with_bc(&sac_batch, bc.as_ref(), rng),
+        );
+        Ok((ds?, ss?, reward_mean))
     }
 
     /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's

@@ -133,20 +133,24 @@ impl Discriminator {
 pub fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
     let vars = net.vars();
     let n = vars.len() / 2;
-    let mut masks = Vec::with_capacity(n - 1);
+    // The hidden layers' ReLU outputs y_l (constants; y_l > 0 exactly where m_l = 1).
+    let mut acts = Vec::with_capacity(n - 1);
     let mut h = x.detach();
     for l in 0..n - 1 {
-        let pre = h
-            .matmul(&vars[2 * l].as_tensor().detach())?
-            .broadcast_add(&vars[2 * l + 1].as_tensor().detach())?;
-        masks.push(pre.gt(0.0)?.to_dtype(DType::F32)?);
-        h = pre.relu()?;
+        h = super::fused::linear(
+            &h,
+            &vars[2 * l].as_tensor().detach(),
+            &vars[2 * l + 1].as_tensor().detach(),
+            true,
+        )?;
+        acts.push(h.clone());
     }
     let rows = x.dim(0)?;
     let w_last = vars[2 * (n - 1)].as_tensor(); // (h, 1)
     let mut g = Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?.matmul(&w_last.t()?)?;
     for l in (0..n - 1).rev() {
-        g = (g * &masks[l])?.matmul(&vars[2 * l].as_tensor().t()?)?;
+        // g <- (g . m_l) W_l^T, one fused node (its products split in a learner pool)
+        g = super::fused::masked_matmul_t(&g, &acts[l], vars[2 * l].as_tensor())?;
     }
     Ok(g)
 }
@@ -228,5 +232,60 @@ mod tests {
         let g = gp.backward().unwrap();
         assert!(g.get(net.vars()[0].as_tensor()).is_some());
         assert!(g.get(net.vars()[4].as_tensor()).is_some());
+    }
+
+    /// The fused chain's weight gradients (the penalty's double backward) equal those of the
+    /// same chain written with plain candle ops (matmul, mask multiply), which candle
+    /// differentiates itself.
+    #[test]
+    fn the_penalty_chain_has_plain_candles_weight_gradients() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let net = Mlp::new(&[6, 9, 7, 8, 1], &mut rng).unwrap();
+        let x: Vec<f32> = (0..30)
+            .map(|i| ((i * 29 % 13) as f32 - 6.0) * 0.25)
+            .collect();
+        let x = Tensor::from_vec(x, (5, 6), &Device::Cpu).unwrap();
+        let plain = |net: &Mlp, x: &Tensor| -> Tensor {
+            let vars = net.vars();
+            let n = vars.len() / 2;
+            let mut masks = Vec::new();
+            let mut h = x.clone();
+            for l in 0..n - 1 {
+                let pre = h
+                    .matmul(&vars[2 * l].as_tensor().detach())
+                    .unwrap()
+                    .broadcast_add(&vars[2 * l + 1].as_tensor().detach())
+                    .unwrap();
+                masks.push(pre.gt(0.0).unwrap().to_dtype(DType::F32).unwrap());
+                h = pre.relu().unwrap();
+            }
+            let mut g = Tensor::ones((5, 1), DType::F32, &Device::Cpu)
+                .unwrap()
+                .matmul(&vars[2 * (n - 1)].as_tensor().t().unwrap())
+                .unwrap();
+            for l in (0..n - 1).rev() {
+                g = (g * &masks[l])
+                    .unwrap()
+                    .matmul(&vars[2 * l].as_tensor().t().unwrap())
+                    .unwrap();
+            }
+            g
+        };
+        let loss = |g: Tensor| g.sqr().unwrap().sum_all().unwrap().backward().unwrap();
+        let (ours, reference) = (
+            loss(input_gradient(&net, &x).unwrap()),
+            loss(plain(&net, &x)),
+        );
+        for v in net.vars() {
+            let (a, b) = (ours.get(v.as_tensor()), reference.get(v.as_tensor()));
+            match (a, b) {
+                (Some(a), Some(b)) => {
+                    let d = (a - b).unwrap().abs().unwrap().max_all().unwrap();
+                    assert!(d.to_vec0::<f32>().unwrap() < 1e-4, "{:?}", v.shape());
+                }
+                (None, None) => {} // the biases: the chain does not depend on them
+                (a, b) => panic!("gradient present {} vs {}", a.is_some(), b.is_some()),
+            }
+        }
     }
 }

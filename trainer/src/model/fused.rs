@@ -10,8 +10,8 @@
 //! * `dx = g W^T`            only if `x` is tracked
 //! * `dW = x^T g`, `db = 1^T g` only if `W` is tracked (a `Var`, not detached)
 //!
-//! The matrix products call the same `gemm` crate candle uses, single-threaded unless candle's
-//! thread count says otherwise.
+//! The matrix products call the same `gemm` crate candle uses, one block per call; inside a
+//! learner thread pool large products are split across its threads ([`gemm_into`]).
 
 use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
 
@@ -49,8 +49,16 @@ pub(crate) fn f32_slice_mut<'a>(
 
 /// Row-major `C (m x n) [+]= A (m x k) B (k x n)` where A and B are given by strides
 /// (row stride, column stride), so transposes are free.
+///
+/// Inside a learner thread pool of N > 1 threads ([`crate::threads::LearnerPool`]) a product
+/// of at least [`SPLIT_MIN_FLOPS`] is cut into N blocks of rows of `C` (of columns when `C` has
+/// too few rows) and the blocks run through `rayon::join`: a core that is free steals a block,
+/// a busy pool runs them one after the other on the calling thread. Each element of `C` is the
+/// same sum in the same order whichever block and thread computes it (the blocks only change
+/// which rows or columns a call covers, not the loop over `k`), so results do not depend on the
+/// thread count (tested: `split_products_are_bit_identical`).
 #[allow(clippy::too_many_arguments)]
-fn gemm_into(
+pub(crate) fn gemm_into(
     m: usize,
     n: usize,
     k: usize,
@@ -66,37 +74,142 @@ fn gemm_into(
     debug_assert!(c.len() >= m * n);
     debug_assert!(m == 0 || k == 0 || a.len() > (m - 1) * a_rs + (k - 1) * a_cs);
     debug_assert!(k == 0 || n == 0 || b.len() > (k - 1) * b_rs + (n - 1) * b_cs);
-    let threads = candle_core::utils::get_num_threads();
-    let par = if threads > 1 {
-        gemm::Parallelism::Rayon(threads)
-    } else {
-        gemm::Parallelism::None
+    let parts =
+        if rayon::current_thread_index().is_some() && 2.0 * (m * n * k) as f64 >= SPLIT_MIN_FLOPS {
+            rayon::current_num_threads()
+        } else {
+            1
+        };
+    let p = Product {
+        n,
+        k,
+        a,
+        a_rs,
+        a_cs,
+        b,
+        b_rs,
+        b_cs,
+        accumulate,
     };
-    // SAFETY: the slices cover every element addressed by (m, n, k) and the strides (checked
-    // above in debug builds, and by construction from the tensors' shapes at every call site);
-    // `c` does not alias `a` or `b` (distinct allocations).
-    unsafe {
-        gemm::gemm(
-            m,
-            n,
-            k,
-            c.as_mut_ptr(),
-            1,
-            n as isize,
-            accumulate,
-            a.as_ptr(),
-            a_cs as isize,
-            a_rs as isize,
-            b.as_ptr(),
-            b_cs as isize,
-            b_rs as isize,
-            if accumulate { 1.0 } else { 0.0 },
-            1.0,
-            false,
-            false,
-            false,
-            par,
-        )
+    if parts > 1 && m >= 2 * SPLIT_MIN_ROWS {
+        p.rows(m, &mut c[..m * n], parts);
+    } else if parts > 1 && n >= 2 * SPLIT_MIN_ROWS && !accumulate {
+        // Columns of a row-major C are not contiguous: each block writes its own (m x cols)
+        // buffer, copied into C afterwards. (Products with few rows and many columns are the
+        // first layers' weight gradients, never accumulated; an accumulated product would add
+        // the blocks in another order than one call does, so it is not split this way.)
+        p.cols(m, &mut c[..m * n], parts);
+    } else {
+        p.call(m, n, c, n, 0);
+    }
+}
+
+/// Products smaller than this many floating-point operations stay on one thread (a block
+/// handed to another core costs a few microseconds; 4 MFLOP take about 50 us on one core).
+pub(crate) const SPLIT_MIN_FLOPS: f64 = 4e6;
+
+/// A block of a split product has at least this many rows (or columns).
+const SPLIT_MIN_ROWS: usize = 32;
+
+/// The operands of one `C [+]= A B` (see [`gemm_into`]), split into blocks.
+#[derive(Clone, Copy)]
+struct Product<'a> {
+    n: usize,
+    k: usize,
+    a: &'a [f32],
+    a_rs: usize,
+    a_cs: usize,
+    b: &'a [f32],
+    b_rs: usize,
+    b_cs: usize,
+    accumulate: bool,
+}
+
+impl Product<'_> {
+    /// Rows `[0, m)` of `C` (`c` holds exactly them), in `parts` blocks of rows.
+    fn rows(&self, m: usize, c: &mut [f32], parts: usize) {
+        if parts <= 1 || m < 2 * SPLIT_MIN_ROWS {
+            return self.call(m, self.n, c, self.n, 0);
+        }
+        let (lo_parts, hi_parts) = (parts / 2, parts - parts / 2);
+        let m_lo = m * lo_parts / parts;
+        let (c_lo, c_hi) = c.split_at_mut(m_lo * self.n);
+        let hi = Product {
+            a: &self.a[m_lo * self.a_rs..],
+            ..*self
+        };
+        rayon::join(
+            || self.rows(m_lo, c_lo, lo_parts),
+            || hi.rows(m - m_lo, c_hi, hi_parts),
+        );
+    }
+
+    /// All of `C` (`m x n`, not accumulated) in `parts` blocks of columns.
+    fn cols(&self, m: usize, c: &mut [f32], parts: usize) {
+        debug_assert!(!self.accumulate);
+        for (j0, cols, block) in self.col_blocks(m, 0, self.n, parts) {
+            for r in 0..m {
+                c[r * self.n + j0..r * self.n + j0 + cols]
+                    .copy_from_slice(&block[r * cols..(r + 1) * cols]);
+            }
+        }
+    }
+
+    /// Columns `[j0, j0 + cols)` of `A B` as `(j0, cols, m x cols block)`s, `parts` of them.
+    fn col_blocks(
+        &self,
+        m: usize,
+        j0: usize,
+        cols: usize,
+        parts: usize,
+    ) -> Vec<(usize, usize, Vec<f32>)> {
+        if parts <= 1 || cols < 2 * SPLIT_MIN_ROWS {
+            let mut block = vec![0.0f32; m * cols];
+            self.call(m, cols, &mut block, cols, j0);
+            return vec![(j0, cols, block)];
+        }
+        let lo_parts = parts / 2;
+        let c_lo = cols * lo_parts / parts;
+        let (mut lo, hi) = rayon::join(
+            || self.col_blocks(m, j0, c_lo, lo_parts),
+            || self.col_blocks(m, j0 + c_lo, cols - c_lo, parts - lo_parts),
+        );
+        lo.extend(hi);
+        lo
+    }
+
+    /// `C[.., j0..j0+cols] [+]= A B[.., j0..j0+cols]` into `c` with row stride `ldc`.
+    fn call(&self, m: usize, cols: usize, c: &mut [f32], ldc: usize, j0: usize) {
+        if m == 0 || cols == 0 {
+            return;
+        }
+        debug_assert!(c.len() >= (m - 1) * ldc + cols);
+        // SAFETY: the slices cover every element addressed by (m, cols, k) and the strides
+        // (checked in debug builds in `gemm_into`, and by construction from the tensors'
+        // shapes at every call site); `c` does not alias `a` or `b` (distinct allocations).
+        unsafe {
+            gemm::gemm(
+                m,
+                cols,
+                self.k,
+                c.as_mut_ptr(),
+                1,
+                ldc as isize,
+                self.accumulate,
+                self.a.as_ptr(),
+                self.a_cs as isize,
+                self.a_rs as isize,
+                self.b.as_ptr().add(j0 * self.b_cs),
+                self.b_cs as isize,
+                self.b_rs as isize,
+                if self.accumulate { 1.0 } else { 0.0 },
+                1.0,
+                false,
+                false,
+                false,
+                gemm::Parallelism::None,
+            )
+        }
     }
 }
 
@@ -219,6 +332,111 @@ pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> candle_core::Re
     x.contiguous()?.apply_op3(w, b, Linear { relu })
 }
 
+/// One step of the gradient penalty's input-gradient chain as one autograd node (see
+/// [`crate::model::discriminator::input_gradient`]): from `g (B, out)`, the layer's ReLU
+/// output `y (B, out)` (a constant) and its weight `w (in, out)`,
+/// `out = (g . 1[y > 0]) W^T`  `(B, in)`. Backward, with `G = g . 1[y > 0]`:
+/// `dg = (dout W) . 1[y > 0]` and `dW = dout^T G`, each only if autograd wants it. (As plain
+/// candle ops this was a mask, a multiply and a matmul whose backward ran outside the pool's
+/// product splitting.)
+#[derive(Debug, Clone, Copy)]
+pub struct MaskedMatmulT;
+
+/// Reads a tensor's contiguous f32 values.
+fn values(t: &Tensor) -> candle_core::Result<Vec<f32>> {
+    t.flatten_all()?.to_vec1()
+}
+
+impl CustomOp3 for MaskedMatmulT {
+    fn name(&self) -> &'static str {
+        "masked-matmul-t"
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let (rows, d_out) = l1.shape().dims2()?;
+        let (d_in, w_out) = l3.shape().dims2()?;
+        if l2.shape().dims2()? != (rows, d_out) || w_out != d_out {
+            return Err(msg("masked matmul: shape mismatch"));
+        }
+        let (g, y, w) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
+        let masked: Vec<f32> = g
+            .iter()
+            .zip(y)
+            .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
+            .collect();
+        // out (rows x in) = G (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
+        let mut out = vec![0.0f32; rows * d_in];
+        gemm_into(
+            rows, d_in, d_out, &mut out, false, &masked, d_out, 1, w, 1, d_out,
+        );
+        Ok((CpuStorage::F32(out), Shape::from((rows, d_in))))
+    }
+
+    fn bwd(
+        &self,
+        g: &Tensor,
+        y: &Tensor,
+        w: &Tensor,
+        _res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let (rows, d_out) = g.dims2()?;
+        let d_in = w.dim(0)?;
+        let (want_dg, want_dw) = (g.track_op(), w.track_op());
+        if !want_dg && !want_dw {
+            return Ok((None, None, None));
+        }
+        let (dout, y) = (values(grad_res)?, values(y)?);
+        let dev = g.device();
+        let dg = if want_dg {
+            let w = values(w)?;
+            // dG (rows x out) = dout (rows x in) W (in x out), then the mask
+            let mut dg = vec![0.0f32; rows * d_out];
+            gemm_into(
+                rows, d_out, d_in, &mut dg, false, &dout, d_in, 1, &w, d_out, 1,
+            );
+            dg.iter_mut().zip(&y).for_each(|(d, y)| {
+                if *y <= 0.0 {
+                    *d = 0.0
+                }
+            });
+            Some(Tensor::from_vec(dg, (rows, d_out), dev)?)
+        } else {
+            None
+        };
+        let dw = if want_dw {
+            let masked: Vec<f32> = values(g)?
+                .iter()
+                .zip(&y)
+                .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
+                .collect();
+            // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] = dout[r * in + i]
+            let mut dw = vec![0.0f32; d_in * d_out];
+            gemm_into(
+                d_in, d_out, rows, &mut dw, false, &dout, 1, d_in, &masked, d_out, 1,
+            );
+            Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
+        } else {
+            None
+        };
+        Ok((dg, None, dw))
+    }
+}
+
+/// `(g . 1[y > 0]) W^T` as one autograd node ([`MaskedMatmulT`]); `y` is not differentiated.
+pub fn masked_matmul_t(g: &Tensor, y: &Tensor, w: &Tensor) -> candle_core::Result<Tensor> {
+    g.contiguous()?
+        .apply_op3(&y.detach().contiguous()?, w, MaskedMatmulT)
+}
+
 /// Fused tanh-Gaussian head (see [`crate::policy`]): from the policy network's output
 /// `h = [mu, raw log sigma]` `(B, 2A)` and noise `eps` `(B, A)` to `(B, A + 1)` holding
 /// `a = tanh(mu + exp(clamp(raw)) eps)` and, in the last column,
@@ -330,6 +548,41 @@ impl candle_core::CustomOp2 for TanhGaussian {
 mod tests {
     use super::*;
     use candle_core::{Device, Var};
+
+    /// A product split into row or column blocks across a pool of any size equals the product
+    /// computed in one call, bit for bit (what makes runs independent of the thread count).
+    #[test]
+    fn split_products_are_bit_identical() {
+        let vals = |n: usize, s: f32| -> Vec<f32> {
+            (0..n).map(|i| (i as f32 * 0.61 + s).sin() * 3.0).collect()
+        };
+        // (m, n, k, a transposed): rows split (C 300 x 200); columns split (C 40 x 700, the
+        // shape of a first layer's weight gradient, A read transposed).
+        for (m, n, k, a_t) in [(300usize, 200usize, 150usize, false), (40, 700, 300, true)] {
+            assert!(2.0 * (m * n * k) as f64 >= SPLIT_MIN_FLOPS);
+            let (a, b) = (vals(m * k, 0.3), vals(k * n, 1.7));
+            let (a_rs, a_cs) = if a_t { (1, m) } else { (k, 1) };
+            let run = |threads: usize, accumulate: bool| -> Vec<f32> {
+                let mut c = vals(m * n, 2.9);
+                crate::threads::LearnerPool::new(threads)
+                    .unwrap()
+                    .install(|| gemm_into(m, n, k, &mut c, accumulate, &a, a_rs, a_cs, &b, n, 1));
+                c
+            };
+            for accumulate in [false, true] {
+                let one = run(1, accumulate);
+                for threads in [2, 3, 4, 7] {
+                    let split = run(threads, accumulate);
+                    assert!(
+                        one.iter()
+                            .zip(&split)
+                            .all(|(x, y)| x.to_bits() == y.to_bits()),
+                        "{m}x{n}x{k}, {threads} threads, accumulate {accumulate}"
+                    );
+                }
+            }
+        }
+    }
 
     /// The fused op's values and gradients equal plain candle's.
     #[test]

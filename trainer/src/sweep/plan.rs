@@ -158,15 +158,16 @@ impl Cell {
         s
     }
 
-    /// The cores this cell's training keeps busy: SMILe's `learner_threads` (2 runs the
-    /// discriminator step on a second thread), else 1. The config was checked at load, so a
-    /// value that does not parse counts as 1.
+    /// The cores this cell's training keeps busy: SMILe's `learner_threads`, else 1. The
+    /// config was checked at load, so a value that does not parse counts as 1.
     pub fn cpus(&self) -> usize {
         self.config
             .parse::<toml::Table>()
             .ok()
             .and_then(|t| t.get("learner_threads")?.as_integer())
-            .map_or(1, |n| n.clamp(1, 2) as usize)
+            .map_or(1, |n| {
+                n.clamp(1, crate::smile::MAX_LEARNER_THREADS as i64) as usize
+            })
     }
 
     /// The demo file's stem.

@@ -8,6 +8,9 @@ use crate::data::ContextDraw;
 use crate::model::ContextConfig;
 use crate::{Error, Result};
 
+/// The most learner threads a SMILe run accepts.
+pub const MAX_LEARNER_THREADS: usize = 256;
+
 /// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
 /// CPU: encoder 64 -> r 32 -> 64 x 64 head -> z 16, discriminator and SAC 2 x 128, reward
 /// scale 8, gradient penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes
@@ -68,14 +71,15 @@ pub struct SmileConfig {
     /// Trajectories per context in that evaluation (draw d uses demos d*k..d*k+k). Default 1,
     /// the paper's one-demo protocol; ant-linclass, whose task needs several demos, uses 4.
     pub eval_context_size: usize,
-    /// Learner threads: 1 runs each update pair as Algorithm 1 does (discriminator step, then
-    /// the SAC step on the updated discriminator's reward); 2 runs the discriminator step on a
-    /// second thread *while* the SAC step runs, so SAC's reward comes from the discriminator
-    /// before this pair's update (one update older). Deterministic either way (the second
-    /// thread has its own RNG drawn from the run's). Measured 2026-11-30 on two quiet cores
-    /// (`smile bench --workload pair --hidden 128 --learner-threads 1|2`, docs/BENCHMARKS.md):
-    /// 5.2 -> 3.4 ms per pair (1.5x), 155% CPU. It needs a free core: do not use it in `smile
-    /// sweep --jobs 2` or beside other work. Default 1.
+    /// Learner threads (cores the updates use): 1 runs each update pair as Algorithm 1 does
+    /// (discriminator step, then the SAC step on the updated discriminator's reward); N > 1
+    /// runs the discriminator step *while* the SAC step runs, so SAC's reward comes from the
+    /// discriminator before this pair's update (one update older), in a pool of N threads
+    /// that also splits every large matrix product of both steps (`crate::threads`).
+    /// Deterministic for a seed and the same on any N > 1 (the discriminator step has its own
+    /// RNG drawn from the run's; a split product equals an unsplit one). Measured in
+    /// docs/BENCHMARKS.md ("Threads"). Each thread needs a free core: `smile sweep` counts
+    /// them when it packs cells. Default 1.
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
@@ -198,9 +202,9 @@ impl SmileConfig {
                 "smile batch sizes and counts must be positive (eval_context_size too)".into(),
             ));
         }
-        if !(1..=2).contains(&self.learner_threads) {
+        if !(1..=MAX_LEARNER_THREADS).contains(&self.learner_threads) {
             return Err(Error::Config(format!(
-                "learner_threads must be 1 or 2, not {}",
+                "learner_threads must be 1 to {MAX_LEARNER_THREADS}, not {}",
                 self.learner_threads
             )));
         }
