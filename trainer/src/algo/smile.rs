@@ -51,7 +51,7 @@ mod disc;
 mod persist;
 
 pub use config::{MAX_LEARNER_THREADS, SmileConfig};
-pub(crate) use disc::{DiscBatch, DiscLearner, disc_update};
+pub(crate) use disc::{DiscBatch, DiscLearner, disc_grads, disc_update};
 
 use crate::algo::sac::{BcTerm, Sac, SacStats};
 use crate::data::{
@@ -345,110 +345,52 @@ impl Smile {
         out
     }
 
-    /// [`Self::update_pair`] with N > 1 learner threads, run inside the pool.
+    /// [`Self::update_pair`] with N > 1 learner threads, run inside the pool: the
+    /// discriminator's loss and gradients on one side of a join; the SAC batch (its reward from
+    /// the discriminator as it is before this pair) and the SAC step on the other; then the
+    /// discriminator's and encoder's optimiser steps. Both sides only read the discriminator
+    /// and the encoder; every random draw has a fixed order (the discriminator batch, then its
+    /// own RNG's seed, from the run's RNG, before the join; the SAC side draws from the run's
+    /// RNG alone).
     fn overlapped_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
-        // Everything that reads the discriminator or draws from the run's RNG happens here,
-        // in a fixed order; then the two updates touch disjoint weights and optimisers.
         let disc_batch = self.sample_disc_batch()?;
-        let (sac_batch, reward_mean, bc) = self.sac_batch()?;
         let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
         let update = self.updates;
-        let learner = DiscLearner {
+        let source = SacBatchSource {
+            cfg: &self.cfg,
+            data: &self.data,
             encoder: &self.encoder,
             disc: &self.disc,
-            disc_opt: &mut self.disc_opt,
-            enc_opt: &mut self.enc_opt,
-            gp_weight: self.cfg.gp_weight,
+            replay: &self.replay,
+            updates: self.updates,
         };
         let (sac, rng) = (&mut self.sac, &mut self.rng);
-        let (ds, ss) = rayon::join(
-            || disc_update(learner, &disc_batch, update, &mut disc_rng),
-            || sac.update_with_bc(&sac_batch, bc.as_ref(), rng),
+        let (encoder, disc, gp_weight) = (&self.encoder, &self.disc, self.cfg.gp_weight);
+        let (d, s) = rayon::join(
+            || disc_grads(encoder, disc, gp_weight, &disc_batch, update, &mut disc_rng),
+            || -> Result<(SacStats, f32)> {
+                let (batch, reward_mean, bc) = source.draw(rng)?;
+                Ok((sac.update_with_bc(&batch, bc.as_ref(), rng)?, reward_mean))
+            },
         );
-        Ok((ds?, ss?, reward_mean))
+        let ((grads, ds), (ss, reward_mean)) = (d?, s?);
+        self.disc_opt.step(&grads)?;
+        self.enc_opt.step(&grads)?;
+        Ok((ds, ss, reward_mean))
     }
 
     /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's
     /// reward; returns it with the reward's mean and, for SMILe + BC, the cloning term's rows.
     fn sac_batch(&mut self) -> Result<(Batch, f32, Option<BcTerm>)> {
-        let cfg = &self.cfg;
-        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
-        let n = cfg.sac_per_task;
-        let specs: Vec<ContextSpec<'_>> = tasks
-            .iter()
-            .map(|&ti| sample_context(&self.data.train[ti], cfg.context_draw(), &mut self.rng))
-            .collect();
-        let b = self.encoder.batch(&self.data.norm, &specs)?;
-        // z from the discriminator's encoder, detached: SAC never updates the encoder.
-        let z = self
-            .encoder
-            .z(&b, true, &mut self.rng)?
-            .detach()
-            .to_vec2::<f32>()?;
-        let mut bv = BatchVecs::default();
-        let mut z_rows = Vec::with_capacity(tasks.len() * n * z[0].len());
-        for (k, &ti) in tasks.iter().enumerate() {
-            self.replay
-                .task(ti)
-                .sample_into(n, &mut self.rng, &mut bv)?;
-            for _ in 0..n {
-                z_rows.extend_from_slice(&z[k]);
-            }
+        SacBatchSource {
+            cfg: &self.cfg,
+            data: &self.data,
+            encoder: &self.encoder,
+            disc: &self.disc,
+            replay: &self.replay,
+            updates: self.updates,
         }
-        let rows = bv.rew.len();
-        let (od, ad, zd) = (
-            self.data.family.obs_dim(),
-            self.data.family.act_dim(),
-            z[0].len(),
-        );
-        // r = clamp(D([x, z]), -10, 10); the SAC config's reward_scale multiplies it.
-        let xzd = self.disc.x_dim() + zd;
-        let mut dx = Vec::with_capacity(rows * xzd);
-        for r in 0..rows {
-            self.disc.push_x(
-                &self.data.norm,
-                &bv.obs[r * od..(r + 1) * od],
-                &bv.act[r * ad..(r + 1) * ad],
-                &bv.next_obs[r * od..(r + 1) * od],
-                &mut dx,
-            );
-            dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
-        }
-        let rew = self
-            .disc
-            .reward(&Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?)?;
-        let reward_mean = scalar(&rew.mean_all()?)?;
-        let batch = Batch {
-            obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
-            act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
-            rew,
-            next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
-            done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
-        };
-        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
-        // when the weight is 0, so such a run is SMILe's, bit for bit.
-        let w = self.cfg.bc_weight_at(self.updates);
-        let bc = if w > 0.0 {
-            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
-            for &ti in &tasks {
-                let demos = &self.data.train[ti];
-                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-                for _ in 0..n {
-                    let (j, k) = draw_transition(&lens, &mut self.rng);
-                    let tr = &demos.trajectories[j];
-                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
-                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
-                }
-            }
-            Some(BcTerm {
-                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
-                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
-                weight: w,
-            })
-        } else {
-            None
-        };
-        Ok((batch, reward_mean, bc))
+        .draw(&mut self.rng)
     }
 
     /// Deterministic evaluation on the held-out train tasks (contexts of
@@ -577,4 +519,93 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
         MetaPolicy::mark_finished(dir)?;
     }
     Ok(())
+}
+
+/// The networks and data a SAC batch is drawn from, borrowed field by field, so that the SAC
+/// side of an overlapped pair can draw it while the discriminator side reads the same networks.
+struct SacBatchSource<'a> {
+    cfg: &'a SmileConfig,
+    data: &'a MetaData,
+    encoder: &'a ContextEncoder,
+    disc: &'a Discriminator,
+    replay: &'a TaskReplay,
+    updates: u64,
+}
+
+impl SacBatchSource<'_> {
+    /// [`Smile::sac_batch`]: every random choice drawn from `rng`.
+    fn draw(&self, rng: &mut ChaCha8Rng) -> Result<(Batch, f32, Option<BcTerm>)> {
+        let cfg = &self.cfg;
+        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
+        let n = cfg.sac_per_task;
+        let specs: Vec<ContextSpec<'_>> = tasks
+            .iter()
+            .map(|&ti| sample_context(&self.data.train[ti], cfg.context_draw(), rng))
+            .collect();
+        let b = self.encoder.batch(&self.data.norm, &specs)?;
+        // z from the discriminator's encoder, detached: SAC never updates the encoder.
+        let z = self.encoder.z(&b, true, rng)?.detach().to_vec2::<f32>()?;
+        let mut bv = BatchVecs::default();
+        let mut z_rows = Vec::with_capacity(tasks.len() * n * z[0].len());
+        for (k, &ti) in tasks.iter().enumerate() {
+            self.replay.task(ti).sample_into(n, rng, &mut bv)?;
+            for _ in 0..n {
+                z_rows.extend_from_slice(&z[k]);
+            }
+        }
+        let rows = bv.rew.len();
+        let (od, ad, zd) = (
+            self.data.family.obs_dim(),
+            self.data.family.act_dim(),
+            z[0].len(),
+        );
+        // r = clamp(D([x, z]), -10, 10); the SAC config's reward_scale multiplies it.
+        let xzd = self.disc.x_dim() + zd;
+        let mut dx = Vec::with_capacity(rows * xzd);
+        for r in 0..rows {
+            self.disc.push_x(
+                &self.data.norm,
+                &bv.obs[r * od..(r + 1) * od],
+                &bv.act[r * ad..(r + 1) * ad],
+                &bv.next_obs[r * od..(r + 1) * od],
+                &mut dx,
+            );
+            dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
+        }
+        let rew = self
+            .disc
+            .reward(&Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?)?;
+        let reward_mean = scalar(&rew.mean_all()?)?;
+        let batch = Batch {
+            obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
+            act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
+            rew,
+            next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
+            done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
+        };
+        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
+        // when the weight is 0, so such a run is SMILe's, bit for bit.
+        let w = self.cfg.bc_weight_at(self.updates);
+        let bc = if w > 0.0 {
+            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
+            for &ti in &tasks {
+                let demos = &self.data.train[ti];
+                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+                for _ in 0..n {
+                    let (j, k) = draw_transition(&lens, rng);
+                    let tr = &demos.trajectories[j];
+                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
+                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
+                }
+            }
+            Some(BcTerm {
+                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
+                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
+                weight: w,
+            })
+        } else {
+            None
+        };
+        Ok((batch, reward_mean, bc))
+    }
 }

@@ -2,6 +2,7 @@
 //! [`crate::model::Discriminator`]): its batch, what it changes, and the step itself, shared by
 //! [`super::Smile::disc_step`], the second learner thread (`overlap`) and `smile bench`.
 
+use candle_core::backprop::GradStore;
 use candle_core::{DType, Device, Tensor};
 use rand::Rng;
 
@@ -69,8 +70,27 @@ pub(crate) fn disc_update(
     update: u64,
     rng: &mut impl Rng,
 ) -> Result<DiscStats> {
+    let (grads, stats) = disc_grads(l.encoder, l.disc, l.gp_weight, batch, update, rng)?;
+    // One backward pass, two optimisers: the discriminator (betas (0, 0.999)) and the
+    // encoder (trained only through this loss).
+    l.disc_opt.step(&grads)?;
+    l.enc_opt.step(&grads)?;
+    Ok(stats)
+}
+
+/// The loss `L_D` of one discriminator + encoder update and its gradients, the networks only
+/// read (an overlapped pair computes them while the SAC side reads the same networks for its
+/// reward, and steps the optimisers after both sides are done).
+pub(crate) fn disc_grads(
+    encoder: &ContextEncoder,
+    disc: &Discriminator,
+    gp_weight: f32,
+    batch: &DiscBatch,
+    update: u64,
+    rng: &mut impl Rng,
+) -> Result<(GradStore, DiscStats)> {
     let rows = batch.tasks * batch.per_task;
-    let z = l.encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
+    let z = encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
     let z_rows = batch.z_rows(&z)?; // (t n, z)
     let inp = Tensor::cat(
         &[
@@ -79,7 +99,7 @@ pub(crate) fn disc_update(
         ],
         0,
     )?;
-    let logits = l.disc.logits(&inp)?; // (2 t n, 1): expert rows, then policy rows
+    let logits = disc.logits(&inp)?; // (2 t n, 1): expert rows, then policy rows
     let labels = Tensor::cat(
         &[
             Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?,
@@ -92,15 +112,13 @@ pub(crate) fn disc_update(
     // L_gp = mean[(||dD/dx~|| - 1)^2], x~ = u x_E + (1 - u) x_pi, z detached
     let mut loss = bce.clone();
     let mut gp_v = 0.0;
-    if l.gp_weight > 0.0 {
+    if gp_weight > 0.0 {
         let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
         let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu)?;
-        let gp = l
-            .disc
-            .gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u)?;
+        let gp = disc.gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u)?;
         gp_v = scalar(&gp)?;
         // L_D = L_bce + lambda_gp L_gp
-        loss = (loss + (gp * l.gp_weight as f64)?)?;
+        loss = (loss + (gp * gp_weight as f64)?)?;
     }
     let bce_v = scalar(&bce)?;
     for (what, v) in [("losses/disc_bce", bce_v), ("losses/disc_gp", gp_v)] {
@@ -112,18 +130,15 @@ pub(crate) fn disc_update(
             });
         }
     }
-    // One backward pass, two optimisers: the discriminator (betas (0, 0.999)) and the
-    // encoder (trained only through this loss).
     let grads = loss.backward()?;
-    l.disc_opt.step(&grads)?;
-    l.enc_opt.step(&grads)?;
     let lg = logits.detach().flatten_all()?.to_vec1::<f32>()?;
     let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
     let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
-    Ok(DiscStats {
+    let stats = DiscStats {
         bce: bce_v,
         gp: gp_v,
         acc_expert: acc_e,
         acc_policy: acc_p,
-    })
+    };
+    Ok((grads, stats))
 }
