@@ -432,3 +432,43 @@ pub fn bench_smile_pairs(
         iterations: all.len(),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The work counts, by hand on one-row shapes.
+    #[test]
+    fn flops_count_every_product_the_steps_need() {
+        // critics [3, 4, 1], policy [2, 4, 2]: 32 flops per row each; target 32 + 2 x 32,
+        // critic loss 2 x (32 + 64 - 24), actor 32 + 2 x (32 + 32) + (64 - 16)
+        let sac = SacBenchShape {
+            hidden: vec![4],
+            batch: 1,
+            obs_dim: 1,
+            z_dim: 1,
+            act_dim: 1,
+        };
+        assert_eq!(sac.flops(), 96.0 + 144.0 + 208.0);
+        // encoder [3, 3, 2] on one transition: 30 forward + 30 weight + 12 hidden gradients,
+        // head 3 x 2 x (2 x 1); discriminator [3, 4, 1]: two rows x 3 x 32; penalty on one row:
+        // forward 24, chain 24, its backward 48, the output row and its gradient 16
+        let disc = DiscBenchShape {
+            hidden: vec![4],
+            enc_hidden: vec![3],
+            tasks: 1,
+            ctx_trajs: 1,
+            ctx_len: 1,
+            samples: 1,
+            obs_dim: 1,
+            act_dim: 1,
+            r_dim: 2,
+            z_dim: 1,
+            gp_weight: 10.0,
+        };
+        assert_eq!(disc.flops(), 54.0 + 192.0 + 112.0);
+        // the authors' shapes: the figures BENCHMARKS.md quotes
+        assert!((SacBenchShape::authors().flops() / 1e9 - 4.93).abs() < 0.01);
+        assert!((DiscBenchShape::authors().flops() / 1e9 - 11.87).abs() < 0.01);
+    }
+}

@@ -84,6 +84,23 @@ impl LearnerPool {
     }
 }
 
+/// `skip_serializing_if` of the configs' `learner_threads` (1, the default, is not written, so
+/// configs and checkpoints of one-thread runs stay as they were).
+pub(crate) fn is_one(v: &usize) -> bool {
+    *v == 1
+}
+
+/// Checks a config's `learner_threads` (1 to `max`).
+pub(crate) fn check_learner_threads(v: usize, max: usize) -> crate::Result<()> {
+    if (1..=max).contains(&v) {
+        Ok(())
+    } else {
+        Err(crate::Error::Config(format!(
+            "learner_threads must be 1 to {max}, not {v}"
+        )))
+    }
+}
+
 /// The learner thread count a run gets by default: every core the process may use, capped at
 /// `cap` (where more threads stop paying, e.g. 2 for SMILe's two overlapping steps on a
 /// small machine), at least 1.

@@ -411,14 +411,16 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
-        stdout.starts_with("sac update, batch 256, obs 20 + z 16, act 6, candle threads 1\n"),
+        stdout.starts_with(
+            "sac update, batch 256, obs 20 + z 16, act 6, candle threads 1, learner threads 1\n"
+        ),
         "{stdout}"
     );
     // A header and one row per width, each with a positive median time.
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(lines.len(), 4, "{stdout}");
-    assert!(lines[1].contains("median_us") && lines[1].contains("upd/s"));
-    for (line, h) in lines[2..].iter().zip(["8", "16"]) {
+    assert!(lines[1].contains("median_us") && lines[1].contains("GFLOP/s"));
+    for (line, h) in lines[2..].iter().zip(["8x2", "16x2"]) {
         let cols: Vec<&str> = line.split_whitespace().collect();
         assert_eq!(cols[0], h, "{line}");
         assert!(cols[1].parse::<f64>().unwrap() > 0.0, "{line}");
@@ -432,6 +434,10 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
             (row["workload"].as_str(), row["H"].as_u64()),
             (Some("sac"), Some(h))
         );
+        assert_eq!(row["shape"]["hidden"], serde_json::json!([h, h]));
+        // the products' work: 2 x batch x (multiply-adds of every product the update needs)
+        assert!(row["flops"].as_f64().unwrap() > 2.0 * 256.0 * (36.0 * h as f64));
+        assert!(row["gflop_per_s"].as_f64().unwrap() > 0.0);
         let t = &row["timing"];
         let med = t["median_us"].as_f64().unwrap();
         assert!(
@@ -493,7 +499,7 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("sac.hidden needs at least one positive width"),
+        err.contains("--hidden \"0\": widths are positive integers, e.g. 256 or 512,512,512"),
         "{err}"
     );
     let out = smile(&["bench", "--iters", "many"]);

@@ -24,6 +24,7 @@ use crate::data::better;
 pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate, evaluate_under_noise};
 use crate::io::checkpoint;
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
+use crate::threads::LearnerPool;
 use crate::{Error, Result};
 
 mod policy;
@@ -75,6 +76,11 @@ pub struct ExpertConfig {
     pub horizon: Option<usize>,
     /// Seed of everything (weights, task draws, noise, reset seeds). Default 0.
     pub seed: u64,
+    /// Learner threads: the SAC updates run in a pool of this many threads that splits their
+    /// large matrix products (`crate::threads`); the same weights on any count (a split
+    /// product equals an unsplit one). Default 1.
+    #[serde(skip_serializing_if = "crate::threads::is_one")]
+    pub learner_threads: usize,
     /// SAC hyper-parameters.
     pub sac: SacConfig,
 }
@@ -96,6 +102,7 @@ impl Default for ExpertConfig {
             keep_best: false,
             horizon: None,
             seed: 0,
+            learner_threads: 1,
             sac: SacConfig::default(),
         }
     }
@@ -166,6 +173,8 @@ pub struct ExpertTrainer {
     episodes: u64,
     /// The best periodic evaluation so far (with `keep_best`).
     best: Option<BestEval>,
+    /// Where the updates run (`learner_threads`).
+    pool: LearnerPool,
 }
 
 /// The best evaluation of a run with `keep_best`: its metric and when it was taken; the
@@ -221,6 +230,11 @@ impl ExpertTrainer {
     }
 
     fn build(cfg: ExpertConfig) -> Result<Self> {
+        crate::threads::check_learner_threads(
+            cfg.learner_threads,
+            crate::smile::MAX_LEARNER_THREADS,
+        )?;
+        let pool = LearnerPool::new(cfg.learner_threads)?;
         let family = cfg.family()?;
         let tasks = cfg.tasks()?;
         let env = sim::make_env(family, cfg.env_config())?;
@@ -239,6 +253,7 @@ impl ExpertTrainer {
             env_steps: 0,
             episodes: 0,
             best: None,
+            pool,
         })
     }
 
@@ -292,7 +307,8 @@ impl ExpertTrainer {
             if self.env_steps > self.cfg.learning_starts {
                 for _ in 0..self.cfg.updates_per_step {
                     let batch = self.replay.sample(self.cfg.sac.batch_size, &mut self.rng)?;
-                    last_update = Some(self.sac.update(&batch, &mut self.rng)?);
+                    let (sac, rng) = (&mut self.sac, &mut self.rng);
+                    last_update = Some(self.pool.install(|| sac.update(&batch, rng))?);
                 }
             }
             on_step(self.env_steps);

@@ -36,6 +36,7 @@ use crate::model::{
     ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, TrainingMark, scalar,
 };
 use crate::optim::{Adam, AdamConfig};
+use crate::threads::LearnerPool;
 use crate::{Error, Result};
 
 mod config;
@@ -87,6 +88,8 @@ pub struct MetaBc {
     best_mse: f32,
     best_metric: f32,
     bad_evals: u32,
+    /// The learner threads of `learner_threads > 1`, started at the first step.
+    pool: Option<LearnerPool>,
     stopped: bool,
 }
 
@@ -154,6 +157,7 @@ impl MetaBc {
             best_metric: f32::NAN,
             bad_evals: 0,
             stopped: false,
+            pool: None,
         })
     }
 
@@ -226,8 +230,23 @@ impl MetaBc {
         Ok((mean.tanh()? - target)?.sqr()?.mean_all()?)
     }
 
-    /// One gradient step; returns the training MSE.
+    /// One gradient step; returns the training MSE. With `learner_threads` > 1 it runs in the
+    /// run's thread pool (started at the first step), its large products split.
     pub fn step(&mut self) -> Result<f32> {
+        if self.cfg.learner_threads < 2 {
+            return self.step_here();
+        }
+        let pool = match self.pool.take() {
+            Some(p) => p,
+            None => LearnerPool::new(self.cfg.learner_threads)?,
+        };
+        let out = pool.install(|| self.step_here());
+        self.pool = Some(pool);
+        out
+    }
+
+    /// [`Self::step`] on the calling thread.
+    fn step_here(&mut self) -> Result<f32> {
         let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
         let tasks = distinct_tasks(
             self.data.train.len(),

@@ -70,6 +70,10 @@ pub struct MetaBcConfig {
     pub horizon: Option<usize>,
     /// Seed. Default 0.
     pub seed: u64,
+    /// Learner threads: each gradient step runs in a pool of this many threads that splits
+    /// its large matrix products (`crate::threads`); the same weights on any count. Default 1.
+    #[serde(skip_serializing_if = "crate::threads::is_one")]
+    pub learner_threads: usize,
 }
 
 impl Default for MetaBcConfig {
@@ -96,6 +100,7 @@ impl Default for MetaBcConfig {
             checkpoint_every: 2000,
             horizon: None,
             seed: 0,
+            learner_threads: 1,
         }
     }
 }
@@ -128,6 +133,10 @@ impl MetaBcConfig {
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
+        crate::threads::check_learner_threads(
+            self.learner_threads,
+            crate::smile::MAX_LEARNER_THREADS,
+        )?;
         if self.tasks_per_batch == 0
             || self.per_task == 0
             || self.max_context == 0

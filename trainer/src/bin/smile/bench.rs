@@ -152,17 +152,18 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         })
                         .collect()
                 };
+                let first = &list[0];
+                println!(
+                    "sac update, batch {}, obs {} + z {}, act {}, candle threads {threads}, \
+                     learner threads {}",
+                    first.batch,
+                    first.obs_dim,
+                    first.z_dim,
+                    first.act_dim,
+                    pool.threads()
+                );
+                println!("{header}");
                 for shape in list {
-                    println!(
-                        "sac update, batch {}, obs {} + z {}, act {}, candle threads {threads}, \
-                         learner threads {}",
-                        shape.batch,
-                        shape.obs_dim,
-                        shape.z_dim,
-                        shape.act_dim,
-                        pool.threads()
-                    );
-                    println!("{header}");
                     let flops = shape.flops();
                     let t = pool.install(|| {
                         bench_sac_update(
@@ -172,7 +173,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         )
                     })?;
                     println!("{}", row(&label(&shape.hidden), &t, flops));
-                    rows.push(serde_json::json!({"workload": "sac", "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
+                    rows.push(serde_json::json!({"workload": "sac", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
                 }
             }
             Workload::Disc => {
@@ -191,25 +192,30 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         })
                         .collect()
                 };
+                let first = &list[0];
+                println!(
+                    "disc + encoder update, {} tasks x {} x {} context steps through the encoder \
+                     ({}) -> r {} -> z {}, {} + {} rows per task, obs {}, act {}, gp {}, \
+                     candle threads {threads}, learner threads {}",
+                    first.tasks,
+                    first.ctx_trajs,
+                    first.ctx_len,
+                    match a.enc_hidden {
+                        _ if a.authors => label(&first.enc_hidden),
+                        Some(w) => format!("{w}x2"),
+                        None => "each shape's first width x 2".into(),
+                    },
+                    first.r_dim,
+                    first.z_dim,
+                    first.samples,
+                    first.samples,
+                    first.obs_dim,
+                    first.act_dim,
+                    first.gp_weight,
+                    pool.threads()
+                );
+                println!("{header}");
                 for shape in list {
-                    println!(
-                        "disc + encoder update, {} tasks x {} x {} context steps through encoder {} -> r {} -> z {}, \
-                         {} + {} rows per task, obs {}, act {}, gp {}, candle threads {threads}, \
-                         learner threads {}",
-                        shape.tasks,
-                        shape.ctx_trajs,
-                        shape.ctx_len,
-                        label(&shape.enc_hidden),
-                        shape.r_dim,
-                        shape.z_dim,
-                        shape.samples,
-                        shape.samples,
-                        shape.obs_dim,
-                        shape.act_dim,
-                        shape.gp_weight,
-                        pool.threads()
-                    );
-                    println!("{header}");
                     let flops = shape.flops();
                     let t = pool.install(|| {
                         bench_disc_step(
@@ -219,7 +225,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         )
                     })?;
                     println!("{}", row(&label(&shape.hidden), &t, flops));
-                    rows.push(serde_json::json!({"workload": "disc", "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
+                    rows.push(serde_json::json!({"workload": "disc", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
                 }
             }
             Workload::Pair => {

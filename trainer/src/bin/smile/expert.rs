@@ -50,6 +50,10 @@ pub struct ExpertArgs {
     /// Seed.
     #[arg(long)]
     seed: Option<u64>,
+    /// Learner threads, the cores the SAC updates use (the config's `learner_threads`,
+    /// default 1): large matrix products split across them; the same weights on any count.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    learner_threads: Option<u16>,
     /// Hidden widths of actor and critics, e.g. 256,256.
     #[arg(long, value_delimiter = ',')]
     hidden: Option<Vec<usize>>,
@@ -113,6 +117,7 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     }
     set!(total_steps <- a.total_steps);
     set!(seed <- a.seed);
+    set!(learner_threads <- a.learner_threads.map(usize::from));
     set!(sac.hidden <- a.hidden);
     set!(sac.batch_size <- a.batch_size);
     set!(learning_starts <- a.learning_starts);

@@ -88,6 +88,12 @@ pub struct TrainArgs {
     /// Seed.
     #[arg(long)]
     seed: Option<u64>,
+    /// Learner threads, the cores the updates use (the config's `learner_threads`, default 1):
+    /// large matrix products split across them, and SMILe's discriminator and SAC steps
+    /// overlapped (SAC's reward then from the discriminator before the pair). Results are the
+    /// same for any count above 1; give each thread a free core.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    learner_threads: Option<u16>,
     /// SAC / disc / policy hidden widths, e.g. 128,128.
     #[arg(long, value_delimiter = ',')]
     hidden: Option<Vec<usize>>,
@@ -254,6 +260,7 @@ fn check_resume<T: serde::Serialize>(
         if ours != Some(theirs) {
             let flag = match key.as_str() {
                 "seed" => "--seed",
+                "learner_threads" => "--learner-threads",
                 "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
                 "gp_weight" => "--gp-weight",
                 "bc_weight" => "--bc-weight",
@@ -314,6 +321,9 @@ fn train_smile(
     }
     if let Some(v) = a.seed {
         cfg.seed = v;
+    }
+    if let Some(v) = a.learner_threads {
+        cfg.learner_threads = v.into();
     }
     if let Some(v) = &a.hidden {
         cfg.sac.hidden = v.clone();
@@ -406,6 +416,9 @@ fn train_bc(
     }
     if let Some(v) = a.seed {
         cfg.seed = v;
+    }
+    if let Some(v) = a.learner_threads {
+        cfg.learner_threads = v.into();
     }
     if let Some(v) = &a.hidden {
         cfg.policy_hidden = v.clone();
