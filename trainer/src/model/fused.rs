@@ -342,11 +342,6 @@ pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> candle_core::Re
 #[derive(Debug, Clone, Copy)]
 pub struct MaskedMatmulT;
 
-/// Reads a tensor's contiguous f32 values.
-fn values(t: &Tensor) -> candle_core::Result<Vec<f32>> {
-    t.flatten_all()?.to_vec1()
-}
-
 impl CustomOp3 for MaskedMatmulT {
     fn name(&self) -> &'static str {
         "masked-matmul-t"
@@ -394,16 +389,29 @@ impl CustomOp3 for MaskedMatmulT {
         if !want_dg && !want_dw {
             return Ok((None, None, None));
         }
-        let (dout, y) = (values(grad_res)?, values(y)?);
+        let (dout, y) = (grad_res.contiguous()?, y.contiguous()?);
+        let (ds, dl) = dout.storage_and_layout();
+        let (ys, yl) = y.storage_and_layout();
+        let (dout, y) = match (&*ds, &*ys) {
+            (candle_core::Storage::Cpu(d), candle_core::Storage::Cpu(y)) => {
+                (f32_slice(d, dl)?, f32_slice(y, yl)?)
+            }
+            _ => return Err(msg("cpu only")),
+        };
         let dev = g.device();
         let dg = if want_dg {
-            let w = values(w)?;
+            let w = w.contiguous()?;
+            let (ws, wl) = w.storage_and_layout();
+            let w = match &*ws {
+                candle_core::Storage::Cpu(s) => f32_slice(s, wl)?,
+                _ => return Err(msg("cpu only")),
+            };
             // dG (rows x out) = dout (rows x in) W (in x out), then the mask
             let mut dg = vec![0.0f32; rows * d_out];
             gemm_into(
-                rows, d_out, d_in, &mut dg, false, &dout, d_in, 1, &w, d_out, 1,
+                rows, d_out, d_in, &mut dg, false, dout, d_in, 1, w, d_out, 1,
             );
-            dg.iter_mut().zip(&y).for_each(|(d, y)| {
+            dg.iter_mut().zip(y).for_each(|(d, y)| {
                 if *y <= 0.0 {
                     *d = 0.0
                 }
@@ -413,15 +421,21 @@ impl CustomOp3 for MaskedMatmulT {
             None
         };
         let dw = if want_dw {
-            let masked: Vec<f32> = values(g)?
+            let g = g.contiguous()?;
+            let (gs, gl) = g.storage_and_layout();
+            let g = match &*gs {
+                candle_core::Storage::Cpu(s) => f32_slice(s, gl)?,
+                _ => return Err(msg("cpu only")),
+            };
+            let masked: Vec<f32> = g
                 .iter()
-                .zip(&y)
+                .zip(y)
                 .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
                 .collect();
             // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] = dout[r * in + i]
             let mut dw = vec![0.0f32; d_in * d_out];
             gemm_into(
-                d_in, d_out, rows, &mut dw, false, &dout, 1, d_in, &masked, d_out, 1,
+                d_in, d_out, rows, &mut dw, false, dout, 1, d_in, &masked, d_out, 1,
             );
             Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
         } else {
