@@ -9,53 +9,10 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sim::{Environment, EpisodeMetric, Task};
 
-use crate::device::{Controller, DeviceError};
-use crate::estimation::{Sensing, SensorPath};
-
-/// Sensor, actuator and timing effects of the loop.
-#[derive(Debug, Clone, PartialEq)]
-pub struct LoopConfig {
-    /// Control rate in Hz; `None` uses the plant's own rate (1 / control dt). Must divide the
-    /// plant rate: each tick holds its action for `plant rate / rate` plant steps.
-    pub rate_hz: Option<f32>,
-    /// Ticks to run; `None` runs one episode of the plant.
-    pub ticks: Option<usize>,
-    /// Std of Gaussian sensor noise added to every observation component.
-    pub noise_std: f32,
-    /// ADC resolution in bits (e.g. 12); `None` for ideal sensors.
-    pub adc_bits: Option<u8>,
-    /// ADC full scale: readings are clipped to +-this before quantisation.
-    pub adc_range: f32,
-    /// Apply each action one tick late (the actuator bus is one tick behind).
-    pub latency: bool,
-    /// Compute budget per tick in microseconds; a late action is discarded and the last
-    /// applied one held.
-    pub budget_us: f64,
-    /// Seed of the plant's reset noise and the sensor noise.
-    pub seed: u64,
-    /// Ticks whose sensor reading is replaced by NaN (fault injection).
-    pub nan_ticks: Vec<usize>,
-    /// What the sensors deliver: the whole observation, or positions only with an
-    /// on-device estimator rebuilding the rest.
-    pub sensing: Sensing,
-}
-
-impl Default for LoopConfig {
-    fn default() -> Self {
-        Self {
-            rate_hz: None,
-            ticks: None,
-            noise_std: 0.0,
-            adc_bits: None,
-            adc_range: 10.0,
-            latency: false,
-            budget_us: 1000.0,
-            seed: 0,
-            nan_ticks: Vec::new(),
-            sensing: Sensing::Full,
-        }
-    }
-}
+use crate::config::adc_lsb;
+pub use crate::config::{LoopConfig, LoopError};
+use crate::device::Controller;
+use crate::estimation::SensorPath;
 
 /// What the loop saw and did at one tick. Deterministic: no wall-clock values in here.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,55 +76,6 @@ impl RunReport {
         let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
         (v[0], at(0.5), at(0.99), v[v.len() - 1])
     }
-}
-
-/// Errors of the loop itself.
-#[derive(Debug, thiserror::Error)]
-pub enum LoopError {
-    /// The device cannot run.
-    #[error(transparent)]
-    Device(#[from] DeviceError),
-    /// The plant refused something (a bug if it happens: actions are always finite).
-    #[error("plant: {0}")]
-    Plant(#[from] sim::SimError),
-    /// The estimator cannot be built for this plant and configuration.
-    #[error("estimator: {0}")]
-    Estimator(#[from] infer_core::EstimatorError),
-    /// The sensor noise std is negative or not finite.
-    #[error("sensor noise std must be finite and >= 0, got {0}")]
-    Noise(f32),
-    /// The ADC settings cannot quantise (the library check behind the CLI's).
-    #[error("ADC: {bits} bits over +-{range} (bits must be 1 to 24, the range finite and > 0)")]
-    Adc {
-        /// Requested resolution.
-        bits: u8,
-        /// Requested full scale.
-        range: f32,
-    },
-    /// More ticks were asked than one plant episode lasts (it would stop early, silently).
-    #[error(
-        "{ticks} ticks asked but a plant episode lasts {most} ticks at this rate; pass --ticks 1..={most} or a longer --horizon"
-    )]
-    Ticks {
-        /// Requested ticks.
-        ticks: usize,
-        /// Ticks in one episode.
-        most: usize,
-    },
-    /// The requested rate is not a divisor of the plant's rate.
-    #[error("control rate {rate} Hz must divide the plant rate {plant} Hz")]
-    Rate {
-        /// Requested rate.
-        rate: f32,
-        /// The plant's rate.
-        plant: f32,
-    },
-}
-
-/// The ADC's step: `2 range / (2^bits - 1)`.
-pub(crate) fn adc_lsb(bits: u8, range: f32) -> f32 {
-    let levels = ((1u32 << bits.min(24)) - 1) as f32;
-    2.0 * range / levels
 }
 
 fn quantise(x: f32, bits: u8, range: f32) -> f32 {

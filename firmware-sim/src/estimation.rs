@@ -2,63 +2,12 @@
 //! angles, directly measured values; see [`sim::Family::obs_components`]) and infer-core's
 //! [`Estimator`] rebuilds the observation the policy was trained on.
 
-use std::fmt;
-use std::str::FromStr;
-
 use infer_core::{Channel, Estimator, EstimatorConfig, EstimatorError};
 use sim::{Family, ObsComponent};
 
-use crate::control::{LoopConfig, LoopError, adc_lsb};
+pub use crate::config::Sensing;
+use crate::config::{LoopConfig, LoopError, adc_lsb};
 use crate::link::MAX_DIM;
-
-/// What the device's sensors deliver.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum Sensing {
-    /// Every observation entry (positions and velocities): today's default.
-    #[default]
-    Full,
-    /// Positions, angles and directly measured entries only; the device estimates the
-    /// velocities with a constant-velocity Kalman filter per position.
-    Positions {
-        /// Std of the unmodelled acceleration (filter tuning); `None`: the family's
-        /// [`default_accel_std`].
-        accel_std: Option<f32>,
-        /// Std of a reading's noise as the filter assumes it; `None`: the loop's sensor
-        /// noise and ADC step, `sqrt(noise^2 + lsb^2 / 12)`.
-        meas_std: Option<f32>,
-    },
-}
-
-impl Sensing {
-    /// Position-only sensing with the default tuning.
-    pub const POSITIONS: Sensing = Sensing::Positions {
-        accel_std: None,
-        meas_std: None,
-    };
-}
-
-impl fmt::Display for Sensing {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Sensing::Full => "full",
-            Sensing::Positions { .. } => "positions",
-        })
-    }
-}
-
-impl FromStr for Sensing {
-    type Err = String;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        match s {
-            "full" => Ok(Sensing::Full),
-            "positions" => Ok(Sensing::POSITIONS),
-            other => Err(format!(
-                "unknown sensing {other:?}; expected full or positions"
-            )),
-        }
-    }
-}
 
 /// The filter's default acceleration std per family (units/s^2), from the sweep in
 /// `docs/ESTIMATOR.md`.

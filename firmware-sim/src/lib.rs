@@ -14,6 +14,7 @@
 //! This crate never depends on the trainer: a device holds no trainer.
 #![warn(missing_docs)]
 
+mod config;
 pub mod control;
 mod device;
 pub mod estimation;

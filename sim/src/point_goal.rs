@@ -13,9 +13,9 @@ use crate::render::{Frame, Role, Shape, View};
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
 /// Observation: position (x, y) and velocity (vx, vy). The goal is not observed.
-pub const OBS_DIM: usize = 4;
+pub const OBS_DIM: usize = crate::task::POINT_GOAL_OBS_DIM;
 /// Action: force along x and y, in units of [`MAX_FORCE`].
-pub const ACT_DIM: usize = 2;
+pub const ACT_DIM: usize = crate::task::POINT_GOAL_ACT_DIM;
 /// Default episode length in control steps.
 pub const HORIZON: usize = 100;
 /// Seconds per control step (one physics step).

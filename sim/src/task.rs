@@ -8,6 +8,11 @@ use crate::SimError;
 use crate::ant_linclass as linclass;
 use crate::dynamics::WalkerDynamics;
 
+/// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
+pub(crate) const POINT_GOAL_OBS_DIM: usize = 4;
+/// Point-goal's action width, a force along x and y.
+pub(crate) const POINT_GOAL_ACT_DIM: usize = 2;
+
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
 /// `walker-dyn`, `ant-goal`, `ant-linclass`.
 ///
@@ -254,7 +259,7 @@ impl Family {
     /// Dimension of the learner-facing observation.
     pub fn obs_dim(self) -> usize {
         match self {
-            Family::PointGoal => crate::point_goal::OBS_DIM,
+            Family::PointGoal => POINT_GOAL_OBS_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::OBS_DIM,
             Family::AntGoal => crate::ant::OBS_DIM,
             Family::AntLinClass => linclass::OBS_DIM,
@@ -264,7 +269,7 @@ impl Family {
     /// Dimension of the action.
     pub fn act_dim(self) -> usize {
         match self {
-            Family::PointGoal => crate::point_goal::ACT_DIM,
+            Family::PointGoal => POINT_GOAL_ACT_DIM,
             Family::CheetahVel | Family::WalkerDyn => crate::planar::ACT_DIM,
             Family::AntGoal | Family::AntLinClass => crate::ant::ACT_DIM,
         }
