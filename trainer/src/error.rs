@@ -75,11 +75,13 @@ pub enum Error {
         "{} is in use by another process (pid {pid}, lock file {}); wait for it to finish or \
          choose another output directory",
         path.display(),
-        path.join(crate::io::lock::LOCK_FILE).display()
+        lock.display()
     )]
     Locked {
         /// The directory.
         path: PathBuf,
+        /// Its lock file.
+        lock: PathBuf,
         /// The holder's process id, as it wrote it in the lock file (`?` if unreadable).
         pid: String,
     },

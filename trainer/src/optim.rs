@@ -6,7 +6,7 @@ use std::cell::RefCell;
 
 use candle_core::{CpuStorage, DType, Device, InplaceOp2, Layout, Tensor, Var};
 
-use crate::Result;
+use crate::error::Result;
 use crate::model::{check_shapes, f32_slice, f32_slice_mut};
 
 /// Hyper-parameters of [`Adam`].

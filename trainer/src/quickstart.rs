@@ -12,10 +12,10 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
 use crate::algo::expert::{self, Expert};
+use crate::algo::expert::{DemoSpec, record};
 use crate::algo::meta_bc::{self, MetaBc, MetaBcConfig};
 use crate::algo::smile::{self, Smile, SmileConfig};
 use crate::data::MetaData;
-use crate::data::{DemoSpec, record};
 use crate::eval::{self, EvalReport, MethodResult, Protocol};
 use crate::io::bar;
 use crate::io::export::{self, BlobActor};

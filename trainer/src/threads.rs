@@ -51,7 +51,7 @@ pub struct LearnerPool {
 
 impl LearnerPool {
     /// A pool of `threads` threads (`smile-learner-{i}`); 0 or 1 runs on the caller's thread.
-    pub fn new(threads: usize) -> crate::Result<Self> {
+    pub fn new(threads: usize) -> crate::error::Result<Self> {
         let threads = threads.max(1);
         let pool = if threads > 1 {
             Some(
@@ -59,7 +59,7 @@ impl LearnerPool {
                     .num_threads(threads)
                     .thread_name(|i| format!("smile-learner-{i}"))
                     .build()
-                    .map_err(|e| crate::Error::Threads {
+                    .map_err(|e| crate::error::Error::Threads {
                         threads,
                         reason: e.to_string(),
                     })?,
@@ -91,11 +91,11 @@ pub(crate) fn is_one(v: &usize) -> bool {
 }
 
 /// Checks a config's `learner_threads` (1 to `max`).
-pub(crate) fn check_learner_threads(v: usize, max: usize) -> crate::Result<()> {
+pub(crate) fn check_learner_threads(v: usize, max: usize) -> crate::error::Result<()> {
     if (1..=max).contains(&v) {
         Ok(())
     } else {
-        Err(crate::Error::Config(format!(
+        Err(crate::error::Error::Config(format!(
             "learner_threads must be 1 to {max}, not {v}"
         )))
     }

@@ -21,11 +21,14 @@ use sim::{EnvConfig, Environment, EpisodeMetric, Family, Task};
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
 use crate::data::better;
-pub use crate::eval::expert::{EvalReport, ExpertSet, evaluate, evaluate_under_noise};
+mod demos;
+mod set;
 use crate::io::checkpoint;
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::threads::LearnerPool;
 use crate::{Error, Result};
+pub use demos::{DemoSpec, record, record_with};
+pub use set::{EvalReport, ExpertSet, evaluate, evaluate_under_noise, trained_task_value};
 
 mod policy;
 use policy::write_policy;

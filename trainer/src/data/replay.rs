@@ -11,7 +11,7 @@
 use candle_core::{Device, Tensor};
 use rand::Rng;
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// A minibatch as tensors, ready for an update.
 #[derive(Debug, Clone)]

@@ -3,7 +3,11 @@
 
 use sim::{EnvConfig, Environment, EpisodeMetric, MetricKind, Task, TaskDemos, Trajectory};
 
-use crate::Result;
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use crate::error::Result;
 use crate::model::MetaPolicy;
 
 /// `true` if `a` is a better value than `b` for a metric of this kind (NaN is never better).
@@ -113,7 +117,7 @@ pub fn quick_eval(
     for td in tasks {
         let trajs: Vec<&Trajectory> = td.trajectories.iter().filter(|t| !t.is_empty()).collect();
         if trajs.is_empty() {
-            return Err(crate::Error::Data(format!(
+            return Err(crate::error::Error::Data(format!(
                 "held-out task {} has no demos to form a context",
                 td.task.label()
             )));
@@ -142,4 +146,33 @@ pub fn quick_eval(
         }
     }
     Ok((sum / n as f64) as f32)
+}
+
+/// Offset of the action-noise streams' seeds from their episodes' seeds.
+const ACTION_NOISE_SEED_OFFSET: u64 = 500_000_000;
+
+/// Gaussian action noise of one episode (`eval::Protocol::action_noise`, `evaluate_under_noise`); none at sigma 0.
+pub struct ActionNoise {
+    sigma: f32,
+    rng: ChaCha8Rng,
+}
+
+impl ActionNoise {
+    /// Noise of standard deviation `sigma` for the episode of reset seed `seed`.
+    pub fn new(sigma: f32, seed: u64) -> Self {
+        Self {
+            sigma,
+            rng: ChaCha8Rng::seed_from_u64(ACTION_NOISE_SEED_OFFSET + seed),
+        }
+    }
+
+    /// Adds sigma N(0, 1) to every entry of `action` (the plant clips afterwards).
+    pub fn add_to(&mut self, action: &mut [f32]) {
+        if self.sigma > 0.0 {
+            for a in action {
+                let n: f32 = StandardNormal.sample(&mut self.rng);
+                *a += self.sigma * n;
+            }
+        }
+    }
 }

@@ -9,8 +9,8 @@ use rand::Rng;
 use rand::seq::SliceRandom;
 use sim::{DemoDataset, Family, Split, TaskDemos, Trajectory};
 
+use crate::error::{Error, Result};
 use crate::model::{ContextSpec, ObsNorm};
-use crate::{Error, Result};
 
 /// Meta-train demos, split into training tasks and held-out train tasks.
 #[derive(Debug, Clone)]

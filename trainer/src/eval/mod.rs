@@ -26,11 +26,10 @@ use std::path::Path;
 use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
 
-use crate::data::run_episode;
+use crate::data::{ActionNoise, run_episode};
 use crate::model::MetaPolicy;
 use crate::{Error, Result};
 
@@ -363,35 +362,6 @@ pub fn contexts_for<'a>(
         .collect()
 }
 
-/// Offset of the action-noise streams' seeds from their episodes' seeds.
-const ACTION_NOISE_SEED_OFFSET: u64 = 500_000_000;
-
-/// Gaussian action noise of one episode ([`Protocol::action_noise`]); none at sigma 0.
-pub struct ActionNoise {
-    sigma: f32,
-    rng: ChaCha8Rng,
-}
-
-impl ActionNoise {
-    /// Noise of standard deviation `sigma` for the episode of reset seed `seed`.
-    pub fn new(sigma: f32, seed: u64) -> Self {
-        Self {
-            sigma,
-            rng: ChaCha8Rng::seed_from_u64(ACTION_NOISE_SEED_OFFSET + seed),
-        }
-    }
-
-    /// Adds sigma N(0, 1) to every entry of `action` (the plant clips afterwards).
-    pub fn add_to(&mut self, action: &mut [f32]) {
-        if self.sigma > 0.0 {
-            for a in action {
-                let n: f32 = StandardNormal.sample(&mut self.rng);
-                *a += self.sigma * n;
-            }
-        }
-    }
-}
-
 /// Evaluates `actor` on `family`'s `split` tasks with contexts from `contexts`.
 /// `on_task(i, n)` reports progress.
 pub fn evaluate(
@@ -577,7 +547,6 @@ pub fn render_episode(
     Ok(metric.value())
 }
 
-pub mod expert;
 pub mod latents;
 pub mod norm;
 pub mod report;

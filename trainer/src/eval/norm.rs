@@ -16,9 +16,8 @@ use std::path::Path;
 
 use sim::{Environment, Family, Split, Task};
 
-use crate::algo::expert::{Expert, ExpertSet};
+use crate::algo::expert::{Expert, ExpertSet, trained_task_value};
 use crate::data::run_episode;
-use crate::eval::expert::trained_task_value;
 use crate::eval::{self, Protocol, ReferenceReturns};
 use crate::{Error, Result};
 

@@ -10,9 +10,9 @@
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
+use crate::error::{Error, Result};
 use crate::eval::ConditionedActor;
 use crate::model::MetaPolicy;
-use crate::{Error, Result};
 
 /// Widest layer the blob runners here accept.
 pub const BLOB_CAPACITY: usize = 512;

@@ -6,7 +6,7 @@
 use std::io::{Read, Seek, Write};
 use std::path::{Path, PathBuf};
 
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Name of the lock file inside a locked directory.
 pub const LOCK_FILE: &str = ".lock";
@@ -44,6 +44,7 @@ impl DirLock {
                 let _ = file.read_to_string(&mut pid);
                 let pid = pid.trim();
                 return Err(Error::Locked {
+                    lock: dir.join(LOCK_FILE),
                     path: dir.to_path_buf(),
                     pid: if pid.is_empty() {
                         "?".into()

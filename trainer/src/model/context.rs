@@ -23,8 +23,8 @@ use rand_distr::StandardNormal;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
+use crate::error::{Error, Result};
 use crate::model::Mlp;
-use crate::{Error, Result};
 
 /// Encoder and latent sizes (shared by all algorithms).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

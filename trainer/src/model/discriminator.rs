@@ -17,7 +17,7 @@ use rand::Rng;
 
 use super::context::ObsNorm;
 use super::mlp::Mlp;
-use crate::Result;
+use crate::error::Result;
 
 /// What the discriminator sees of a transition besides `z`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

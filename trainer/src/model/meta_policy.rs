@@ -10,11 +10,11 @@ use candle_core::Tensor;
 use rand::Rng;
 use sim::{Family, Trajectory};
 
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::model::Mlp;
 use crate::model::TanhGaussianPolicy;
 use crate::model::{ContextConfig, ContextEncoder, ObsNorm};
-use crate::{Error, Result};
 
 /// File name of a trained meta-policy inside a run directory.
 pub const META_POLICY_FILE: &str = "meta_policy.safetensors";

@@ -12,7 +12,7 @@ use candle_core::{CpuStorage, Device, InplaceOp2, Layout, Tensor, Var};
 use rand::Rng;
 
 use super::fused::{f32_slice, f32_slice_mut};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Weights and biases of one MLP as plain tensors, in layer order `[w0, b0, w1, b1, ...]`.
 ///

@@ -29,7 +29,7 @@ pub use mlp::{FrozenMlp, Mlp};
 pub use policy::{PolicySample, TanhGaussianPolicy};
 
 /// The single value of a one-element tensor (a loss or a mean), for logging.
-pub(crate) fn scalar(t: &candle_core::Tensor) -> crate::Result<f32> {
+pub(crate) fn scalar(t: &candle_core::Tensor) -> crate::error::Result<f32> {
     Ok(t.to_dtype(candle_core::DType::F32)?
         .flatten_all()?
         .to_vec1::<f32>()?[0])

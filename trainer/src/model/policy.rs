@@ -12,7 +12,7 @@ use candle_core::{Device, Tensor};
 use rand::Rng;
 use rand_distr::StandardNormal;
 
-use crate::Result;
+use crate::error::Result;
 use crate::model::Mlp;
 
 /// `0.5 * ln(2 pi)`.

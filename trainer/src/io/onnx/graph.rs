@@ -14,8 +14,8 @@ use super::{
     ENCODER_FILE, GraphInfo, IR_VERSION, Normalisation, OPSET, OnnxExport, OnnxMeta, POLICY_FILE,
     TensorInfo, names,
 };
+use crate::error::{Error, Result};
 use crate::model::MetaPolicy;
-use crate::{Error, Result};
 
 fn dims_i64(dims: &[usize]) -> Vec<i64> {
     dims.iter().map(|&d| d as i64).collect()

@@ -31,8 +31,8 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
-use crate::{Error, Result};
 
 mod graph;
 mod reference;

@@ -4,8 +4,8 @@
 
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
-use crate::Result;
-use crate::algo::expert::{Expert, ExpertSet};
+use super::{Expert, ExpertSet};
+use crate::error::Result;
 
 /// What to record.
 #[derive(Debug, Clone)]

@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Serialize;
 use sim::{EnvConfig, EpisodeMetric, Family, Task};
 
-use crate::algo::expert::Expert;
+use super::Expert;
 use crate::io::checkpoint;
 use crate::io::checkpoint::POLICY_FILE;
 use crate::{Error, Result};
@@ -189,7 +189,7 @@ pub fn evaluate(
 }
 
 /// [`evaluate`] with Gaussian noise of standard deviation `action_noise` added to every
-/// action before the plant clips it ([`super::ActionNoise`], seeded by the reset seed).
+/// action before the plant clips it ([`crate::data::ActionNoise`], seeded by the reset seed).
 pub fn evaluate_under_noise(
     expert: &Expert,
     tasks: &[Task],
@@ -208,7 +208,7 @@ pub fn evaluate_under_noise(
         for k in 0..episodes {
             let seed = sim::seeds::EXPERT_EVAL_SEED + k as u64;
             env.reset(task, seed)?;
-            let mut noise = super::ActionNoise::new(action_noise, seed);
+            let mut noise = crate::data::ActionNoise::new(action_noise, seed);
             let mut m = EpisodeMetric::new(family);
             loop {
                 env.oracle_observation(&mut oracle)?;
