@@ -502,7 +502,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
             let val_metric = quick_eval(
                 &run.meta_policy(),
                 &run.data.val,
-                2,
+                cfg.eval_contexts,
                 cfg.eval_context_size,
                 cfg.eval_episodes,
                 cfg.env_config(),

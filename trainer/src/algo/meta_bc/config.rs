@@ -56,6 +56,10 @@ pub struct MetaBcConfig {
     pub patience: u32,
     /// Deterministic rollouts per held-out task and context when validating. Default 2.
     pub eval_episodes: usize,
+    /// Contexts per held-out task when validating by rollouts (draw d uses demos d*k..d*k+k,
+    /// `eval_context_size` = k), as SMILe's `eval_contexts`. Default 2 (what Meta-BC always
+    /// used; SMILe's default is 4).
+    pub eval_contexts: usize,
     /// Trajectories per context when validating (draw d uses demos d*k..d*k+k). Default 1.
     pub eval_context_size: usize,
     /// Meta-DAgger (needs an expert). Default false.
@@ -93,6 +97,7 @@ impl Default for MetaBcConfig {
             select_by: Selection::Mse,
             patience: 8,
             eval_episodes: 2,
+            eval_contexts: 2,
             eval_context_size: 1,
             dagger: false,
             dagger_every: 50,
@@ -141,10 +146,11 @@ impl MetaBcConfig {
             || self.per_task == 0
             || self.max_context == 0
             || self.eval_context_size == 0
+            || self.eval_contexts == 0
         {
             return Err(Error::Config(
                 "meta-bc batch sizes (tasks_per_batch, per_task, max_context, \
-                 eval_context_size) must be positive"
+                 eval_context_size, eval_contexts) must be positive"
                     .into(),
             ));
         }
