@@ -67,7 +67,14 @@ pub use data::{
 
 /// Checkpoints, blob export and ONNX export keep their namespaces (`checkpoint::load`,
 /// `export::verify`, `onnx::export`).
-pub use io::{checkpoint, export, onnx};
+pub use io::{checkpoint, onnx};
+
+/// Blob export ([`io::export`](crate::export)) and its verification (which evaluates the blob)
+/// under one name.
+pub mod export {
+    pub use crate::eval::blob::*;
+    pub use crate::io::export::*;
+}
 
 /// One writer per output directory.
 pub use io::{DirLock, lock};

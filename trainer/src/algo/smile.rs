@@ -2,7 +2,7 @@
 //!
 //! A context-conditioned AIRL discriminator `D(x, z)` with `x = [norm(s), a]` (or
 //! `[norm(s), norm(s')]` state-only) and `z ~ q(z | c)` from the context encoder of
-//! [`crate::context`]; a SAC policy `pi(a | [norm(s), z])` trained on the reward the
+//! [`crate::ContextEncoder`]; a SAC policy `pi(a | [norm(s), z])` trained on the reward the
 //! discriminator gives. Schedule and batches follow the reference (`smile-reference.md` §1-2):
 //!
 //! * warm start: one rollout of the untrained policy in every training task;

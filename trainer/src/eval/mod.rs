@@ -17,7 +17,7 @@
 //! walker-dyn's normalised metric (Table 2 left): per test task the returns R_base of a policy
 //! trained on the unmodified dynamics and R_expert of the task's expert, rolled out
 //! deterministically with the same episode seeds and horizon as the methods
-//! ([`crate::eval_norm`]); per method the mean over tasks with R_expert > R_base of
+//! ([`norm`]); per method the mean over tasks with R_expert > R_base of
 //! (R_pi - R_base) / (R_expert - R_base) ([`normalised_score`]), the other tasks skipped and
 //! counted.
 
@@ -547,6 +547,7 @@ pub fn render_episode(
     Ok(metric.value())
 }
 
+pub mod blob;
 pub mod latents;
 pub mod norm;
 pub mod report;

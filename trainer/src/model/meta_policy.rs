@@ -1,4 +1,4 @@
-//! A trained meta-policy: the context encoder of [`crate::context`] composed with the
+//! A trained meta-policy: the context encoder of [`crate::ContextEncoder`] composed with the
 //! tanh-Gaussian policy on `[norm(obs), z]`; `action = tanh(mu)` (sim's actions live in
 //! `[-1, 1]`, so `act_scale = 1`, `act_offset = 0`). Saved as one safetensors file, and
 //! converted to [`infer_core::FloatModel`] for export with exactly infer-core's semantics

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 use serde::{Deserialize, Serialize};
 
 use crate::eval::EvalReport;
-use crate::io::export::Parity;
+use crate::eval::blob::Parity;
 
 /// What a quickstart run measured; written as `summary.json`, rendered as `report.md`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -189,7 +189,7 @@ pub fn evaluate(
 }
 
 /// [`evaluate`] with Gaussian noise of standard deviation `action_noise` added to every
-/// action before the plant clips it ([`crate::data::ActionNoise`], seeded by the reset seed).
+/// action before the plant clips it (`ActionNoise`, seeded by the reset seed).
 pub fn evaluate_under_noise(
     expert: &Expert,
     tasks: &[Task],

@@ -1,0 +1,209 @@
+//! Verification of an exported blob: it is loaded with `infer_core::Model`, its z and actions
+//! are compared with the candle policy on held-out contexts (max / mean absolute difference),
+//! and the family's metric is run with the blob policy beside the float one.
+
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, Trajectory};
+
+use crate::error::{Error, Result};
+use crate::eval::ConditionedActor;
+use crate::io::export::{BLOB_CAPACITY, check_demos_fit, load_blob};
+use crate::model::MetaPolicy;
+
+/// A loaded blob as a [`ConditionedActor`]: one infer-core policy runner, built once and
+/// reused for every action (as on the device).
+pub struct BlobActor<'m, 'a> {
+    model: &'m infer_core::Model<'a>,
+    policy: infer_core::Policy<'m, 'a, BLOB_CAPACITY>,
+}
+
+impl<'m, 'a> BlobActor<'m, 'a> {
+    /// An actor on `model` (from [`load_blob`]).
+    pub fn new(model: &'m infer_core::Model<'a>) -> Result<Self> {
+        let policy = infer_core::Policy::<BLOB_CAPACITY>::new(model)
+            .map_err(|e| Error::Shape(format!("blob does not fit the runner: {e}")))?;
+        Ok(Self { model, policy })
+    }
+
+    /// The loaded model.
+    pub fn model(&self) -> &infer_core::Model<'a> {
+        self.model
+    }
+}
+
+impl ConditionedActor for BlobActor<'_, '_> {
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
+        let h = *self.model.header();
+        let (od, ad) = (h.obs_dim as usize, h.act_dim as usize);
+        let mut enc = infer_core::ContextEncoder::<BLOB_CAPACITY>::new(self.model)?;
+        for t in context {
+            for i in 0..t.len() {
+                enc.push(
+                    &t.obs[i * od..(i + 1) * od],
+                    &t.actions[i * ad..(i + 1) * ad],
+                    &t.next_obs[i * od..(i + 1) * od],
+                )?;
+            }
+            enc.end_trajectory();
+        }
+        let mut z = vec![0.0f32; h.z_dim as usize];
+        enc.latent(&mut z)?;
+        Ok(z)
+    }
+
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
+        Ok(self.policy.act(obs, z, action)?)
+    }
+}
+
+/// Blob-vs-candle differences on held-out contexts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Parity {
+    /// Contexts compared (one per task of the contexts file, its first trajectory).
+    pub contexts: usize,
+    /// Actions compared.
+    pub actions: usize,
+    /// Max abs difference of z.
+    pub z_max_abs_diff: f32,
+    /// Max abs difference of actions (each side with its own z: end to end).
+    pub action_max_abs_diff: f32,
+    /// Mean abs difference of actions.
+    pub action_mean_abs_diff: f32,
+    /// Mean abs difference of actions when the blob's policy is given the candle z: the
+    /// policy's own share of the error (the rest comes from the blob's z).
+    #[serde(default)]
+    pub action_mean_abs_diff_same_z: f32,
+}
+
+/// Compares the blob with the candle policy on every task of `contexts` (context = the
+/// task's first trajectory; observations = the states of all its trajectories).
+pub fn parity(
+    mp: &MetaPolicy,
+    blob: &mut BlobActor<'_, '_>,
+    contexts: &DemoDataset,
+) -> Result<Parity> {
+    let mut mp = mp.clone();
+    let ad = contexts.act_dim;
+    let (mut zmax, mut amax, mut asum, mut n, mut c) = (0.0f32, 0.0f32, 0.0f64, 0usize, 0usize);
+    let mut same_z_sum = 0.0f64;
+    let (mut a1, mut a2, mut a3) = (vec![0.0f32; ad], vec![0.0f32; ad], vec![0.0f32; ad]);
+    for td in &contexts.tasks {
+        let Some(first) = td.trajectories.iter().find(|t| !t.is_empty()) else {
+            continue;
+        };
+        let zc = ConditionedActor::latent(&mut mp, &[first])?;
+        let zb = blob.latent(&[first])?;
+        zmax = zc
+            .iter()
+            .zip(&zb)
+            .fold(zmax, |m, (a, b)| m.max((a - b).abs()));
+        c += 1;
+        for t in &td.trajectories {
+            for o in t.obs.chunks_exact(contexts.obs_dim) {
+                ConditionedActor::act(&mut mp, o, &zc, &mut a1)?;
+                blob.act(o, &zb, &mut a2)?;
+                blob.act(o, &zc, &mut a3)?;
+                for ((x, y), w) in a1.iter().zip(&a2).zip(&a3) {
+                    let d = (x - y).abs();
+                    amax = amax.max(d);
+                    asum += d as f64;
+                    same_z_sum += (x - w).abs() as f64;
+                    n += 1;
+                }
+            }
+        }
+    }
+    Ok(Parity {
+        contexts: c,
+        actions: n / ad.max(1),
+        z_max_abs_diff: zmax,
+        action_max_abs_diff: amax,
+        action_mean_abs_diff: (asum / n.max(1) as f64) as f32,
+        action_mean_abs_diff_same_z: (same_z_sum / n.max(1) as f64) as f32,
+    })
+}
+
+/// What [`verify`] measured: blob size, parity with the candle policy and the family's metric
+/// with both (serialised next to the blob by `smile export`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ExportReport {
+    /// Blob size in bytes.
+    pub bytes: usize,
+    /// SHA-256 of the blob this report describes (lower-case hex): `firmware-sim compare`
+    /// refuses a report beside another blob (an interrupted re-export). Empty in reports
+    /// written before the field.
+    #[serde(default)]
+    pub blob_sha256: String,
+    /// `f32`, `w8a32` or `w8a8`.
+    pub quant: String,
+    /// Algorithm of the exported policy.
+    pub algo: String,
+    /// The family, written by its name.
+    pub env: sim::Family,
+    /// z / action differences on held-out contexts.
+    pub parity: Parity,
+    /// Metric name.
+    pub metric: String,
+    /// Split of the contexts the metric ran on.
+    pub split: String,
+    /// The metric with the blob policy (mean over tasks).
+    pub metric_blob: f32,
+    /// The metric with the candle policy (mean over tasks).
+    pub metric_candle: f32,
+    /// `(blob - candle) / |candle|`.
+    pub metric_relative_difference: f32,
+    /// Per-task blob results.
+    pub per_task_blob: Vec<super::TaskResult>,
+    /// Per-task candle results.
+    pub per_task_candle: Vec<super::TaskResult>,
+}
+
+/// Loads `blob` with infer-core, measures [`parity`] on `contexts` and runs the family's
+/// metric (`protocol`) on the contexts' split with the blob and with the candle policy.
+pub fn verify(
+    mp: &MetaPolicy,
+    blob: &[u8],
+    quant: &str,
+    contexts: &DemoDataset,
+    protocol: &super::Protocol,
+) -> Result<ExportReport> {
+    check_demos_fit(mp, contexts, "the contexts")?;
+    let model = load_blob(blob)?;
+    let mut actor = BlobActor::new(&model)?;
+    let parity = parity(mp, &mut actor, contexts)?;
+    let (family, split) = (mp.family, contexts.split);
+    let blob_m = super::evaluate(
+        &mut actor,
+        "blob",
+        family,
+        split,
+        contexts,
+        protocol,
+        &mut |_, _| {},
+    )?;
+    let mut float_policy = mp.clone();
+    let float_m = super::evaluate(
+        &mut float_policy,
+        "candle",
+        family,
+        split,
+        contexts,
+        protocol,
+        &mut |_, _| {},
+    )?;
+    Ok(ExportReport {
+        bytes: blob.len(),
+        blob_sha256: crate::io::checkpoint::sha256_hex(blob),
+        quant: quant.into(),
+        algo: mp.algo.clone(),
+        env: family,
+        parity,
+        metric: super::metric_name(family.metric_kind()).into(),
+        split: split.to_string(),
+        metric_blob: blob_m.mean,
+        metric_candle: float_m.mean,
+        metric_relative_difference: (blob_m.mean - float_m.mean) / float_m.mean.abs().max(1e-9),
+        per_task_blob: blob_m.tasks,
+        per_task_candle: float_m.tasks,
+    })
+}
