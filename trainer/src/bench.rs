@@ -393,7 +393,7 @@ pub fn bench_smile_pairs(
     warmup: usize,
     iters: usize,
 ) -> Result<PairTiming> {
-    let family = cfg.family()?;
+    let family = cfg.env;
     let data = crate::data::MetaData::from_dataset(demos, family, cfg.holdout_every)?;
     let tasks = data.train.len();
     let (rollouts, pairs) = (cfg.rollouts_per_iter, cfg.updates_per_iter.max(1));

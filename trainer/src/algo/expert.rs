@@ -112,11 +112,6 @@ impl Default for ExpertConfig {
 }
 
 impl ExpertConfig {
-    /// The family (`env`).
-    pub fn family(&self) -> Result<Family> {
-        Ok(self.env)
-    }
-
     fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
@@ -126,7 +121,7 @@ impl ExpertConfig {
 
     /// The tasks this expert trains on.
     pub fn tasks(&self) -> Result<Vec<Task>> {
-        let family = self.family()?;
+        let family = self.env;
         if let Some(v) = self.task_value {
             if self.task_index.is_some() {
                 return Err(Error::Config(
@@ -238,7 +233,7 @@ impl ExpertTrainer {
             crate::smile::MAX_LEARNER_THREADS,
         )?;
         let pool = LearnerPool::new(cfg.learner_threads)?;
-        let family = cfg.family()?;
+        let family = cfg.env;
         let tasks = cfg.tasks()?;
         let env = sim::make_env(family, cfg.env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);

@@ -113,7 +113,7 @@ impl Smile {
     /// A fresh run on `data` (the meta-train demos; see [`MetaData::from_dataset`]).
     pub fn new(cfg: SmileConfig, data: MetaData) -> Result<Self> {
         cfg.validate()?;
-        let family = cfg.family()?;
+        let family = cfg.env;
         if data.family != family {
             return Err(Error::Data(format!(
                 "demos are {}, config says {family}",

@@ -158,11 +158,6 @@ impl Default for SmileConfig {
 }
 
 impl SmileConfig {
-    /// The family (`env`).
-    pub fn family(&self) -> Result<Family> {
-        Ok(self.env)
-    }
-
     /// How training draws contexts.
     pub fn context_draw(&self) -> ContextDraw {
         ContextDraw {
@@ -189,7 +184,6 @@ impl SmileConfig {
 
     /// Reject values that cannot train.
     pub fn validate(&self) -> Result<()> {
-        self.family()?;
         self.sac.validate()?;
         if self.tasks_per_batch == 0
             || self.disc_per_task == 0

@@ -142,14 +142,13 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         bail!("--keep-best needs evaluations: set --eval-every above 0");
     }
     if a.nominal {
-        if cfg.family()? != Family::WalkerDyn {
+        if cfg.env != Family::WalkerDyn {
             bail!("--nominal exists only for walker-dyn, not {}", cfg.env);
         }
         // A config file's task_index would silently win over the flag otherwise.
         cfg.task_index = None;
         cfg.task_value = Some(sim::WALKER_NOMINAL_SEED as f64);
     }
-    cfg.family()?;
     cfg.sac.validate()?;
     Ok(cfg)
 }
