@@ -47,6 +47,19 @@ pub(crate) fn f32_slice_mut<'a>(
     }
 }
 
+/// Runs `f` on a CPU tensor's values in place (made contiguous first; no copy when it is).
+fn with_values<R>(
+    t: &Tensor,
+    f: impl FnOnce(&[f32]) -> candle_core::Result<R>,
+) -> candle_core::Result<R> {
+    let t = t.contiguous()?;
+    let (s, l) = t.storage_and_layout();
+    match &*s {
+        candle_core::Storage::Cpu(s) => f(f32_slice(s, l)?),
+        _ => Err(msg("cpu only")),
+    }
+}
+
 /// Row-major `C (m x n) [+]= A (m x k) B (k x n)` where A and B are given by strides
 /// (row stride, column stride), so transposes are free.
 ///
@@ -265,53 +278,41 @@ impl CustomOp3 for Linear {
         if !want_dx && !want_dw {
             return Ok((None, None, None));
         }
-        let grad_res = grad_res.contiguous()?;
-        let (gs, gl) = grad_res.storage_and_layout();
-        let gs = match &*gs {
-            candle_core::Storage::Cpu(s) => f32_slice(s, gl)?,
-            _ => return Err(msg("cpu only")),
-        };
         // g = dL/dy * 1[y > 0]
-        let g: Vec<f32> = if self.relu {
-            let (rs, rl) = res.storage_and_layout();
-            let ys = match &*rs {
-                candle_core::Storage::Cpu(s) => f32_slice(s, rl)?,
-                _ => return Err(msg("cpu only")),
-            };
-            gs.iter()
-                .zip(ys)
-                .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
-                .collect()
-        } else {
-            gs.to_vec()
-        };
+        let g: Vec<f32> = with_values(grad_res, |gs| {
+            if self.relu {
+                with_values(res, |ys| {
+                    Ok(gs
+                        .iter()
+                        .zip(ys)
+                        .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
+                        .collect())
+                })
+            } else {
+                Ok(gs.to_vec())
+            }
+        })?;
         let dev = x.device();
         let dx = if want_dx {
-            let w = w.contiguous()?;
-            let (ws, wl) = w.storage_and_layout();
-            let ws = match &*ws {
-                candle_core::Storage::Cpu(s) => f32_slice(s, wl)?,
-                _ => return Err(msg("cpu only")),
-            };
             // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
             let mut dx = vec![0.0f32; rows * d_in];
-            gemm_into(
-                rows, d_in, d_out, &mut dx, false, &g, d_out, 1, ws, 1, d_out,
-            );
+            with_values(w, |ws| {
+                gemm_into(
+                    rows, d_in, d_out, &mut dx, false, &g, d_out, 1, ws, 1, d_out,
+                );
+                Ok(())
+            })?;
             Some(Tensor::from_vec(dx, (rows, d_in), dev)?)
         } else {
             None
         };
         let (dw, db) = if want_dw {
-            let x = x.contiguous()?;
-            let (xs, xl) = x.storage_and_layout();
-            let xs = match &*xs {
-                candle_core::Storage::Cpu(s) => f32_slice(s, xl)?,
-                _ => return Err(msg("cpu only")),
-            };
             // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
             let mut dw = vec![0.0f32; d_in * d_out];
-            gemm_into(d_in, d_out, rows, &mut dw, false, xs, 1, d_in, &g, d_out, 1);
+            with_values(x, |xs| {
+                gemm_into(d_in, d_out, rows, &mut dw, false, xs, 1, d_in, &g, d_out, 1);
+                Ok(())
+            })?;
             let mut db = vec![0.0f32; d_out];
             for row in g.chunks_exact(d_out) {
                 db.iter_mut().zip(row).for_each(|(d, g)| *d += g);
@@ -389,58 +390,47 @@ impl CustomOp3 for MaskedMatmulT {
         if !want_dg && !want_dw {
             return Ok((None, None, None));
         }
-        let (dout, y) = (grad_res.contiguous()?, y.contiguous()?);
-        let (ds, dl) = dout.storage_and_layout();
-        let (ys, yl) = y.storage_and_layout();
-        let (dout, y) = match (&*ds, &*ys) {
-            (candle_core::Storage::Cpu(d), candle_core::Storage::Cpu(y)) => {
-                (f32_slice(d, dl)?, f32_slice(y, yl)?)
-            }
-            _ => return Err(msg("cpu only")),
-        };
         let dev = g.device();
-        let dg = if want_dg {
-            let w = w.contiguous()?;
-            let (ws, wl) = w.storage_and_layout();
-            let w = match &*ws {
-                candle_core::Storage::Cpu(s) => f32_slice(s, wl)?,
-                _ => return Err(msg("cpu only")),
-            };
-            // dG (rows x out) = dout (rows x in) W (in x out), then the mask
-            let mut dg = vec![0.0f32; rows * d_out];
-            gemm_into(
-                rows, d_out, d_in, &mut dg, false, dout, d_in, 1, w, d_out, 1,
-            );
-            dg.iter_mut().zip(y).for_each(|(d, y)| {
-                if *y <= 0.0 {
-                    *d = 0.0
-                }
-            });
-            Some(Tensor::from_vec(dg, (rows, d_out), dev)?)
-        } else {
-            None
-        };
-        let dw = if want_dw {
-            let g = g.contiguous()?;
-            let (gs, gl) = g.storage_and_layout();
-            let g = match &*gs {
-                candle_core::Storage::Cpu(s) => f32_slice(s, gl)?,
-                _ => return Err(msg("cpu only")),
-            };
-            let masked: Vec<f32> = g
-                .iter()
-                .zip(y)
-                .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
-                .collect();
-            // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] = dout[r * in + i]
-            let mut dw = vec![0.0f32; d_in * d_out];
-            gemm_into(
-                d_in, d_out, rows, &mut dw, false, dout, 1, d_in, &masked, d_out, 1,
-            );
-            Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
-        } else {
-            None
-        };
+        let (dg, dw) = with_values(grad_res, |dout| {
+            with_values(y, |y| {
+                let dg = if want_dg {
+                    // dG (rows x out) = dout (rows x in) W (in x out), then the mask
+                    let mut dg = vec![0.0f32; rows * d_out];
+                    with_values(w, |w| {
+                        gemm_into(
+                            rows, d_out, d_in, &mut dg, false, dout, d_in, 1, w, d_out, 1,
+                        );
+                        Ok(())
+                    })?;
+                    dg.iter_mut().zip(y).for_each(|(d, y)| {
+                        if *y <= 0.0 {
+                            *d = 0.0
+                        }
+                    });
+                    Some(Tensor::from_vec(dg, (rows, d_out), dev)?)
+                } else {
+                    None
+                };
+                let dw = if want_dw {
+                    let masked: Vec<f32> = with_values(g, |g| {
+                        Ok(g.iter()
+                            .zip(y)
+                            .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
+                            .collect())
+                    })?;
+                    // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] =
+                    // dout[r * in + i]
+                    let mut dw = vec![0.0f32; d_in * d_out];
+                    gemm_into(
+                        d_in, d_out, rows, &mut dw, false, dout, 1, d_in, &masked, d_out, 1,
+                    );
+                    Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
+                } else {
+                    None
+                };
+                Ok((dg, dw))
+            })
+        })?;
         Ok((dg, None, dw))
     }
 }
