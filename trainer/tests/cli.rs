@@ -494,6 +494,52 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
         "{err}"
     );
 
+    // The authors' shapes, and every layer named, on two learner threads.
+    let out = smile(&[
+        "bench",
+        "--workload",
+        "sac",
+        "disc",
+        "--authors",
+        "--iters",
+        "1",
+        "--warmup",
+        "0",
+        "--learner-threads",
+        "2",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    ok(&out);
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let (sac, disc) = (&rows[0], &rows[1]);
+    assert_eq!(sac["shape"]["hidden"], serde_json::json!([256, 256, 256]));
+    assert_eq!(
+        (
+            sac["shape"]["batch"].as_u64(),
+            sac["learner_threads"].as_u64()
+        ),
+        (Some(1024), Some(2))
+    );
+    assert!((sac["flops"].as_f64().unwrap() / 1e9 - 4.93).abs() < 0.01);
+    assert_eq!(disc["shape"]["hidden"], serde_json::json!([512, 512, 512]));
+    assert_eq!(disc["shape"]["enc_hidden"], serde_json::json!([256, 256]));
+    assert!((disc["flops"].as_f64().unwrap() / 1e9 - 11.87).abs() < 0.01);
+    let out = smile(&[
+        "bench",
+        "--hidden",
+        "16,8,4",
+        "--iters",
+        "1",
+        "--warmup",
+        "0",
+        "--json",
+        json.to_str().unwrap(),
+    ]);
+    ok(&out);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("16,8,4"));
+
     // Errors name the flag or the value.
     let out = smile(&["bench", "--hidden", "0", "--iters", "1", "--warmup", "0"]);
     let err = String::from_utf8_lossy(&out.stderr);
