@@ -78,8 +78,8 @@ pub struct SmileConfig {
     /// that also splits every large matrix product of both steps (`crate::threads`).
     /// Deterministic for a seed and the same on any N > 1 (the discriminator step has its own
     /// RNG drawn from the run's; a split product equals an unsplit one). Measured in
-    /// docs/BENCHMARKS.md ("The authors' shapes": 1.64-1.73x on two cores). Each thread needs a free core: `smile sweep` counts
-    /// them when it packs cells. Default 1.
+    /// docs/BENCHMARKS.md ("The authors' shapes": 1.64-1.73x on two cores). Each thread needs
+    /// a free core: `smile sweep` counts them when it packs cells. Default 1.
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
