@@ -356,16 +356,8 @@ impl Smile {
         let disc_batch = self.sample_disc_batch()?;
         let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
         let update = self.updates;
-        let source = SacBatchSource {
-            cfg: &self.cfg,
-            data: &self.data,
-            encoder: &self.encoder,
-            disc: &self.disc,
-            replay: &self.replay,
-            updates: self.updates,
-        };
-        let (sac, rng) = (&mut self.sac, &mut self.rng);
-        let (encoder, disc, gp_weight) = (&self.encoder, &self.disc, self.cfg.gp_weight);
+        let (source, sac, rng) = self.sac_side();
+        let (encoder, disc, gp_weight) = (source.encoder, source.disc, source.cfg.gp_weight);
         let (d, s) = rayon::join(
             || disc_grads(encoder, disc, gp_weight, &disc_batch, update, &mut disc_rng),
             || -> Result<(SacStats, f32)> {
@@ -382,15 +374,34 @@ impl Smile {
     /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's
     /// reward; returns it with the reward's mean and, for SMILe + BC, the cloning term's rows.
     fn sac_batch(&mut self) -> Result<(Batch, f32, Option<BcTerm>)> {
-        SacBatchSource {
-            cfg: &self.cfg,
-            data: &self.data,
-            encoder: &self.encoder,
-            disc: &self.disc,
-            replay: &self.replay,
-            updates: self.updates,
-        }
-        .draw(&mut self.rng)
+        let (source, _, rng) = self.sac_side();
+        source.draw(rng)
+    }
+
+    /// What the SAC side of a pair uses, borrowed field by field: what its batch is drawn
+    /// from (read only, so the discriminator side may read the same networks meanwhile), the
+    /// SAC learner and the run's RNG.
+    fn sac_side(&mut self) -> (SacBatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
+        let Smile {
+            cfg,
+            data,
+            encoder,
+            disc,
+            replay,
+            updates,
+            sac,
+            rng,
+            ..
+        } = self;
+        let source = SacBatchSource {
+            cfg,
+            data,
+            encoder,
+            disc,
+            replay,
+            updates: *updates,
+        };
+        (source, sac, rng)
     }
 
     /// Deterministic evaluation on the held-out train tasks (contexts of

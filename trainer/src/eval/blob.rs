@@ -172,25 +172,20 @@ pub fn verify(
     let mut actor = BlobActor::new(&model)?;
     let parity = parity(mp, &mut actor, contexts)?;
     let (family, split) = (mp.family, contexts.split);
-    let blob_m = super::evaluate(
-        &mut actor,
-        "blob",
-        family,
-        split,
-        contexts,
-        protocol,
-        &mut |_, _| {},
-    )?;
-    let mut float_policy = mp.clone();
-    let float_m = super::evaluate(
-        &mut float_policy,
-        "candle",
-        family,
-        split,
-        contexts,
-        protocol,
-        &mut |_, _| {},
-    )?;
+    // The family's metric with the blob's policy, then with the float one, same protocol.
+    let metric = |actor: &mut dyn ConditionedActor, name: &str| {
+        super::evaluate(
+            actor,
+            name,
+            family,
+            split,
+            contexts,
+            protocol,
+            &mut |_, _| {},
+        )
+    };
+    let blob_m = metric(&mut actor, "blob")?;
+    let float_m = metric(&mut mp.clone(), "candle")?;
     Ok(ExportReport {
         bytes: blob.len(),
         blob_sha256: crate::io::checkpoint::sha256_hex(blob),
