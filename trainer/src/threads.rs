@@ -90,25 +90,18 @@ pub(crate) fn is_one(v: &usize) -> bool {
     *v == 1
 }
 
-/// Checks a config's `learner_threads` (1 to `max`).
-pub(crate) fn check_learner_threads(v: usize, max: usize) -> crate::error::Result<()> {
-    if (1..=max).contains(&v) {
+/// The most learner threads a run accepts.
+pub const MAX_LEARNER_THREADS: usize = 256;
+
+/// Checks a config's `learner_threads` (1 to [`MAX_LEARNER_THREADS`]).
+pub(crate) fn check_learner_threads(v: usize) -> crate::error::Result<()> {
+    if (1..=MAX_LEARNER_THREADS).contains(&v) {
         Ok(())
     } else {
         Err(crate::error::Error::Config(format!(
-            "learner_threads must be 1 to {max}, not {v}"
+            "learner_threads must be 1 to {MAX_LEARNER_THREADS}, not {v}"
         )))
     }
-}
-
-/// The learner thread count a run gets by default: every core the process may use, capped at
-/// `cap` (where more threads stop paying, e.g. 2 for SMILe's two overlapping steps on a
-/// small machine), at least 1.
-pub fn default_learner_threads(cap: usize) -> usize {
-    std::thread::available_parallelism()
-        .map(|n| n.get())
-        .unwrap_or(1)
-        .clamp(1, cap.max(1))
 }
 
 /// The thread count candle's matmul currently uses.

@@ -228,10 +228,7 @@ impl ExpertTrainer {
     }
 
     fn build(cfg: ExpertConfig) -> Result<Self> {
-        crate::threads::check_learner_threads(
-            cfg.learner_threads,
-            crate::smile::MAX_LEARNER_THREADS,
-        )?;
+        crate::threads::check_learner_threads(cfg.learner_threads)?;
         let pool = LearnerPool::new(cfg.learner_threads)?;
         let family = cfg.env;
         let tasks = cfg.tasks()?;

@@ -50,7 +50,7 @@ mod config;
 mod disc;
 mod persist;
 
-pub use config::{MAX_LEARNER_THREADS, SmileConfig};
+pub use config::SmileConfig;
 pub(crate) use disc::{DiscBatch, DiscLearner, disc_grads, disc_update};
 
 use crate::algo::sac::{BcTerm, Sac, SacStats};

@@ -166,7 +166,7 @@ impl Cell {
             .ok()
             .and_then(|t| t.get("learner_threads")?.as_integer())
             .map_or(1, |n| {
-                n.clamp(1, crate::smile::MAX_LEARNER_THREADS as i64) as usize
+                n.clamp(1, crate::threads::MAX_LEARNER_THREADS as i64) as usize
             })
     }
 

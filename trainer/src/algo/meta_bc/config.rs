@@ -138,10 +138,7 @@ impl MetaBcConfig {
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
-        crate::threads::check_learner_threads(
-            self.learner_threads,
-            crate::smile::MAX_LEARNER_THREADS,
-        )?;
+        crate::threads::check_learner_threads(self.learner_threads)?;
         if self.tasks_per_batch == 0
             || self.per_task == 0
             || self.max_context == 0

@@ -8,9 +8,6 @@ use crate::data::ContextDraw;
 use crate::model::ContextConfig;
 use crate::{Error, Result};
 
-/// The most learner threads a SMILe run accepts.
-pub const MAX_LEARNER_THREADS: usize = 256;
-
 /// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
 /// CPU: encoder 64 -> r 32 -> 64 x 64 head -> z 16, discriminator and SAC 2 x 128, reward
 /// scale 8, gradient penalty 1, 1 disc : 1 SAC step, 8 tasks per batch; per-task batch sizes
@@ -196,12 +193,7 @@ impl SmileConfig {
                 "smile batch sizes and counts must be positive (eval_context_size too)".into(),
             ));
         }
-        if !(1..=MAX_LEARNER_THREADS).contains(&self.learner_threads) {
-            return Err(Error::Config(format!(
-                "learner_threads must be 1 to {MAX_LEARNER_THREADS}, not {}",
-                self.learner_threads
-            )));
-        }
+        crate::threads::check_learner_threads(self.learner_threads)?;
         for (key, v, min_ok) in [
             ("gp_weight", self.gp_weight, self.gp_weight >= 0.0),
             ("logit_clamp", self.logit_clamp, self.logit_clamp > 0.0),
