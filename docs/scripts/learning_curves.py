@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Learning curves of a sweep's cells: the held-out train-task metric (`eval/val_metric` in each
 cell's train/metrics.jsonl) against update pairs (SMILe) or gradient steps (Meta-BC) and
-against wall-clock seconds, one line per cell, coloured by method; with each cell's final
+against wall-clock seconds (and against CPU-seconds, `charts/cpu_s`, where the runs log it),
+one line per cell, coloured by method; with each cell's final
 meta-test metric (eval/eval.json) and its training's last step and wall-clock, so a table can
 state each method's updates and time.
 
@@ -33,27 +34,31 @@ def main():
     title = sys.argv[3] if len(sys.argv) > 3 else os.path.basename(sweep.rstrip("/"))
     data = []
     for name, d in cells(sweep):
-        steps, walls, vals, last_step, last_wall = [], [], [], 0, 0.0
+        steps, walls, cpus, vals, last_step, last_wall = [], [], [], [], 0, 0.0
+        cpu = 0.0
         for line in open(os.path.join(d, "train", "metrics.jsonl")):
             r = json.loads(line)
             last_step, last_wall = max(last_step, r["step"]), max(last_wall, r.get("wall_s", 0.0))
+            cpu = r.get("charts/cpu_s", cpu)
             if "eval/val_metric" in r:
                 steps.append(r["step"])
                 walls.append(round(r["wall_s"], 1))
+                cpus.append(round(cpu, 1))
                 vals.append(r["eval/val_metric"])
         test = None
         ev = os.path.join(d, "eval", "eval.json")
         if os.path.exists(ev):
             test = json.load(open(ev))["methods"][0]["mean"]
         data.append({"cell": name, "method": method_of(name), "steps": steps, "wall_s": walls,
-                     "val_metric": vals, "last_step": last_step, "last_wall_s": round(last_wall),
+                     "cpu_s": cpus, "val_metric": vals, "last_step": last_step,
+                     "last_wall_s": round(last_wall), "last_cpu_s": round(cpu),
                      "test_metric": test})
     with open(out + ".json", "w") as f:
         json.dump({"sweep": sweep, "cells": data}, f, indent=1)
         f.write("\n")
     methods = sorted({c["method"] for c in data})
-    print("| method | seeds | meta-test metric (mean +- std over seeds) | steps per cell | wall-clock per cell (s) |")
-    print("|---|---|---|---|---|")
+    print("| method | seeds | meta-test metric (mean +- std over seeds) | steps per cell | wall-clock per cell (s) | CPU per cell (s) |")
+    print("|---|---|---|---|---|---|")
     for m in methods:
         cs = [c for c in data if c["method"] == m and c["test_metric"] is not None]
         if not cs:
@@ -61,7 +66,8 @@ def main():
         t = [c["test_metric"] for c in cs]
         sd = statistics.stdev(t) if len(t) > 1 else 0.0
         print(f"| {m} | {len(cs)} | {statistics.mean(t):.3f} +- {sd:.3f} ({', '.join(f'{x:.3f}' for x in t)}) "
-              f"| {', '.join(str(c['last_step']) for c in cs)} | {', '.join(str(c['last_wall_s']) for c in cs)} |")
+              f"| {', '.join(str(c['last_step']) for c in cs)} | {', '.join(str(c['last_wall_s']) for c in cs)} "
+              f"| {', '.join(str(c['last_cpu_s']) if c['last_cpu_s'] else '-' for c in cs)} |")
     try:
         import matplotlib
         matplotlib.use("Agg")
@@ -69,14 +75,19 @@ def main():
     except ImportError:
         print("matplotlib missing: no plot (pip install matplotlib)", file=sys.stderr)
         return
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    with_cpu = any(c["last_cpu_s"] for c in data)
+    fig, axes = plt.subplots(1, 3 if with_cpu else 2, figsize=(16 if with_cpu else 11, 4))
     colours = {m: f"C{i}" for i, m in enumerate(methods)}
     for c in data:
         label = c["method"] if c["cell"].endswith("-s0") else None
         axes[0].plot(c["steps"], c["val_metric"], color=colours[c["method"]], label=label, lw=1)
         axes[1].plot(c["wall_s"], c["val_metric"], color=colours[c["method"]], lw=1)
+        if with_cpu:
+            axes[2].plot(c["cpu_s"], c["val_metric"], color=colours[c["method"]], lw=1)
     axes[0].set_xlabel("update pairs (SMILe) / gradient steps (Meta-BC)")
     axes[1].set_xlabel("wall-clock (s)")
+    if with_cpu:
+        axes[2].set_xlabel("CPU-seconds of the training process (charts/cpu_s)")
     for a in axes:
         a.set_ylabel("held-out train-task metric")
         a.grid(alpha=0.3)

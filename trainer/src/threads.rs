@@ -109,6 +109,29 @@ pub fn compute_threads() -> usize {
     candle_core::utils::get_num_threads()
 }
 
+/// CPU time this process has used so far, user plus system, over every thread (`getrusage`),
+/// in seconds; `None` where the platform does not say.
+///
+/// A compute budget counted in it (SMILe's `cpu_budget_s`) gives two runs the same compute
+/// whatever else the machine runs beside them, which a wall-clock budget on a shared machine
+/// does not.
+pub fn process_cpu_seconds() -> Option<f64> {
+    #[cfg(unix)]
+    {
+        // SAFETY: getrusage writes one plain struct that we own; RUSAGE_SELF is always valid.
+        let mut u: libc::rusage = unsafe { std::mem::zeroed() };
+        if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
+            return None;
+        }
+        let secs = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+        Some(secs(u.ru_utime) + secs(u.ru_stime))
+    }
+    #[cfg(not(unix))]
+    {
+        None
+    }
+}
+
 /// Makes glibc keep freed memory for reuse instead of returning it to the kernel (Linux with
 /// glibc; a no-op elsewhere). Returns whether the settings took.
 ///
@@ -137,6 +160,20 @@ pub fn keep_freed_memory() -> bool {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn process_cpu_seconds_counts_work() {
+        let a = super::process_cpu_seconds().expect("unix reports CPU time");
+        // About 50 ms of arithmetic the optimiser cannot drop.
+        let t = std::time::Instant::now();
+        let mut x = 1.0f64;
+        while t.elapsed().as_millis() < 50 {
+            x = std::hint::black_box(x * 1.000_001 + 1e-9);
+        }
+        let b = super::process_cpu_seconds().unwrap();
+        assert!(x.is_finite());
+        assert!(b - a >= 0.02, "{a} -> {b}");
+    }
+
     #[test]
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     fn glibc_accepts_the_allocator_settings() {

@@ -8,6 +8,25 @@ fn read(name: &str) -> String {
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 
+/// The narrow-width twin of the authors' cheetah preset differs from it in the widths alone
+/// (issue 32's width comparison is a one-factor one), and in how often it evaluates.
+#[test]
+fn the_narrow_authors_preset_differs_only_in_width() {
+    let wide: SmileConfig = toml::from_str(&read("authors-cv-smile.toml")).unwrap();
+    let mut narrow: SmileConfig = toml::from_str(&read("authors-cv-smile-narrow.toml")).unwrap();
+    narrow.validate().unwrap();
+    assert_eq!(narrow.disc_hidden, vec![128, 128]);
+    assert_eq!(narrow.sac.hidden, vec![128, 128]);
+    assert_eq!((narrow.context.r_dim, narrow.context.z_dim), (32, 16));
+    narrow.disc_hidden = wide.disc_hidden.clone();
+    narrow.sac.hidden = wide.sac.hidden.clone();
+    narrow.context = wide.context.clone();
+    narrow.total_updates = wide.total_updates;
+    narrow.eval_every = wide.eval_every;
+    narrow.checkpoint_every = wide.checkpoint_every;
+    assert_eq!(narrow, wide);
+}
+
 #[test]
 fn results_configs_parse_and_validate() {
     let smile: SmileConfig = toml::from_str(&read("cv-smile.toml")).unwrap();

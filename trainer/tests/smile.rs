@@ -115,6 +115,57 @@ fn short_run_checkpoints_resumes_and_exports() {
 }
 
 #[test]
+fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
+    trainer::threads::set_compute_threads(1);
+    let dir = std::env::temp_dir().join(format!("smile-budget-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    let ds = demos(8, 2, 30);
+    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let cfg = SmileConfig {
+        total_updates: 1_000_000,
+        eval_every: 1000,
+        checkpoint_every: 1000,
+        // Any work at all exceeds it: the run stops after its first iteration (10 pairs).
+        cpu_budget_s: 1e-9,
+        ..tiny(false)
+    };
+    let mut bad = cfg.clone();
+    bad.cpu_budget_s = f64::NAN;
+    assert!(
+        Smile::new(bad, data.clone()).is_err(),
+        "a NaN budget is refused"
+    );
+    let mut run = Smile::new(cfg, data.clone()).unwrap();
+    let mut evals = 0;
+    smile::train(&mut run, &dir, &mut |e| {
+        if let smile::Event::Eval { .. } = e {
+            evals += 1;
+        }
+    })
+    .unwrap();
+    assert_eq!(run.updates(), 10, "stopped at the first iteration end");
+    assert_eq!(evals, 1, "a stopped run evaluates as a finished one does");
+    let log = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
+    let cpu: f64 = log
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| v["charts/cpu_s"].as_f64())
+        .next_back()
+        .expect("charts/cpu_s logged");
+    assert!(cpu > 0.0);
+    MetaPolicy::load(&dir).unwrap();
+    MetaPolicy::load(&dir.join("last")).unwrap();
+    // Resumed without a budget, it runs to its (new) total.
+    let mut resumed = Smile::resume(&dir, data, Some(30)).unwrap();
+    assert_eq!(resumed.updates(), 10);
+    assert!(resumed.set_cpu_budget(-1.0).is_err());
+    resumed.set_cpu_budget(0.0).unwrap();
+    smile::train(&mut resumed, &dir, &mut |_| {}).unwrap();
+    assert_eq!(resumed.updates(), 30);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn learner_threads_are_deterministic_on_any_count_and_use_the_older_reward() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);

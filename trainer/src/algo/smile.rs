@@ -172,6 +172,16 @@ impl Smile {
         &self.cfg
     }
 
+    /// Sets the compute budget of the next [`train`] call (`cpu_budget_s`, 0: none); the
+    /// one setting besides `total_updates` that a resumed run may change.
+    pub fn set_cpu_budget(&mut self, secs: f64) -> Result<()> {
+        let mut cfg = self.cfg.clone();
+        cfg.cpu_budget_s = secs;
+        cfg.validate()?;
+        self.cfg = cfg;
+        Ok(())
+    }
+
     /// Update pairs done.
     pub fn updates(&self) -> u64 {
         self.updates
@@ -429,11 +439,19 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
     (j, k)
 }
 
-/// Trains until `total_updates`, logging to `dir/metrics.jsonl`, evaluating on held-out train
+/// Trains until `total_updates` (or the `cpu_budget_s` compute budget), logging to `dir/metrics.jsonl`, evaluating on held-out train
 /// tasks every `eval_every` updates (the best policy so far is saved as
 /// `dir/meta_policy.safetensors`; the final one as `dir/last/meta_policy.safetensors`) and
 /// checkpointing every `checkpoint_every` updates and at the end.
 pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
+    // The compute budget (`cpu_budget_s`) counts this process's CPU time from here, warm
+    // start and first evaluation included.
+    let cpu0 = crate::threads::process_cpu_seconds();
+    if run.cfg.cpu_budget_s > 0.0 && cpu0.is_none() {
+        return Err(Error::Config(
+            "cpu_budget_s is set, but this platform does not report the process's CPU time".into(),
+        ));
+    }
     let mut log = MetricsLog::open_at(dir, run.updates)?;
     let kind = run.data.family.metric_kind();
     if run.updates == 0 && run.replay.total_len() == 0 {
@@ -454,7 +472,8 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
     }
     // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
     // times between the discriminator (+ encoder) and the policy.
-    while run.updates < cfg.total_updates {
+    let mut done = run.updates >= cfg.total_updates;
+    while !done {
         for _ in 0..cfg.rollouts_per_iter {
             let ti = run.rng.random_range(0..run.data.train.len());
             run.rollout(ti)?;
@@ -470,6 +489,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             on(Event::Updates(run.updates));
         }
         let ups = (run.updates - u0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
+        let cpu_s = crate::threads::process_cpu_seconds()
+            .zip(cpu0)
+            .map_or(0.0, |(now, start)| now - start);
+        done = run.updates >= cfg.total_updates
+            || (cfg.cpu_budget_s > 0.0 && cpu_s >= cfg.cpu_budget_s);
         let mut fields = vec![
             ("losses/disc_bce", ds.bce as f64),
             ("losses/disc_gp", ds.gp as f64),
@@ -478,6 +502,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             ("charts/reward_mean", rm as f64),
             ("charts/sps", ups),
             ("charts/env_steps", run.env_steps as f64),
+            ("charts/cpu_s", cpu_s),
         ];
         if let Some(s) = &ss {
             fields.extend(s.fields());
@@ -488,7 +513,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             fields.push(("charts/bc_weight", w as f64));
         }
         log.log(run.updates, &fields)?;
-        if run.updates >= next_eval || (run.updates >= cfg.total_updates && cfg.eval_every > 0) {
+        if run.updates >= next_eval || (done && cfg.eval_every > 0) {
             next_eval = (run.updates / cfg.eval_every + 1) * cfg.eval_every;
             if !run.data.val.is_empty() {
                 let m = run.validate()?;
@@ -510,7 +535,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
                 });
             }
         }
-        if run.updates >= next_ckpt || run.updates >= cfg.total_updates {
+        if run.updates >= next_ckpt || done {
             run.save_checkpoint(dir)?;
             next_ckpt =
                 (run.updates / cfg.checkpoint_every.max(1) + 1) * cfg.checkpoint_every.max(1);

@@ -80,6 +80,14 @@ pub struct SmileConfig {
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
+    /// A compute budget: stop at the end of the first iteration after the training process
+    /// has used this many CPU-seconds (user + system, every thread; a resumed run counts from
+    /// its resume), then evaluate, checkpoint and finish as at `total_updates`. Comparisons at
+    /// equal compute then hold on a machine shared with other work, where wall-clock ones do
+    /// not (issue 32: the authors' widths against narrow ones). 0: no budget. Like
+    /// `total_updates` it may change on `--resume`. Default 0.
+    #[serde(skip_serializing_if = "is_zero_f64")]
+    pub cpu_budget_s: f64,
     /// SMILe + BC (beyond the paper; issue 29): weight `w` of an auxiliary cloning term
     /// `w mean ||tanh(mu([norm(s_E), z])) - a_E||^2` on SAC's actor loss, over `sac_per_task`
     /// expert transitions of each task of the SAC batch, z that task's detached latent
@@ -114,6 +122,10 @@ fn is_zero_u64(v: &u64) -> bool {
     *v == 0
 }
 
+fn is_zero_f64(v: &f64) -> bool {
+    *v == 0.0
+}
+
 impl Default for SmileConfig {
     fn default() -> Self {
         Self {
@@ -145,6 +157,7 @@ impl Default for SmileConfig {
             eval_context_size: 1,
             learner_threads: 1,
             checkpoint_every: 2000,
+            cpu_budget_s: 0.0,
             bc_weight: 0.0,
             bc_decay_updates: 0,
             rollout_termination: false,
@@ -211,6 +224,12 @@ impl SmileConfig {
                     "{key} must be a finite number {range}, not {v}"
                 )));
             }
+        }
+        if !(self.cpu_budget_s.is_finite() && self.cpu_budget_s >= 0.0) {
+            return Err(Error::Config(format!(
+                "cpu_budget_s must be a finite number of seconds >= 0 (0: none), not {}",
+                self.cpu_budget_s
+            )));
         }
         if self.bc_weight > 0.0 && self.context.state_only {
             return Err(Error::Config(

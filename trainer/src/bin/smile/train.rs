@@ -85,6 +85,12 @@ pub struct TrainArgs {
     /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger), at least 1.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     updates: Option<u64>,
+    /// SMILe: a compute budget in CPU-seconds (user + system, every thread) for this
+    /// invocation; training stops at the first iteration end past it and finishes as at
+    /// `--updates` (the config's `cpu_budget_s`; 0: none). For comparisons at equal compute on
+    /// a machine that also runs other work.
+    #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
+    cpu_budget: Option<f32>,
     /// Seed.
     #[arg(long)]
     seed: Option<u64>,
@@ -249,12 +255,14 @@ fn check_resume<T: serde::Serialize>(
     a: &TrainArgs,
     given: &T,
     running: &T,
-    total: &str,
+    changeable: &[&str],
 ) -> Result<()> {
     let table = |c: &T| -> Result<toml::Table> { Ok(toml::Table::try_from(c)?) };
     let (mut g, mut r) = (table(given)?, table(running)?);
-    g.remove(total);
-    r.remove(total);
+    for key in changeable {
+        g.remove(*key);
+        r.remove(*key);
+    }
     for (key, theirs) in &r {
         let ours = g.get(key);
         if ours != Some(theirs) {
@@ -270,7 +278,7 @@ fn check_resume<T: serde::Serialize>(
             bail!(
                 "--resume continues {} with the configuration it started with, but {flag} \
                  changes `{key}` ({} -> {}); drop the flag (or restore {}), or start a new run \
-                 to change it. Only --updates may change on --resume",
+                 to change it. Only --updates (and SMILe's --cpu-budget) may change on --resume",
                 a.out.display(),
                 theirs,
                 ours.map_or("missing".into(), ToString::to_string),
@@ -341,11 +349,15 @@ fn train_smile(
     if let Some(v) = a.eval_every {
         cfg.eval_every = v;
     }
+    if let Some(v) = a.cpu_budget {
+        cfg.cpu_budget_s = v.into();
+    }
     let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
         .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
-        let run = Smile::resume(&a.out, data, a.updates.or(Some(cfg.total_updates)))?;
-        check_resume(&a, &cfg, run.config(), "total_updates")?;
+        let mut run = Smile::resume(&a.out, data, a.updates.or(Some(cfg.total_updates)))?;
+        check_resume(&a, &cfg, run.config(), &["total_updates", "cpu_budget_s"])?;
+        run.set_cpu_budget(cfg.cpu_budget_s)?;
         run
     } else {
         cfg.validate()?;
@@ -400,6 +412,7 @@ fn train_bc(
         ("--gp-weight", a.gp_weight.is_some()),
         ("--reward-scale", a.reward_scale.is_some()),
         ("--bc-weight", a.bc_weight.is_some()),
+        ("--cpu-budget", a.cpu_budget.is_some()),
     ] {
         if given {
             bail!(
@@ -446,7 +459,7 @@ fn train_bc(
         .with_context(|| format!("--demos {}", a.demos.display()))?;
     let mut run = if a.resume {
         let run = MetaBc::resume(&a.out, data, expert, a.updates.or(Some(cfg.total_steps)))?;
-        check_resume(&a, &cfg, run.config(), "total_steps")?;
+        check_resume(&a, &cfg, run.config(), &["total_steps"])?;
         run
     } else {
         MetaBc::new(cfg, data, expert)?
