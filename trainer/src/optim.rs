@@ -152,6 +152,37 @@ impl Adam {
         Ok((to_t(&self.m)?, to_t(&self.v)?, self.t))
     }
 
+    /// Appends the moments to a checkpoint's tensors as `{name}.m.{i}` and `{name}.v.{i}`
+    /// (every learner's optimisers are saved this one way) and returns the step count, which
+    /// the checkpoint keeps with its counters.
+    pub fn save_into(&self, name: &str, out: &mut Vec<(String, Tensor)>) -> Result<u64> {
+        let (m, v, t) = self.state()?;
+        for (i, x) in m.into_iter().enumerate() {
+            out.push((format!("{name}.m.{i}"), x));
+        }
+        for (i, x) in v.into_iter().enumerate() {
+            out.push((format!("{name}.v.{i}"), x));
+        }
+        Ok(t)
+    }
+
+    /// Restores what [`Adam::save_into`] wrote under `name` (`get` looks a checkpoint tensor up
+    /// by name) with the step count `t`; shapes must match this optimiser's variables.
+    pub fn load_from(
+        &mut self,
+        name: &str,
+        get: &dyn Fn(&str) -> Result<Tensor>,
+        t: u64,
+    ) -> Result<()> {
+        let n = self.vars.len();
+        let many = |moment: &str| -> Result<Vec<Tensor>> {
+            (0..n)
+                .map(|i| get(&format!("{name}.{moment}.{i}")))
+                .collect()
+        };
+        self.set_state(&many("m")?, &many("v")?, t)
+    }
+
     /// Restore moments and step count saved by [`Adam::state`].
     pub fn set_state(&mut self, m: &[Tensor], v: &[Tensor], t: u64) -> Result<()> {
         let vars: Vec<Tensor> = self.vars.iter().map(|v| v.as_tensor().clone()).collect();
@@ -172,6 +203,44 @@ impl Adam {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn adam_saves_and_loads_itself_exactly() {
+        let dev = &Device::Cpu;
+        let vars: Vec<Var> = [vec![0.5f32, -1.0, 2.0], vec![3.0f32]]
+            .iter()
+            .map(|x| Var::from_tensor(&Tensor::new(x.as_slice(), dev).unwrap()).unwrap())
+            .collect();
+        let mut a = Adam::new(vars.clone(), AdamConfig::with_lr(0.1));
+        for _ in 0..3 {
+            let loss = (vars[0].as_tensor().sqr().unwrap().sum_all().unwrap()
+                + vars[1].as_tensor().sum_all().unwrap())
+            .unwrap();
+            a.backward_step(&loss).unwrap();
+        }
+        let mut ts = Vec::new();
+        let t = a.save_into("opt", &mut ts).unwrap();
+        assert_eq!(t, 3);
+        let names: Vec<&str> = ts.iter().map(|(n, _)| n.as_str()).collect();
+        assert_eq!(names, ["opt.m.0", "opt.m.1", "opt.v.0", "opt.v.1"]);
+        let get = |n: &str| -> Result<Tensor> {
+            ts.iter()
+                .find(|(k, _)| k == n)
+                .map(|(_, t)| t.clone())
+                .ok_or_else(|| crate::Error::Shape(n.into()))
+        };
+        let mut b = Adam::new(vars.clone(), AdamConfig::with_lr(0.1));
+        b.load_from("opt", &get, t).unwrap();
+        assert_eq!(
+            (b.m.clone(), b.v.clone(), b.t),
+            (a.m.clone(), a.v.clone(), a.t)
+        );
+        // A checkpoint of other shapes is refused, not half loaded.
+        let other = Var::from_tensor(&Tensor::new(&[1.0f32, 2.0], dev).unwrap()).unwrap();
+        let mut c = Adam::new(vec![other, vars[1].clone()], AdamConfig::with_lr(0.1));
+        assert!(c.load_from("opt", &get, t).is_err());
+        assert!(b.load_from("missing", &get, t).is_err());
+    }
 
     #[test]
     fn adam_matches_reference_formula() {

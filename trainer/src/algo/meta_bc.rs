@@ -33,7 +33,8 @@ use crate::io::MetricsLog;
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
 use crate::model::{
-    ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, TrainingMark, scalar,
+    ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, TrainingMark, mlp_load,
+    mlp_tensors, scalar,
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
@@ -335,22 +336,10 @@ impl MetaBc {
     /// Writes the checkpoint to `dir`.
     pub fn save_checkpoint(&self, dir: &Path) -> Result<()> {
         let mut ts: Vec<(String, Tensor)> = Vec::new();
-        for (p, m) in [
-            ("phi", &self.encoder.phi),
-            ("head", &self.encoder.head),
-            ("policy", self.policy.net()),
-        ] {
-            for (i, v) in m.vars().iter().enumerate() {
-                ts.push((format!("{p}.{i}"), v.as_tensor().detach()));
-            }
-        }
-        let (m, v, t) = self.opt.state()?;
-        for (i, x) in m.into_iter().enumerate() {
-            ts.push((format!("opt.m.{i}"), x));
-        }
-        for (i, x) in v.into_iter().enumerate() {
-            ts.push((format!("opt.v.{i}"), x));
-        }
+        mlp_tensors("phi", &self.encoder.phi, &mut ts);
+        mlp_tensors("head", &self.encoder.head, &mut ts);
+        mlp_tensors("policy", self.policy.net(), &mut ts);
+        let t = self.opt.save_into("opt", &mut ts)?;
         let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
         for (i, p) in self.pairs.iter().enumerate() {
             let n = p.act.len() / ad;
@@ -399,24 +388,11 @@ impl MetaBc {
         }
         let mut run = Self::new(cfg, data, expert)?;
         let get = |n: &str| ck.get(n);
-        for (p, m) in [
-            ("phi", &run.encoder.phi),
-            ("head", &run.encoder.head),
-            ("policy", run.policy.net()),
-        ] {
-            let ts = (0..m.vars().len())
-                .map(|i| get(&format!("{p}.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            m.load_from(&ts)?;
-        }
-        let n = run.encoder.vars().len() + run.policy.net().vars().len();
-        let m = (0..n)
-            .map(|i| get(&format!("opt.m.{i}")))
-            .collect::<Result<Vec<_>>>()?;
-        let v = (0..n)
-            .map(|i| get(&format!("opt.v.{i}")))
-            .collect::<Result<Vec<_>>>()?;
-        run.opt.set_state(&m, &v, ck.meta_field("adam_steps")?)?;
+        mlp_load("phi", &run.encoder.phi, &get)?;
+        mlp_load("head", &run.encoder.head, &get)?;
+        mlp_load("policy", run.policy.net(), &get)?;
+        run.opt
+            .load_from("opt", &get, ck.meta_field("adam_steps")?)?;
         for (i, p) in run.pairs.iter_mut().enumerate() {
             p.obs = get(&format!("pairs.{i}.obs"))?
                 .flatten_all()?

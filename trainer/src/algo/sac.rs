@@ -405,20 +405,11 @@ impl Sac {
         put("q1_targ", self.q1_targ.params().to_vec());
         put("q2_targ", self.q2_targ.params().to_vec());
         put("log_alpha", vec![self.log_alpha.as_tensor().detach()]);
-        let mut steps = [0u64; 3];
-        for (k, (name, opt)) in [
-            ("actor_opt", &self.actor_opt),
-            ("critic_opt", &self.critic_opt),
-            ("alpha_opt", &self.alpha_opt),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let (m, v, t) = opt.state()?;
-            put(&format!("{name}.m"), m);
-            put(&format!("{name}.v"), v);
-            steps[k] = t;
-        }
+        let steps = [
+            self.actor_opt.save_into("actor_opt", &mut out)?,
+            self.critic_opt.save_into("critic_opt", &mut out)?,
+            self.alpha_opt.save_into("alpha_opt", &mut out)?,
+        ];
         Ok((
             out,
             SacCounters {
@@ -450,19 +441,10 @@ impl Sac {
             return Err(Error::Shape("log_alpha".into()));
         }
         self.log_alpha.set(&la)?;
-        let sizes = [n_act, 2 * n_net, 1];
-        for (k, (name, opt)) in [
-            ("actor_opt", &mut self.actor_opt),
-            ("critic_opt", &mut self.critic_opt),
-            ("alpha_opt", &mut self.alpha_opt),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let m = many(&format!("{name}.m"), sizes[k])?;
-            let v = many(&format!("{name}.v"), sizes[k])?;
-            opt.set_state(&m, &v, counters.adam_steps[k])?;
-        }
+        let [actor, critic, alpha] = counters.adam_steps;
+        self.actor_opt.load_from("actor_opt", get, actor)?;
+        self.critic_opt.load_from("critic_opt", get, critic)?;
+        self.alpha_opt.load_from("alpha_opt", get, alpha)?;
         self.updates = counters.updates;
         Ok(())
     }

@@ -22,20 +22,10 @@ impl Smile {
         mlp_tensors("disc", self.disc.net(), &mut ts);
         let (sac_ts, sac_counters) = self.sac.state_tensors()?;
         ts.extend(sac_ts.into_iter().map(|(k, v)| (format!("sac.{k}"), v)));
-        let mut steps = [0u64; 2];
-        for (k, (name, opt)) in [("disc_opt", &self.disc_opt), ("enc_opt", &self.enc_opt)]
-            .into_iter()
-            .enumerate()
-        {
-            let (m, v, s) = opt.state()?;
-            for (i, t) in m.into_iter().enumerate() {
-                ts.push((format!("{name}.m.{i}"), t));
-            }
-            for (i, t) in v.into_iter().enumerate() {
-                ts.push((format!("{name}.v.{i}"), t));
-            }
-            steps[k] = s;
-        }
+        let steps = [
+            self.disc_opt.save_into("disc_opt", &mut ts)?,
+            self.enc_opt.save_into("enc_opt", &mut ts)?,
+        ];
         ts.extend(self.replay.to_tensors("replay")?);
         let meta = serde_json::json!({
             "kind": "smile-run",
@@ -80,27 +70,13 @@ impl Smile {
         run.sac
             .load_state(&|n| ck.get(&format!("sac.{n}")), counters)
             .map_err(wrap)?;
-        let steps: [u64; 2] = ck.meta_field("adam_steps")?;
-        for (k, (name, opt)) in [
-            ("disc_opt", &mut run.disc_opt),
-            ("enc_opt", &mut run.enc_opt),
-        ]
-        .into_iter()
-        .enumerate()
-        {
-            let n = if k == 0 {
-                run.disc.vars().len()
-            } else {
-                run.encoder.vars().len()
-            };
-            let m = (0..n)
-                .map(|i| get(&format!("{name}.m.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            let v = (0..n)
-                .map(|i| get(&format!("{name}.v.{i}")))
-                .collect::<Result<Vec<_>>>()?;
-            opt.set_state(&m, &v, steps[k]).map_err(wrap)?;
-        }
+        let [disc_steps, enc_steps]: [u64; 2] = ck.meta_field("adam_steps")?;
+        run.disc_opt
+            .load_from("disc_opt", &get, disc_steps)
+            .map_err(wrap)?;
+        run.enc_opt
+            .load_from("enc_opt", &get, enc_steps)
+            .map_err(wrap)?;
         run.replay.load_tensors("replay", &get).map_err(wrap)?;
         run.updates = ck.meta_field("updates")?;
         run.env_steps = ck.meta_field("env_steps")?;
