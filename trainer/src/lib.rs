@@ -42,7 +42,7 @@ pub mod sweep;
 pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type, `train` and its `Event`s.
-pub use algo::{expert, meta_bc, sac, smile};
+pub use algo::{Algo, MetaLearner, Progress, expert, meta_bc, sac, smile};
 
 /// Errors and the result alias.
 pub use error::{Error, Result};
@@ -80,4 +80,7 @@ pub mod export {
 pub use io::{DirLock, lock};
 
 /// The metrics log (JSON lines + TensorBoard events) and the progress-bar style.
-pub use io::{METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults};
+pub use io::{
+    METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults,
+    from_toml_with_flags, set_key as set_config_key,
+};

@@ -14,7 +14,8 @@ use sim::{DemoDataset, EnvConfig, Family, Split};
 use crate::algo::expert::{self, Expert};
 use crate::algo::expert::{DemoSpec, record};
 use crate::algo::meta_bc::{self, MetaBc, MetaBcConfig};
-use crate::algo::smile::{self, Smile, SmileConfig};
+use crate::algo::smile::{Smile, SmileConfig};
+use crate::algo::{MetaLearner, Progress};
 use crate::data::MetaData;
 use crate::eval::{self, EvalReport, MethodResult, Protocol};
 use crate::export::{self, BlobActor};
@@ -372,26 +373,7 @@ fn train_smile(
     dir: &Path,
     bars: &MultiProgress,
 ) -> Result<MetaPolicy> {
-    let cfg = smile_config(args);
-    let data = MetaData::from_dataset(train, args.env, cfg.holdout_every)?;
-    let mut run = Smile::new(cfg.clone(), data)?;
-    write(
-        &dir.join("config.toml"),
-        toml::to_string(&cfg).map_err(|e| Error::Serialise {
-            what: "config.toml",
-            reason: e.to_string(),
-        })?,
-    )?;
-    let pb = bars.add(bar(cfg.total_updates, args.quiet, "SMILe update pairs"));
-    smile::train(&mut run, dir, &mut |e| match e {
-        smile::Event::Updates(u) => pb.set_position(u),
-        smile::Event::Eval {
-            metric: m, best, ..
-        } => pb.set_message(format!("held-out train tasks {m:.3} (best {best:.3})")),
-        smile::Event::Checkpoint(_) => {}
-    })?;
-    pb.finish();
-    MetaPolicy::load(dir)
+    train_learner::<Smile>(smile_config(args), args, train, dir, bars, "SMILe")
 }
 
 fn train_meta_bc(
@@ -419,8 +401,21 @@ fn train_meta_bc(
         cfg.policy_hidden = vec![32, 32];
         cfg.eval_every = 100;
     }
-    let data = MetaData::from_dataset(train, args.env, cfg.holdout_every)?;
-    let mut run = MetaBc::new(cfg.clone(), data, None)?;
+    train_learner::<MetaBc>(cfg, args, train, dir, bars, "Meta-BC")
+}
+
+/// Trains one learner of the quickstart in `dir` (its config written beside it, a progress bar
+/// under `label`) and loads the policy it kept.
+fn train_learner<L: MetaLearner>(
+    cfg: L::Config,
+    args: &QuickstartConfig,
+    train: &DemoDataset,
+    dir: &Path,
+    bars: &MultiProgress,
+    label: &str,
+) -> Result<MetaPolicy> {
+    let data = MetaData::from_dataset(train, args.env, L::holdout_every(&cfg))?;
+    let mut run = L::start(cfg.clone(), data, None)?;
     write(
         &dir.join("config.toml"),
         toml::to_string(&cfg).map_err(|e| Error::Serialise {
@@ -428,11 +423,24 @@ fn train_meta_bc(
             reason: e.to_string(),
         })?,
     )?;
-    let pb = bars.add(bar(cfg.total_steps, args.quiet, "Meta-BC steps"));
-    meta_bc::train(&mut run, dir, &mut |e| match e {
-        meta_bc::Event::Steps(s) => pb.set_position(s),
-        meta_bc::Event::Eval(_, r) => pb.set_message(format!("val mse {:.4}", r.val_mse)),
-        meta_bc::Event::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
+    let pb = bars.add(bar(
+        run.total(),
+        args.quiet,
+        &format!("{label} {}", L::STEP_NAME),
+    ));
+    run.run(dir, &mut |e| match e {
+        Progress::Steps(s) => pb.set_position(s),
+        Progress::Eval {
+            metric: m,
+            best,
+            val_mse,
+            ..
+        } => pb.set_message(match val_mse {
+            Some(mse) => format!("val mse {mse:.4}, held-out train tasks {m:.3}"),
+            None => format!("held-out train tasks {m:.3} (best {best:.3})"),
+        }),
+        Progress::Checkpoint(_) => {}
+        Progress::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
     })?;
     pb.finish();
     MetaPolicy::load(dir)

@@ -13,7 +13,7 @@ use trainer::eval::{self, Protocol};
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 use trainer::sac::SacConfig;
 use trainer::smile::{self, Smile, SmileConfig};
-use trainer::{MetaData, MetaPolicy};
+use trainer::{MetaData, MetaPolicy, Progress};
 
 const HORIZON: usize = 30;
 
@@ -114,11 +114,8 @@ fn smile_learns_point_goal_from_demos_and_uses_the_context() {
     let untrained = test_metric(&mut run.meta_policy(), &test);
     let t0 = std::time::Instant::now();
     smile::train(&mut run, &dir, &mut |e| {
-        if let smile::Event::Eval {
-            updates, metric, ..
-        } = e
-        {
-            eprintln!("update {updates}: held-out train goals {metric:.3}");
+        if let Progress::Eval { step, metric, .. } = e {
+            eprintln!("update {step}: held-out train goals {metric:.3}");
         }
     })
     .unwrap();

@@ -5,6 +5,7 @@ mod common;
 use sim::{DemoDataset, Family};
 use trainer::MetaData;
 use trainer::MetaPolicy;
+use trainer::Progress;
 use trainer::expert::Expert;
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
 
@@ -46,8 +47,11 @@ fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
     let v0 = run.val_mse().unwrap();
     let mut vals = Vec::new();
     meta_bc::train(&mut run, &dir, &mut |e| {
-        if let meta_bc::Event::Eval(_, r) = e {
-            vals.push(r.val_mse);
+        if let Progress::Eval {
+            val_mse: Some(m), ..
+        } = e
+        {
+            vals.push(m);
         }
     })
     .unwrap();
@@ -81,7 +85,7 @@ fn early_stopping_and_dagger_relabelling() {
     let before = run.dataset_size();
     let mut stopped = None;
     meta_bc::train(&mut run, &dir, &mut |e| {
-        if let meta_bc::Event::Stopped(s) = e {
+        if let Progress::Stopped(s) = e {
             stopped = Some(s);
         }
     })
@@ -111,8 +115,8 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
     let mut run = MetaBc::new(cfg, run_data(), None).unwrap();
     let mut metrics = Vec::new();
     meta_bc::train(&mut run, &dir, &mut |e| {
-        if let meta_bc::Event::Eval(_, r) = e {
-            metrics.push(r.val_metric);
+        if let Progress::Eval { metric, .. } = e {
+            metrics.push(metric);
         }
     })
     .unwrap();
@@ -195,8 +199,13 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
     let mut run = MetaBc::new(cfg.clone(), run_data(), None).unwrap();
     let mut vals = Vec::new();
     meta_bc::train(&mut run, &full, &mut |e| {
-        if let meta_bc::Event::Eval(step, r) = e {
-            vals.push((step, r.val_mse));
+        if let Progress::Eval {
+            step,
+            val_mse: Some(m),
+            ..
+        } = e
+        {
+            vals.push((step, m));
         }
     })
     .unwrap();

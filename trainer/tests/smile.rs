@@ -7,6 +7,7 @@ mod common;
 use sim::{DemoDataset, Family};
 use trainer::MetaData;
 use trainer::MetaPolicy;
+use trainer::Progress;
 use trainer::sac::SacConfig;
 use trainer::smile::{self, Smile, SmileConfig};
 
@@ -93,7 +94,7 @@ fn short_run_checkpoints_resumes_and_exports() {
     let mut run = Smile::new(tiny(false), data.clone()).unwrap();
     let mut evals = 0;
     smile::train(&mut run, &dir, &mut |e| {
-        if let smile::Event::Eval { .. } = e {
+        if let Progress::Eval { .. } = e {
             evals += 1;
         }
     })
@@ -138,7 +139,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     let mut run = Smile::new(cfg, data.clone()).unwrap();
     let mut evals = 0;
     smile::train(&mut run, &dir, &mut |e| {
-        if let smile::Event::Eval { .. } = e {
+        if let Progress::Eval { .. } = e {
             evals += 1;
         }
     })

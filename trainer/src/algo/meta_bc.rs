@@ -27,6 +27,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim::{Environment, TaskDemos};
 
+use crate::algo::Progress;
 use crate::algo::expert::ExpertSet;
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
 use crate::io::MetricsLog;
@@ -43,26 +44,6 @@ use crate::{Error, Result};
 mod config;
 
 pub use config::{MetaBcConfig, Selection};
-
-/// One validation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct ValReport {
-    /// Action MSE on the held-out train tasks' demos.
-    pub val_mse: f32,
-    /// The family's metric of deterministic rollouts on the held-out train tasks.
-    pub val_metric: f32,
-}
-
-/// Events reported to the caller of [`train`].
-#[derive(Debug, Clone, Copy)]
-pub enum Event {
-    /// Gradient steps so far.
-    Steps(u64),
-    /// A validation at this step.
-    Eval(u64, ValReport),
-    /// Early stop at this step.
-    Stopped(u64),
-}
 
 /// Per-task `(s, a)` pairs: the demos, plus relabelled visits for Meta-DAgger.
 #[derive(Debug, Clone, Default)]
@@ -448,7 +429,7 @@ fn val_mse_on(run: &MetaBc, tasks: &[TaskDemos]) -> Result<f32> {
 /// Trains until `total_steps` or the stopping rule; logs `losses/bc_mse`, `eval/val_mse`,
 /// `eval/val_metric`; keeps the best weights by `select_by` (lowest validation MSE, or best
 /// held-out rollout metric) in `dir/meta_policy.safetensors` and the final ones in `dir/last/`.
-pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
+pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let mut log = MetricsLog::open_at(dir, run.steps)?;
     let cfg = run.cfg.clone();
     let kind = run.data.family.metric_kind();
@@ -460,7 +441,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
             run.dagger_rollouts(cfg.dagger_rollouts)?;
         }
         let mse = run.step()?;
-        on(Event::Steps(run.steps));
+        on(Progress::Steps(run.steps));
         if run.steps.is_multiple_of(50) {
             let sps = (run.steps - s0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
             log.log(
@@ -483,10 +464,6 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                 cfg.eval_episodes,
                 cfg.env_config(),
             )?;
-            let rep = ValReport {
-                val_mse,
-                val_metric,
-            };
             let improved = match cfg.select_by {
                 Selection::Mse => val_mse < run.best_mse,
                 Selection::Rollouts => better(kind, val_metric, run.best_metric),
@@ -499,7 +476,7 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                 run.bad_evals += 1;
                 if cfg.patience > 0 && run.bad_evals >= cfg.patience {
                     run.stopped = true;
-                    on(Event::Stopped(run.steps));
+                    on(Progress::Stopped(run.steps));
                 }
             }
             log.log(
@@ -511,7 +488,12 @@ pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<
                     ("eval/val_best_metric", run.best_metric as f64),
                 ],
             )?;
-            on(Event::Eval(run.steps, rep));
+            on(Progress::Eval {
+                step: run.steps,
+                metric: val_metric,
+                best: run.best_metric,
+                val_mse: Some(val_mse),
+            });
         }
         if run.steps.is_multiple_of(every) || at_end || run.stopped {
             run.save_checkpoint(dir)?;

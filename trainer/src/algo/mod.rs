@@ -4,8 +4,13 @@
 //! * [`expert`]: oracle SAC experts per family (and the scripted PD expert of point-goal).
 //! * [`smile`]: SMILe, state-action and state-only (Algorithm 1 of the paper).
 //! * [`meta_bc`]: the baselines Meta-BC and Meta-DAgger.
+//! * [`learner`]: [`Algo`] and [`MetaLearner`], the one interface SMILe and Meta-BC implement
+//!   and `smile train`, the quickstart and the sweep drive.
 
 pub mod expert;
+pub mod learner;
 pub mod meta_bc;
 pub mod sac;
 pub mod smile;
+
+pub use learner::{Algo, MetaLearner, Progress};

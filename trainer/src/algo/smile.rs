@@ -53,6 +53,7 @@ mod persist;
 pub use config::SmileConfig;
 pub(crate) use disc::{DiscBatch, DiscLearner, disc_grads, disc_update};
 
+use crate::algo::Progress;
 use crate::algo::sac::{BcTerm, Sac, SacStats};
 use crate::data::{
     Batch, BatchVecs, MetaData, TaskReplay, better, distinct_tasks, quick_eval, run_episode,
@@ -67,24 +68,6 @@ use crate::model::{
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
 use crate::{Error, Result};
-
-/// Events reported to the caller of [`train`].
-#[derive(Debug, Clone, Copy)]
-pub enum Event {
-    /// Update pairs done so far.
-    Updates(u64),
-    /// A held-out-train-task evaluation.
-    Eval {
-        /// Update pairs done.
-        updates: u64,
-        /// The held-out metric now.
-        metric: f32,
-        /// The best held-out metric so far (the kept policy's).
-        best: f32,
-    },
-    /// A checkpoint was written at this update count.
-    Checkpoint(u64),
-}
 
 /// A SMILe run: data, networks, optimisers, replay, counters.
 pub struct Smile {
@@ -443,7 +426,7 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
 /// tasks every `eval_every` updates (the best policy so far is saved as
 /// `dir/meta_policy.safetensors`; the final one as `dir/last/meta_policy.safetensors`) and
 /// checkpointing every `checkpoint_every` updates and at the end.
-pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
+pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     // The compute budget (`cpu_budget_s`) counts this process's CPU time from here, warm
     // start and first evaluation included.
     let cpu0 = crate::threads::process_cpu_seconds();
@@ -486,7 +469,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             let (d, s, r) = run.update_pair()?;
             (ds, ss, rm) = (d, Some(s), r);
             run.updates += 1;
-            on(Event::Updates(run.updates));
+            on(Progress::Steps(run.updates));
         }
         let ups = (run.updates - u0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
         let cpu_s = crate::threads::process_cpu_seconds()
@@ -528,10 +511,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
                         ("eval/val_best", run.best as f64),
                     ],
                 )?;
-                on(Event::Eval {
-                    updates: run.updates,
+                on(Progress::Eval {
+                    step: run.updates,
                     metric: m,
                     best: run.best,
+                    val_mse: None,
                 });
             }
         }
@@ -539,7 +523,7 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<(
             run.save_checkpoint(dir)?;
             next_ckpt =
                 (run.updates / cfg.checkpoint_every.max(1) + 1) * cfg.checkpoint_every.max(1);
-            on(Event::Checkpoint(run.updates));
+            on(Progress::Checkpoint(run.updates));
         }
     }
     let last = dir.join("last");

@@ -11,8 +11,7 @@ pub mod onnx;
 pub(crate) mod os_path;
 pub mod progress;
 
-pub use config::from_toml_over_defaults;
-pub(crate) use config::merge_tables;
+pub use config::{from_toml_over_defaults, from_toml_with_flags, set_key};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};
 pub use progress::bar;

@@ -8,7 +8,7 @@ mod run;
 mod slurm;
 
 pub use local::{Event, Summary, run_local};
-pub use plan::{ALGOS, Cell, EvalPlan, Method, Plan, Sweep};
+pub use plan::{Cell, EvalPlan, Method, Plan, Sweep};
 pub use run::{
     BUSY_EXIT, CellOutcome, MANIFEST_FILE, Manifest, ManifestCell, Status, run_cell, status,
     write_manifest,

@@ -34,12 +34,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sim::Family;
 
-use crate::algo::meta_bc::MetaBcConfig;
-use crate::algo::smile::SmileConfig;
+use crate::algo::Algo;
 use crate::{Error, Result};
-
-/// The meta-learners a plan can name.
-pub const ALGOS: [&str; 4] = ["smile", "smile-state-only", "meta-bc", "meta-dagger"];
 
 /// A sweep plan as written.
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -206,35 +202,6 @@ fn plan_err(path: &Path, text: &str, needle: Option<&str>, msg: String) -> Error
     ))
 }
 
-/// Sets a dotted `key` in `table` (creating sections as needed); a table value merges key by
-/// key into a table already there (`set = { sac = { hidden = [..] } }` keeps the base file's
-/// other `[sac]` keys).
-fn set_key(
-    table: &mut toml::Table,
-    key: &str,
-    value: toml::Value,
-) -> std::result::Result<(), String> {
-    let mut parts: Vec<&str> = key.split('.').collect();
-    let last = parts.pop().ok_or("empty key")?;
-    let mut t = table;
-    for p in parts {
-        t = t
-            .entry(p)
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()))
-            .as_table_mut()
-            .ok_or_else(|| format!("`{p}` in `{key}` is not a section"))?;
-    }
-    match (t.get_mut(last), value) {
-        (Some(toml::Value::Table(base)), toml::Value::Table(over)) => {
-            crate::io::merge_tables(base, over)
-        }
-        (_, value) => {
-            t.insert(last.to_string(), value);
-        }
-    }
-    Ok(())
-}
-
 /// The cartesian product of `axes` (key -> values), in key order, last key fastest.
 fn product(axes: &BTreeMap<String, Vec<toml::Value>>) -> Vec<Vec<(String, toml::Value)>> {
     let mut out = vec![Vec::new()];
@@ -370,13 +337,11 @@ impl Sweep {
         let mut cells = Vec::new();
         for (name, m) in &plan.algo {
             let algo = m.algo.clone().unwrap_or_else(|| name.clone());
-            if !ALGOS.contains(&algo.as_str()) {
-                return Err(err(
-                    Some(&format!("[algo.{name}]")),
-                    format!("unknown algo {algo:?}; expected one of {ALGOS:?}"),
-                ));
-            }
-            if algo == "meta-dagger" && m.expert.is_none() && family != Family::PointGoal {
+            let kind: Algo = algo
+                .parse()
+                .map_err(|e| err(Some(&format!("[algo.{name}]")), message(e)))?;
+            // Point-goal's scripted PD controller relabels when no expert is named.
+            if kind.needs_expert() && m.expert.is_none() && family != Family::PointGoal {
                 return Err(err(
                     Some(&format!("[algo.{name}]")),
                     format!("meta-dagger on {family} needs `expert`"),
@@ -395,18 +360,19 @@ impl Sweep {
                 None => toml::Table::new(),
             };
             for (k, v) in &m.set {
-                set_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
+                crate::io::set_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
             }
             for demos in &plan.demos {
                 for point in product(&m.axes) {
                     for &seed in &plan.seeds {
                         let mut t = table.clone();
                         for (k, v) in &point {
-                            set_key(&mut t, k, v.clone()).map_err(|e| err(Some(k), e))?;
+                            crate::io::set_key(&mut t, k, v.clone())
+                                .map_err(|e| err(Some(k), e))?;
                         }
                         t.insert("seed".into(), toml::Value::Integer(seed as i64));
                         t.insert("env".into(), toml::Value::String(family.name().into()));
-                        check_config(&algo, &t).map_err(|e| {
+                        check_config(kind, &t).map_err(|e| {
                             let key = point
                                 .iter()
                                 .map(|(k, _)| k.as_str())
@@ -506,15 +472,7 @@ fn message(e: Error) -> String {
 }
 
 /// Deserialises `t` into the algorithm's config type and validates it.
-fn check_config(algo: &str, t: &toml::Table) -> std::result::Result<(), String> {
+fn check_config(algo: Algo, t: &toml::Table) -> std::result::Result<(), String> {
     let s = toml::to_string(t).map_err(|e| e.to_string())?;
-    if algo.starts_with("smile") {
-        let c: SmileConfig =
-            crate::from_toml_over_defaults(&s).map_err(|e| e.message().to_string())?;
-        c.validate().map_err(message)
-    } else {
-        let c: MetaBcConfig =
-            crate::from_toml_over_defaults(&s).map_err(|e| e.message().to_string())?;
-        c.validate().map_err(message)
-    }
+    algo.check_config(&s).map_err(message)
 }

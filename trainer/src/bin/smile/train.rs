@@ -3,35 +3,17 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
-use clap::{Args, ValueEnum};
+use clap::Args;
+use clap::builder::TypedValueParser;
 use sim::{DemoDataset, Family};
-use trainer::MetaData;
-use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
-use trainer::smile::{self, Smile, SmileConfig};
+use trainer::meta_bc::MetaBc;
+use trainer::smile::Smile;
+use trainer::{Algo, MetaData, MetaLearner, Progress};
 
-/// Which meta-learner to train.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum Algo {
-    /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
-    Smile,
-    /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
-    SmileStateOnly,
-    /// Meta-BC: encoder + policy regressing expert actions.
-    MetaBc,
-    /// Meta-DAgger: Meta-BC plus online relabelling by an expert (`--expert`).
-    MetaDagger,
-}
-
-impl Algo {
-    /// The name `--algo` takes.
-    fn name(self) -> &'static str {
-        match self {
-            Algo::Smile => "smile",
-            Algo::SmileStateOnly => "smile-state-only",
-            Algo::MetaBc => "meta-bc",
-            Algo::MetaDagger => "meta-dagger",
-        }
-    }
+/// `--algo`'s parser: the library's names, listed in `--help`.
+fn algo_parser() -> impl clap::builder::TypedValueParser<Value = Algo> {
+    clap::builder::PossibleValuesParser::new(Algo::ALL.map(Algo::name))
+        .try_map(|name| name.parse::<Algo>())
 }
 
 /// File in a run directory recording how the run was started, so that `--resume` continues
@@ -63,7 +45,7 @@ struct RunInfo {
 #[derive(Args, Debug)]
 pub struct TrainArgs {
     /// Algorithm [default: smile]; `--resume` reads it from the run directory.
-    #[arg(long, value_enum)]
+    #[arg(long, value_parser = algo_parser())]
     algo: Option<Algo>,
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default: the demo file's].
     #[arg(long)]
@@ -126,29 +108,86 @@ pub struct TrainArgs {
     quiet: bool,
 }
 
-/// The base configuration: the run's saved `config.toml` when resuming, else `--config`, else
-/// the defaults.
-fn read_toml<T: serde::Serialize + serde::de::DeserializeOwned + Default>(
-    a: &TrainArgs,
-) -> Result<T> {
-    let saved = a.out.join("config.toml");
-    let p = if a.resume {
-        Some(saved)
+/// The configuration: the flags given here, over the run's saved `config.toml` when resuming
+/// (else over `--config`), over the algorithm's defaults.
+fn read_config<L: MetaLearner>(a: &TrainArgs, algo: Algo) -> Result<L::Config> {
+    let file = if a.resume {
+        Some(a.out.join("config.toml"))
     } else {
         a.config.clone()
     };
-    let what = if a.resume {
-        format!(" (its {RUN_FILE} names the algorithm whose config this must be)")
-    } else {
-        String::new()
+    let text = match &file {
+        Some(p) => {
+            std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?
+        }
+        None => String::new(),
     };
-    match &p {
-        Some(p) => trainer::from_toml_over_defaults(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .with_context(|| format!("parsing {}{what}", p.display())),
-        None => Ok(T::default()),
+    let what = match (&file, a.resume) {
+        (Some(p), true) => format!(
+            "parsing {} (its {RUN_FILE} names the algorithm whose config this must be)",
+            p.display()
+        ),
+        (Some(p), false) => format!("parsing {}", p.display()),
+        (None, _) => "reading the flags".into(),
+    };
+    trainer::from_toml_with_flags(&text, flag_table(a, algo, L::TOTAL_KEY)?).context(what)
+}
+
+/// The flags that set configuration keys, as a table in the configuration's own shape.
+fn flag_table(a: &TrainArgs, algo: Algo, total_key: &str) -> Result<toml::Table> {
+    let mut t = toml::Table::new();
+    let mut set = |key: &str, v: toml::Value| {
+        trainer::set_config_key(&mut t, key, v).map_err(|e| anyhow::anyhow!("{key}: {e}"))
+    };
+    let int = |v: u64| toml::Value::Integer(v as i64);
+    let float = |v: f32| toml::Value::Float(v.into());
+    let widths = |v: &[usize]| toml::Value::Array(v.iter().map(|&w| int(w as u64)).collect());
+    if let Some(v) = a.updates {
+        set(total_key, int(v))?;
     }
+    if let Some(v) = a.seed {
+        set("seed", int(v))?;
+    }
+    if let Some(v) = a.learner_threads {
+        set("learner_threads", int(v.into()))?;
+    }
+    if let Some(v) = a.eval_every {
+        set("eval_every", int(v))?;
+    }
+    match algo {
+        Algo::Smile | Algo::SmileStateOnly => {
+            if let Some(v) = &a.hidden {
+                set("sac.hidden", widths(v))?;
+                set("disc_hidden", widths(v))?;
+            }
+            for (key, v) in [
+                ("gp_weight", a.gp_weight),
+                ("sac.reward_scale", a.reward_scale),
+                ("bc_weight", a.bc_weight),
+                ("cpu_budget_s", a.cpu_budget),
+            ] {
+                if let Some(v) = v {
+                    set(key, float(v))?;
+                }
+            }
+        }
+        Algo::MetaBc | Algo::MetaDagger => {
+            for (flag, given) in [
+                ("--gp-weight", a.gp_weight.is_some()),
+                ("--reward-scale", a.reward_scale.is_some()),
+                ("--bc-weight", a.bc_weight.is_some()),
+                ("--cpu-budget", a.cpu_budget.is_some()),
+            ] {
+                if given {
+                    bail!("{flag} is a SMILe setting; {algo} has no such setting");
+                }
+            }
+            if let Some(v) = &a.hidden {
+                set("policy_hidden", widths(v))?;
+            }
+        }
+    }
+    Ok(t)
 }
 
 /// The algorithm (and Meta-DAgger's expert) of the run in `dir`: from its `run.json`, or for
@@ -221,8 +260,10 @@ pub fn run(mut a: TrainArgs) -> Result<()> {
                 a.out.join(RUN_FILE).display()
             ),
         }
-        let algo = Algo::from_str(&rec.algo, false)
-            .map_err(|e| anyhow::anyhow!("{}: unknown algo {:?}: {e}", RUN_FILE, rec.algo))?;
+        let algo: Algo = rec
+            .algo
+            .parse()
+            .with_context(|| format!("{}", a.out.join(RUN_FILE).display()))?;
         if let Some(given) = a.algo.filter(|g| *g != algo) {
             bail!(
                 "{} is a {} run; --algo {} does not match (drop --algo to resume it)",
@@ -243,8 +284,8 @@ pub fn run(mut a: TrainArgs) -> Result<()> {
         a.algo.unwrap_or(Algo::Smile)
     };
     match algo {
-        Algo::Smile | Algo::SmileStateOnly => train_smile(a, algo, family, &ds, demos_sha),
-        Algo::MetaBc | Algo::MetaDagger => train_bc(a, algo, family, &ds, demos_sha),
+        Algo::Smile | Algo::SmileStateOnly => train_with::<Smile>(a, algo, family, &ds, demos_sha),
+        Algo::MetaBc | Algo::MetaDagger => train_with::<MetaBc>(a, algo, family, &ds, demos_sha),
     }
 }
 
@@ -314,197 +355,96 @@ fn start_run_dir(
     Ok(lock)
 }
 
-fn train_smile(
-    a: TrainArgs,
+/// Meta-DAgger's relabelling expert: `--expert` (a `smile expert` run or a folder of them),
+/// or point-goal's scripted PD controller; none for the other algorithms.
+fn relabelling_expert(
+    a: &TrainArgs,
     algo: Algo,
     family: Family,
-    ds: &DemoDataset,
-    demos_sha: String,
-) -> Result<()> {
-    let mut cfg: SmileConfig = read_toml(&a)?;
-    cfg.env = family;
-    cfg.context.state_only = algo == Algo::SmileStateOnly;
-    if let Some(v) = a.updates {
-        cfg.total_updates = v;
-    }
-    if let Some(v) = a.seed {
-        cfg.seed = v;
-    }
-    if let Some(v) = a.learner_threads {
-        cfg.learner_threads = v.into();
-    }
-    if let Some(v) = &a.hidden {
-        cfg.sac.hidden = v.clone();
-        cfg.disc_hidden = v.clone();
-    }
-    if let Some(v) = a.gp_weight {
-        cfg.gp_weight = v;
-    }
-    if let Some(v) = a.reward_scale {
-        cfg.sac.reward_scale = v;
-    }
-    if let Some(v) = a.bc_weight {
-        cfg.bc_weight = v;
-    }
-    if let Some(v) = a.eval_every {
-        cfg.eval_every = v;
-    }
-    if let Some(v) = a.cpu_budget {
-        cfg.cpu_budget_s = v.into();
-    }
-    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
-        .with_context(|| format!("--demos {}", a.demos.display()))?;
-    let mut run = if a.resume {
-        let mut run = Smile::resume(&a.out, data, a.updates.or(Some(cfg.total_updates)))?;
-        check_resume(&a, &cfg, run.config(), &["total_updates", "cpu_budget_s"])?;
-        run.set_cpu_budget(cfg.cpu_budget_s)?;
-        run
-    } else {
-        cfg.validate()?;
-        Smile::new(cfg, data)?
-    };
-    let cfg = run.config().clone();
-    let _lock = start_run_dir(&a, algo, None, demos_sha)?;
-    trainer::checkpoint::write_atomic(
-        &a.out.join("config.toml"),
-        toml::to_string(&cfg)?.as_bytes(),
-    )?;
-    if a.resume {
-        eprintln!("resuming from update {}", run.updates());
-    }
-    eprintln!(
-        "{}: {} training tasks, {} held-out train tasks; {} update pairs",
-        cfg.algo_name(),
-        run.data().train.len(),
-        run.data().val.len(),
-        cfg.total_updates
-    );
-    let pb = trainer::progress_bar(cfg.total_updates, a.quiet, "updates");
-    pb.set_position(run.updates());
-    let res = smile::train(&mut run, &a.out, &mut |e| match e {
-        smile::Event::Updates(u) => pb.set_position(u),
-        smile::Event::Eval {
-            updates: u,
-            metric: m,
-            best,
-        } => {
-            pb.set_message(format!("val {m:.3} (best {best:.3})"));
-            if a.quiet {
-                eprintln!("update {u}: held-out train-task metric {m:.4} (best {best:.4})");
-            }
-        }
-        smile::Event::Checkpoint(_) => {}
-    });
-    pb.finish();
-    res.with_context(|| format!("SMILe training in {}", a.out.display()))?;
-    eprintln!("wrote {}", a.out.join(trainer::META_POLICY_FILE).display());
-    Ok(())
-}
-
-fn train_bc(
-    a: TrainArgs,
-    algo: Algo,
-    family: Family,
-    ds: &DemoDataset,
-    demos_sha: String,
-) -> Result<()> {
-    for (flag, given) in [
-        ("--gp-weight", a.gp_weight.is_some()),
-        ("--reward-scale", a.reward_scale.is_some()),
-        ("--bc-weight", a.bc_weight.is_some()),
-        ("--cpu-budget", a.cpu_budget.is_some()),
-    ] {
-        if given {
-            bail!(
-                "{flag} is a SMILe setting; {} has no such setting",
-                algo.name()
-            );
-        }
-    }
-    let mut cfg: MetaBcConfig = read_toml(&a)?;
-    cfg.env = family;
-    cfg.dagger = algo == Algo::MetaDagger;
-    if let Some(v) = a.updates {
-        cfg.total_steps = v;
-    }
-    if let Some(v) = a.seed {
-        cfg.seed = v;
-    }
-    if let Some(v) = a.learner_threads {
-        cfg.learner_threads = v.into();
-    }
-    if let Some(v) = &a.hidden {
-        cfg.policy_hidden = v.clone();
-    }
-    if let Some(v) = a.eval_every {
-        cfg.eval_every = v;
+) -> Result<(Option<trainer::expert::ExpertSet>, Option<PathBuf>)> {
+    if !algo.needs_expert() {
+        return Ok((None, None));
     }
     let scripted = a.expert.as_deref() == Some(std::path::Path::new(SCRIPTED_PD));
-    let expert = match (&a.expert, cfg.dagger) {
-        (Some(p), true) if !scripted => {
-            eprintln!("meta-dagger: relabelling with the expert {}", p.display());
-            Some(
-                trainer::expert::ExpertSet::load(&[p])
-                    .with_context(|| format!("loading expert {}", p.display()))?,
-            )
+    match &a.expert {
+        Some(p) if !scripted => {
+            eprintln!("{algo}: relabelling with the expert {}", p.display());
+            let set = trainer::expert::ExpertSet::load(&[p])
+                .with_context(|| format!("loading expert {}", p.display()))?;
+            Ok((Some(set), Some(p.clone())))
         }
-        (_, true) if family == Family::PointGoal => {
-            eprintln!("meta-dagger: relabelling with the scripted point-goal PD expert");
-            Some(trainer::expert::Expert::ScriptedPd(sim::PointGoalPdExpert::default()).into())
+        _ if family == Family::PointGoal => {
+            eprintln!("{algo}: relabelling with the scripted point-goal PD expert");
+            let pd = trainer::expert::Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+            Ok((Some(pd.into()), Some(PathBuf::from(SCRIPTED_PD))))
         }
-        (_, true) => bail!("meta-dagger on {family} needs --expert (a `smile expert` run)"),
-        (_, false) => None,
-    };
-    let data = MetaData::from_dataset(ds, family, cfg.holdout_every)
+        _ => bail!("{algo} on {family} needs --expert (a `smile expert` run)"),
+    }
+}
+
+/// Trains (or resumes) any meta-learner: the configuration from flags over file over
+/// defaults, the run directory, the progress bar and its messages.
+fn train_with<L: MetaLearner>(
+    a: TrainArgs,
+    algo: Algo,
+    family: Family,
+    ds: &DemoDataset,
+    demos_sha: String,
+) -> Result<()> {
+    let mut cfg: L::Config = read_config::<L>(&a, algo)?;
+    L::configure(&mut cfg, algo, family);
+    let (expert, expert_path) = relabelling_expert(&a, algo, family)?;
+    let data = MetaData::from_dataset(ds, family, L::holdout_every(&cfg))
         .with_context(|| format!("--demos {}", a.demos.display()))?;
+    let (n_train, n_val) = (data.train.len(), data.val.len());
     let mut run = if a.resume {
-        let run = MetaBc::resume(&a.out, data, expert, a.updates.or(Some(cfg.total_steps)))?;
-        check_resume(&a, &cfg, run.config(), &["total_steps"])?;
+        let run = L::resume_from(&a.out, data, expert, &cfg)?;
+        check_resume(&a, &cfg, run.settings(), L::RESUMABLE)?;
         run
     } else {
-        MetaBc::new(cfg, data, expert)?
+        L::start(cfg, data, expert)?
     };
-    let cfg = run.config().clone();
-    let expert_path = match (&a.expert, cfg.dagger) {
-        (Some(p), true) => Some(p.as_path()),
-        (None, true) => Some(std::path::Path::new(SCRIPTED_PD)),
-        (_, false) => None,
-    };
-    let _lock = start_run_dir(&a, algo, expert_path, demos_sha)?;
+    let cfg = run.settings().clone();
+    let _lock = start_run_dir(&a, algo, expert_path.as_deref(), demos_sha)?;
     trainer::checkpoint::write_atomic(
         &a.out.join("config.toml"),
         toml::to_string(&cfg)?.as_bytes(),
     )?;
     if a.resume {
-        eprintln!("resuming from step {}", run.steps());
+        eprintln!("resuming from {} {}", L::STEP_WORD, run.done());
     }
-    let pb = trainer::progress_bar(cfg.total_steps, a.quiet, "steps");
-    pb.set_position(run.steps());
-    let select_by = cfg.select_by;
-    let res = meta_bc::train(&mut run, &a.out, &mut |e| match e {
-        meta_bc::Event::Steps(s) => pb.set_position(s),
-        meta_bc::Event::Eval(s, r) => {
-            pb.set_message(format!(
-                "val mse {:.4} metric {:.3}",
-                r.val_mse, r.val_metric
-            ));
+    eprintln!(
+        "{algo}: {n_train} training tasks, {n_val} held-out train tasks; {} {}",
+        run.total(),
+        L::STEP_NAME
+    );
+    let pb = trainer::progress_bar(run.total(), a.quiet, L::STEP_NAME);
+    pb.set_position(run.done());
+    let res = run.run(&a.out, &mut |e| match e {
+        Progress::Steps(s) => pb.set_position(s),
+        Progress::Eval {
+            step,
+            metric,
+            best,
+            val_mse,
+        } => {
+            let text = match val_mse {
+                Some(mse) => format!("val mse {mse:.5}, held-out metric {metric:.4}"),
+                None => format!("held-out train-task metric {metric:.4} (best {best:.4})"),
+            };
             if a.quiet {
-                eprintln!(
-                    "step {s}: val mse {:.5}, held-out metric {:.4}",
-                    r.val_mse, r.val_metric
-                );
+                eprintln!("{} {step}: {text}", L::STEP_WORD);
             }
+            pb.set_message(text);
         }
-        meta_bc::Event::Stopped(s) => eprintln!(
-            "early stop at step {s} (held-out {} stopped improving)",
-            match select_by {
-                meta_bc::Selection::Mse => "action MSE",
-                meta_bc::Selection::Rollouts => "rollout metric",
-            }
+        Progress::Checkpoint(_) => {}
+        Progress::Stopped(s) => eprintln!(
+            "early stop at {} {s}: the held-out selection metric stopped improving",
+            L::STEP_WORD
         ),
     });
     pb.finish();
-    res.with_context(|| format!("{} training in {}", cfg.algo_name(), a.out.display()))?;
+    res.with_context(|| format!("{algo} training in {}", a.out.display()))?;
     eprintln!("wrote {}", a.out.join(trainer::META_POLICY_FILE).display());
     Ok(())
 }

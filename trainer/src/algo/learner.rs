@@ -1,0 +1,331 @@
+//! One interface for the meta-learners: [`Algo`] names them, [`MetaLearner`] is what each one
+//! implements, [`Progress`] is what each reports while it trains.
+//!
+//! `smile train`, the quickstart and `smile sweep` drive every learner through these, so adding
+//! an algorithm is its folder under `algo/`, an arm of [`Algo`] (the compiler then lists every
+//! `match` that must learn it) and an `impl MetaLearner`.
+
+use std::fmt;
+use std::path::Path;
+use std::str::FromStr;
+
+use serde::Serialize;
+use serde::de::DeserializeOwned;
+use sim::Family;
+
+use crate::algo::expert::ExpertSet;
+use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
+use crate::algo::smile::{Smile, SmileConfig};
+use crate::data::MetaData;
+use crate::model::MetaPolicy;
+use crate::{Error, Result};
+
+/// The meta-learners, by the name `smile train --algo` and sweep plans take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Algo {
+    /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
+    Smile,
+    /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
+    SmileStateOnly,
+    /// Meta-BC: encoder and policy regressing the demos' actions.
+    MetaBc,
+    /// Meta-DAgger: Meta-BC plus online relabelling by an expert.
+    MetaDagger,
+}
+
+impl Algo {
+    /// Every algorithm, in the order help texts list them.
+    pub const ALL: [Algo; 4] = [
+        Algo::Smile,
+        Algo::SmileStateOnly,
+        Algo::MetaBc,
+        Algo::MetaDagger,
+    ];
+
+    /// The name on the command line and in plans and run directories.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algo::Smile => "smile",
+            Algo::SmileStateOnly => "smile-state-only",
+            Algo::MetaBc => "meta-bc",
+            Algo::MetaDagger => "meta-dagger",
+        }
+    }
+
+    /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
+    pub fn needs_expert(self) -> bool {
+        match self {
+            Algo::MetaDagger => true,
+            Algo::Smile | Algo::SmileStateOnly | Algo::MetaBc => false,
+        }
+    }
+
+    /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration and
+    /// validates it: what a sweep plan checks before it runs anything.
+    pub fn check_config(self, text: &str) -> Result<()> {
+        match self {
+            Algo::Smile | Algo::SmileStateOnly => Smile::read_config(text).map(drop),
+            Algo::MetaBc | Algo::MetaDagger => MetaBc::read_config(text).map(drop),
+        }
+    }
+}
+
+impl fmt::Display for Algo {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Algo {
+    type Err = Error;
+
+    fn from_str(s: &str) -> Result<Self> {
+        Algo::ALL
+            .into_iter()
+            .find(|a| a.name() == s)
+            .ok_or_else(|| {
+                let names: Vec<&str> = Algo::ALL.iter().map(|a| a.name()).collect();
+                Error::Config(format!(
+                    "unknown algo {s:?}; expected one of {}",
+                    names.join(", ")
+                ))
+            })
+    }
+}
+
+/// What a learner reports while it trains.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Progress {
+    /// Updates done so far: SMILe's update pairs, Meta-BC's gradient steps.
+    Steps(u64),
+    /// An evaluation on the held-out train tasks.
+    Eval {
+        /// Updates done.
+        step: u64,
+        /// The family's metric now.
+        metric: f32,
+        /// The metric of the policy kept so far.
+        best: f32,
+        /// Meta-BC: the action MSE on the held-out tasks' demos.
+        val_mse: Option<f32>,
+    },
+    /// A checkpoint was written at this step.
+    Checkpoint(u64),
+    /// The learner's stopping rule ended training at this step (Meta-BC's patience).
+    Stopped(u64),
+}
+
+/// A meta-learner: built from its configuration and the meta-train demos, or resumed from a
+/// run directory; trained there; yielding a [`MetaPolicy`].
+pub trait MetaLearner: Sized {
+    /// Its hyper-parameters (a TOML file's type; `Default` is the documented defaults).
+    type Config: Clone + fmt::Debug + PartialEq + Default + Serialize + DeserializeOwned;
+
+    /// The config key holding the training budget (`--updates` sets it).
+    const TOTAL_KEY: &'static str;
+
+    /// What the units of that budget are called in progress bars ("update pairs").
+    const STEP_NAME: &'static str;
+
+    /// One unit, in messages ("resuming from update 2000").
+    const STEP_WORD: &'static str;
+
+    /// The config keys a resumed run may change (the budget among them); every other key must
+    /// stay what the run started with.
+    const RESUMABLE: &'static [&'static str];
+
+    /// Sets the parts of `cfg` that the algorithm and family decide (its `env`, SMILe's
+    /// state-only switch, Meta-BC's DAgger switch).
+    fn configure(cfg: &mut Self::Config, algo: Algo, family: Family);
+
+    /// Checks every value of `cfg`.
+    fn validate(cfg: &Self::Config) -> Result<()>;
+
+    /// Every how many meta-train tasks one is held out for validation (the data split the run
+    /// needs, [`MetaData::from_dataset`]).
+    fn holdout_every(cfg: &Self::Config) -> usize;
+
+    /// [`Self::Config`] from TOML text over the defaults, validated.
+    fn read_config(text: &str) -> Result<Self::Config> {
+        let cfg = crate::from_toml_over_defaults::<Self::Config>(text)
+            .map_err(|e| Error::Config(e.message().to_string()))?;
+        Self::validate(&cfg)?;
+        Ok(cfg)
+    }
+
+    /// A fresh run; `expert` only where [`Algo::needs_expert`].
+    fn start(cfg: Self::Config, data: MetaData, expert: Option<ExpertSet>) -> Result<Self>;
+
+    /// The run checkpointed in `dir`, taking the [`Self::RESUMABLE`] keys from `wanted` (a
+    /// larger budget, say) and everything else from the checkpoint.
+    fn resume_from(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<ExpertSet>,
+        wanted: &Self::Config,
+    ) -> Result<Self>;
+
+    /// The configuration it runs with.
+    fn settings(&self) -> &Self::Config;
+
+    /// The budget (update pairs or gradient steps).
+    fn total(&self) -> u64;
+
+    /// Updates done.
+    fn done(&self) -> u64;
+
+    /// Trains in `dir` to the budget or the learner's own stopping rule, keeping the best
+    /// held-out policy in `dir/meta_policy.safetensors` and the last in `dir/last/`.
+    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()>;
+
+    /// The current policy.
+    fn policy(&self) -> MetaPolicy;
+}
+
+impl MetaLearner for Smile {
+    type Config = SmileConfig;
+    const TOTAL_KEY: &'static str = "total_updates";
+    const STEP_NAME: &'static str = "update pairs";
+    const STEP_WORD: &'static str = "update";
+    const RESUMABLE: &'static [&'static str] = &["total_updates", "cpu_budget_s"];
+
+    fn configure(cfg: &mut SmileConfig, algo: Algo, family: Family) {
+        cfg.env = family;
+        cfg.context.state_only = algo == Algo::SmileStateOnly;
+    }
+
+    fn validate(cfg: &SmileConfig) -> Result<()> {
+        cfg.validate()
+    }
+
+    fn holdout_every(cfg: &SmileConfig) -> usize {
+        cfg.holdout_every
+    }
+
+    fn start(cfg: SmileConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
+        refuse_expert(cfg.algo_name(), expert.is_some())?;
+        Smile::new(cfg, data)
+    }
+
+    fn resume_from(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<ExpertSet>,
+        wanted: &SmileConfig,
+    ) -> Result<Self> {
+        refuse_expert("smile", expert.is_some())?;
+        let mut run = Smile::resume(dir, data, Some(wanted.total_updates))?;
+        run.set_cpu_budget(wanted.cpu_budget_s)?;
+        Ok(run)
+    }
+
+    fn settings(&self) -> &SmileConfig {
+        self.config()
+    }
+
+    fn total(&self) -> u64 {
+        self.config().total_updates
+    }
+
+    fn done(&self) -> u64 {
+        self.updates()
+    }
+
+    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+        crate::algo::smile::train(self, dir, on)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.meta_policy()
+    }
+}
+
+impl MetaLearner for MetaBc {
+    type Config = MetaBcConfig;
+    const TOTAL_KEY: &'static str = "total_steps";
+    const STEP_NAME: &'static str = "steps";
+    const STEP_WORD: &'static str = "step";
+    const RESUMABLE: &'static [&'static str] = &["total_steps"];
+
+    fn configure(cfg: &mut MetaBcConfig, algo: Algo, family: Family) {
+        cfg.env = family;
+        cfg.dagger = algo == Algo::MetaDagger;
+    }
+
+    fn validate(cfg: &MetaBcConfig) -> Result<()> {
+        cfg.validate()
+    }
+
+    fn holdout_every(cfg: &MetaBcConfig) -> usize {
+        cfg.holdout_every
+    }
+
+    fn start(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
+        MetaBc::new(cfg, data, expert)
+    }
+
+    fn resume_from(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<ExpertSet>,
+        wanted: &MetaBcConfig,
+    ) -> Result<Self> {
+        MetaBc::resume(dir, data, expert, Some(wanted.total_steps))
+    }
+
+    fn settings(&self) -> &MetaBcConfig {
+        self.config()
+    }
+
+    fn total(&self) -> u64 {
+        self.config().total_steps
+    }
+
+    fn done(&self) -> u64 {
+        self.steps()
+    }
+
+    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+        crate::algo::meta_bc::train(self, dir, on)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.meta_policy()
+    }
+}
+
+fn refuse_expert(algo: &str, given: bool) -> Result<()> {
+    if given {
+        return Err(Error::Config(format!(
+            "{algo} learns from the demos alone and takes no expert (Meta-DAgger does)"
+        )));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_unknown_ones_list_the_choices() {
+        for a in Algo::ALL {
+            assert_eq!(a.name().parse::<Algo>().unwrap(), a);
+            assert_eq!(a.to_string(), a.name());
+        }
+        let e = "smiles".parse::<Algo>().unwrap_err().to_string();
+        assert!(
+            e.contains("smile-state-only") && e.contains("meta-dagger"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn configs_are_checked_against_their_algorithm() {
+        Algo::Smile.check_config("gp_weight = 10.0").unwrap();
+        // A SMILe key is unknown to Meta-BC, and an invalid value is refused by its own type.
+        assert!(Algo::MetaBc.check_config("gp_weight = 10.0").is_err());
+        assert!(Algo::Smile.check_config("gp_weight = -1.0").is_err());
+        Algo::MetaDagger.check_config("total_steps = 10").unwrap();
+    }
+}
