@@ -13,7 +13,7 @@ use sim::{DemoDataset, EnvConfig, Family, Split};
 
 use crate::algo::expert::{self, Expert};
 use crate::algo::expert::{DemoSpec, record};
-use crate::algo::meta_bc::{self, MetaBc, MetaBcConfig};
+use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
 use crate::algo::smile::{Smile, SmileConfig};
 use crate::algo::{MetaLearner, Progress};
 use crate::data::MetaData;
@@ -141,26 +141,57 @@ fn stage(n: usize, what: &str) {
     eprintln!("\n[{n}/6] {what}");
 }
 
-/// The shipped expert and demos of the family (`assets/experts/<family>/`), used by every
-/// budget but `tiny` on the families without a scripted expert.
-fn shipped(args: &QuickstartConfig) -> Option<PathBuf> {
-    if args.env == Family::PointGoal || args.budget == Budget::Tiny {
-        return None;
-    }
-    let root = args
-        .assets
-        .clone()
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts"));
-    let dir = root.join(args.env.name());
-    let (train, test) = shipped_demos(args.env);
-    [crate::io::checkpoint::POLICY_FILE, train, test]
-        .iter()
-        .all(|f| dir.join(f).exists())
-        .then_some(dir)
+/// A quickstart's arguments with what they resolve to, decided once: the shipped assets it
+/// starts from, hence its episode length and its training presets.
+pub(crate) struct Quickstart<'a> {
+    args: &'a QuickstartConfig,
+    /// The shipped expert and demos of the family (`assets/experts/<family>/`), used by every
+    /// budget but `tiny` on the families without a scripted expert.
+    shipped: Option<PathBuf>,
 }
 
-/// The shipped demo files (train, test) of a family: 4 per task subsampled by 20; for
-/// ant-linclass, whose contexts hold up to 8 demos, 16 per task subsampled by 5.
+impl std::ops::Deref for Quickstart<'_> {
+    type Target = QuickstartConfig;
+
+    fn deref(&self) -> &QuickstartConfig {
+        self.args
+    }
+}
+
+impl<'a> Quickstart<'a> {
+    /// Looks for the shipped assets once.
+    pub(crate) fn resolve(args: &'a QuickstartConfig) -> Self {
+        let shipped = (args.env != Family::PointGoal && args.budget != Budget::Tiny)
+            .then(|| {
+                let root = args.assets.clone().unwrap_or_else(|| {
+                    Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts")
+                });
+                root.join(args.env.name())
+            })
+            .filter(|dir| {
+                let (train, test) = shipped_demos(args.env);
+                [crate::io::checkpoint::POLICY_FILE, train, test]
+                    .iter()
+                    .all(|f| dir.join(f).exists())
+            });
+        Self { args, shipped }
+    }
+
+    /// Episode length: the family's own (cheetah-vel: the paper's 1000 steps) with shipped
+    /// assets; without them cheetah-vel runs 200-step episodes (as the reference's section 7
+    /// prototype) to keep training its own expert affordable.
+    fn horizon(&self) -> Option<usize> {
+        (self.env == Family::CheetahVel && self.shipped.is_none()).then_some(200)
+    }
+
+    fn env_config(&self) -> EnvConfig {
+        EnvConfig {
+            horizon: self.horizon(),
+            ..EnvConfig::default()
+        }
+    }
+}
+
 fn shipped_demos(family: Family) -> (&'static str, &'static str) {
     match family {
         Family::AntLinClass => (
@@ -174,29 +205,9 @@ fn shipped_demos(family: Family) -> (&'static str, &'static str) {
     }
 }
 
-/// ant-linclass's contexts: 1 to 8 demos in training, 4-demo contexts for the held-out
-/// validation (docs/configs/alc-*.toml); (max_context, eval_context_size).
-fn context_sizes(family: Family) -> Option<(usize, usize)> {
-    (family == Family::AntLinClass).then_some((8, 4))
-}
-
-/// Episode length the quickstart uses: the family's own (cheetah-vel: the paper's 1000 steps)
-/// with shipped assets; without them cheetah-vel runs 200-step episodes (as the reference's
-/// section 7 prototype) to keep training its own expert affordable.
-fn horizon(args: &QuickstartConfig) -> Option<usize> {
-    (args.env == Family::CheetahVel && shipped(args).is_none()).then_some(200)
-}
-
-fn env_config(args: &QuickstartConfig) -> EnvConfig {
-    EnvConfig {
-        horizon: horizon(args),
-        ..EnvConfig::default()
-    }
-}
-
 /// Refuses, before any work, a budget that cannot do what it promises on this family.
-fn check_budget(args: &QuickstartConfig) -> Result<()> {
-    if args.env != Family::PointGoal && args.budget == Budget::Short && shipped(args).is_none() {
+fn check_budget(args: &Quickstart<'_>) -> Result<()> {
+    if args.env != Family::PointGoal && args.budget == Budget::Short && args.shipped.is_none() {
         return Err(Error::Usage(format!(
             "{0} has no scripted expert and no shipped one (assets/experts/{0}): the quickstart \
              would train an SAC expert (about 1-2 hours on 2 cores) and then SMILe (about 1 \
@@ -206,7 +217,7 @@ fn check_budget(args: &QuickstartConfig) -> Result<()> {
             args.env
         )));
     }
-    if args.env == Family::AntLinClass && args.budget == Budget::Long && shipped(args).is_none() {
+    if args.env == Family::AntLinClass && args.budget == Budget::Long && args.shipped.is_none() {
         // Its expert is scripted over an ant-goal expert; SAC on the sparse classification
         // reward would burn hours for nothing.
         return Err(Error::Usage(
@@ -220,14 +231,14 @@ fn check_budget(args: &QuickstartConfig) -> Result<()> {
     Ok(())
 }
 
-fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)> {
+fn train_expert(args: &Quickstart<'_>, dir: &Path) -> Result<(Expert, String)> {
     if args.env == Family::PointGoal {
         expert::export_scripted_pd(dir)?;
         let note =
             "scripted PD controller (point-goal's documented expert; nothing trained)".to_string();
         return Ok((Expert::load(dir)?, note));
     }
-    if let Some(assets) = shipped(args) {
+    if let Some(assets) = &args.shipped {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
         for f in [
             crate::io::checkpoint::POLICY_FILE,
@@ -248,7 +259,7 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
     }
     let mut cfg = expert::ExpertConfig {
         env: args.env,
-        horizon: horizon(args),
+        horizon: args.horizon(),
         seed: args.seed,
         ..expert::ExpertConfig::default()
     };
@@ -278,7 +289,7 @@ fn train_expert(args: &QuickstartConfig, dir: &Path) -> Result<(Expert, String)>
 
 fn demos(
     expert: &Expert,
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     split: Split,
     per_task: usize,
     path: &Path,
@@ -290,9 +301,9 @@ fn demos(
         per_task,
         subsample: args.subsample,
         seed,
-        env: env_config(args),
+        env: args.env_config(),
     };
-    let ds = match shipped(args) {
+    let ds = match &args.shipped {
         Some(assets) => {
             let (train, test) = shipped_demos(args.env);
             let src = assets.join(if split == Split::Train { train } else { test });
@@ -315,100 +326,120 @@ fn demos(
     Ok(ds)
 }
 
-/// The SMILe configuration the quickstart trains with, per family and budget.
-fn smile_config(args: &QuickstartConfig) -> SmileConfig {
-    let mut cfg = SmileConfig {
-        env: args.env,
-        seed: args.seed,
-        // The discriminator step on a second thread (1.5x pairs per second on two free cores,
-        // docs/BENCHMARKS.md "Threads"): Meta-BC shares the cores for its first minute or so,
-        // SMILe has both for the rest of its run.
-        learner_threads: 2,
-        ..SmileConfig::default()
-    };
-    cfg.horizon = horizon(args);
+/// The configuration files behind docs/RESULTS.md's rows (and the sweeps' plans), compiled in:
+/// the quickstart trains with these files, not with a restatement of them.
+mod presets {
+    pub const PG_SMILE: &str = include_str!("../../docs/configs/pg-smile-2threads.toml");
+    pub const CV_SMILE: &str = include_str!("../../docs/configs/cv-smile.toml");
+    pub const CV1000_SMILE: &str = include_str!("../../docs/configs/cv1000-smile.toml");
+    pub const WD_SMILE: &str = include_str!("../../docs/configs/wd-smile.toml");
+    pub const AG_SMILE: &str = include_str!("../../docs/configs/ag-smile-rs1.toml");
+    pub const ALC_SMILE: &str = include_str!("../../docs/configs/alc-smile.toml");
+    pub const CV_BC: &str = include_str!("../../docs/configs/cv-bc-roll.toml");
+    pub const CV1000_BC: &str = include_str!("../../docs/configs/cv1000-bc-roll.toml");
+    pub const WD_BC: &str = include_str!("../../docs/configs/wd-bc-roll.toml");
+    pub const AG_BC: &str = include_str!("../../docs/configs/ag-bc-roll.toml");
+    pub const ALC_BC: &str = include_str!("../../docs/configs/alc-bc-roll.toml");
+}
+
+/// The (SMILe, Meta-BC) files the quickstart trains with: `(name, text)`, an empty text for
+/// the algorithm's defaults (Meta-BC on point-goal).
+fn preset_files(args: &Quickstart<'_>) -> [(&'static str, &'static str); 2] {
+    use presets::*;
     match args.env {
-        // SmileConfig's defaults (the reference's section 7 point-goal prototype, 30k pairs).
-        Family::PointGoal => {}
-        // The configs behind the Ant families' rows in docs/RESULTS.md, the defaults otherwise:
-        // SAC 2 x 256 with reward scale 1 on ant-goal (docs/configs/ag-smile-rs1.toml: ahead of
-        // Meta-BC on every seed, where 2 x 128 at scale 8 was not), contexts of 1-8 demos on
-        // ant-linclass (alc-smile.toml).
-        Family::AntGoal => (cfg.sac.hidden, cfg.sac.reward_scale) = (vec![256, 256], 1.0),
-        Family::AntLinClass => cfg.eval_contexts = 2,
-        // cheetah-vel and walker-dyn: the reference's section 7 cheetah prototype, 4 rollouts
-        // then 200 update pairs, encoder 2 x 128; 40k pairs at the paper's horizon
-        // (docs/configs/cv1000-smile.toml).
-        Family::CheetahVel | Family::WalkerDyn => {
-            (cfg.rollouts_per_iter, cfg.updates_per_iter) = (4, 200);
-            cfg.context.enc_hidden = vec![128, 128];
-            (cfg.total_updates, cfg.eval_every, cfg.checkpoint_every) = (60_000, 2_000, 4_000);
-            if shipped(args).is_some() {
-                cfg.total_updates = 40_000;
-            }
+        Family::PointGoal => [("pg-smile-2threads.toml", PG_SMILE), ("defaults", "")],
+        // Without the shipped expert's demos, cheetah-vel runs 200-step episodes.
+        Family::CheetahVel if args.horizon().is_some() => {
+            [("cv-smile.toml", CV_SMILE), ("cv-bc-roll.toml", CV_BC)]
         }
+        Family::CheetahVel => [
+            ("cv1000-smile.toml", CV1000_SMILE),
+            ("cv1000-bc-roll.toml", CV1000_BC),
+        ],
+        Family::WalkerDyn => [("wd-smile.toml", WD_SMILE), ("wd-bc-roll.toml", WD_BC)],
+        Family::AntGoal => [("ag-smile-rs1.toml", AG_SMILE), ("ag-bc-roll.toml", AG_BC)],
+        Family::AntLinClass => [("alc-smile.toml", ALC_SMILE), ("alc-bc-roll.toml", ALC_BC)],
     }
-    if let Some((max_context, eval_context_size)) = context_sizes(args.env) {
-        (cfg.max_context, cfg.eval_context_size) = (max_context, eval_context_size);
+}
+
+/// A learner's configuration: its preset file under the quickstart's own settings (family,
+/// seed and, for SMILe, two learner threads; the `tiny` budget's small nets and counts).
+fn preset<L: MetaLearner>(
+    (name, text): (&str, &str),
+    args: &Quickstart<'_>,
+    extra: &[(&str, toml::Value)],
+) -> Result<L::Config> {
+    let mut flags = toml::Table::new();
+    let settings = [
+        ("env", toml::Value::from(args.env.name())),
+        ("seed", toml::Value::Integer(args.seed as i64)),
+    ];
+    for (key, v) in settings.iter().chain(extra) {
+        crate::io::set_key(&mut flags, key, v.clone()).map_err(Error::Config)?;
     }
-    match args.budget {
-        Budget::Tiny => {
-            cfg.total_updates = 200;
-            cfg.updates_per_iter = 50;
-            cfg.sac.hidden = vec![32, 32];
-            cfg.disc_hidden = vec![32, 32];
-            cfg.eval_every = 100;
-            cfg.checkpoint_every = 100;
-        }
-        Budget::Short => {}
-        Budget::Long if args.env == Family::PointGoal => cfg.total_updates *= 2,
-        Budget::Long => {}
+    crate::io::from_toml_with_flags(text, flags)
+        .map_err(|e| Error::Config(format!("the quickstart's preset {name}: {}", e.message())))
+}
+
+/// The SMILe configuration the quickstart trains with, per family and budget.
+fn smile_config(args: &Quickstart<'_>) -> Result<SmileConfig> {
+    let mut extra = vec![("learner_threads", toml::Value::Integer(2))];
+    if args.budget == Budget::Tiny {
+        let small = toml::Value::from(vec![32, 32]);
+        extra.extend([
+            ("total_updates", 200.into()),
+            ("updates_per_iter", 50.into()),
+            ("sac.hidden", small.clone()),
+            ("disc_hidden", small),
+            ("eval_every", 100.into()),
+            ("checkpoint_every", 100.into()),
+        ]);
     }
-    cfg
+    // Two learner threads: the discriminator step beside the SAC step (docs/BENCHMARKS.md
+    // "Threads"); Meta-BC shares the cores for its first minute or so.
+    let mut cfg: SmileConfig = preset::<Smile>(preset_files(args)[0], args, &extra)?;
+    if args.budget == Budget::Long && args.env == Family::PointGoal {
+        cfg.total_updates *= 2;
+    }
+    Ok(cfg)
+}
+
+/// The Meta-BC configuration the quickstart trains with, per family and budget.
+fn meta_bc_config(args: &Quickstart<'_>) -> Result<MetaBcConfig> {
+    let mut extra = Vec::new();
+    if args.budget == Budget::Tiny {
+        extra.extend([
+            ("total_steps", 200.into()),
+            ("policy_hidden", toml::Value::from(vec![32, 32])),
+            ("eval_every", 100.into()),
+        ]);
+    }
+    preset::<MetaBc>(preset_files(args)[1], args, &extra)
 }
 
 fn train_smile(
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     train: &DemoDataset,
     dir: &Path,
     bars: &MultiProgress,
 ) -> Result<MetaPolicy> {
-    train_learner::<Smile>(smile_config(args), args, train, dir, bars, "SMILe")
+    train_learner::<Smile>(smile_config(args)?, args, train, dir, bars, "SMILe")
 }
 
 fn train_meta_bc(
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     train: &DemoDataset,
     dir: &Path,
     bars: &MultiProgress,
 ) -> Result<MetaPolicy> {
-    let mut cfg = MetaBcConfig {
-        env: args.env,
-        seed: args.seed,
-        ..MetaBcConfig::default()
-    };
-    if shipped(args).is_some() {
-        // docs/configs/cv1000-bc-roll.toml: kept and stopped on held-out rollouts.
-        cfg.horizon = horizon(args);
-        cfg.select_by = meta_bc::Selection::Rollouts;
-        cfg.context.enc_hidden = vec![128, 128];
-    }
-    if let Some((max_context, eval_context_size)) = context_sizes(args.env) {
-        (cfg.max_context, cfg.eval_context_size) = (max_context, eval_context_size);
-    }
-    if args.budget == Budget::Tiny {
-        cfg.total_steps = 200;
-        cfg.policy_hidden = vec![32, 32];
-        cfg.eval_every = 100;
-    }
-    train_learner::<MetaBc>(cfg, args, train, dir, bars, "Meta-BC")
+    train_learner::<MetaBc>(meta_bc_config(args)?, args, train, dir, bars, "Meta-BC")
 }
 
 /// Trains one learner of the quickstart in `dir` (its config written beside it, a progress bar
 /// under `label`) and loads the policy it kept.
 fn train_learner<L: MetaLearner>(
     cfg: L::Config,
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     train: &DemoDataset,
     dir: &Path,
     bars: &MultiProgress,
@@ -446,9 +477,9 @@ fn train_learner<L: MetaLearner>(
     MetaPolicy::load(dir)
 }
 
-fn protocol(args: &QuickstartConfig) -> Protocol {
+fn protocol(args: &Quickstart<'_>) -> Protocol {
     let mut p = Protocol::for_family(args.env);
-    p.horizon = horizon(args);
+    p.horizon = args.horizon();
     if args.budget == Budget::Tiny {
         p.draws = 1;
         p.rollouts = 1;
@@ -457,7 +488,7 @@ fn protocol(args: &QuickstartConfig) -> Protocol {
 }
 
 fn evaluate(
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     actor: &mut dyn eval::ConditionedActor,
     name: &str,
     test: &DemoDataset,
@@ -487,13 +518,14 @@ fn evaluate(
 /// Runs the whole pipeline; returns what it measured (also in `out/summary.json`).
 pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
+    let args = &Quickstart::resolve(args);
     check_budget(args)?;
     let out = &args.out;
     // One quickstart per directory at a time: a second is refused with this one's pid.
     let _lock = crate::io::DirLock::acquire(out)?;
     write(
         &out.join("quickstart.toml"),
-        toml::to_string(args).map_err(|e| Error::Serialise {
+        toml::to_string(args.args).map_err(|e| Error::Serialise {
             what: "quickstart.toml",
             reason: e.to_string(),
         })?,
@@ -507,12 +539,12 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     );
     if args.budget == Budget::Short && args.env == Family::PointGoal {
         eprintln!("expected time on 2 cores: 2-4 minutes");
-    } else if let Some(assets) = shipped(args) {
+    } else if let Some(assets) = &args.shipped {
         eprintln!(
             "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
              (SMILe, 40k update pairs on {}-step episodes, is the long stage)",
             assets.display(),
-            horizon(args).unwrap_or_else(
+            args.horizon().unwrap_or_else(
                 || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
             )
         );

@@ -7,13 +7,13 @@ use firmware_sim::link::{LinkConfig, SimLink};
 use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, trace};
 use sim::DemoDataset;
 
-use super::{DeviceSensing, QuickstartConfig, device_err, env_config, io, write};
+use super::{DeviceSensing, Quickstart, device_err, io, write};
 use crate::Result;
 use crate::eval;
 
 /// Runs the blob on the simulated device, taught the first demo of test task `index`.
 pub(super) fn device_run(
-    args: &QuickstartConfig,
+    args: &Quickstart<'_>,
     blob: &[u8],
     test: &DemoDataset,
     dir: &Path,
@@ -40,7 +40,7 @@ pub(super) fn device_run(
     )
     .map_err(device_err)?;
     let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
-    let mut plant = sim::make_env(args.env, env_config(args))?;
+    let mut plant = sim::make_env(args.env, args.env_config())?;
     let loop_config = LoopConfig {
         sensing: match args.sensing {
             DeviceSensing::Full => firmware_sim::Sensing::Full,

@@ -8,10 +8,16 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
         env: Family::CheetahVel,
         ..QuickstartConfig::default()
     };
-    let dir = shipped(&cheetah).expect("assets/experts/cheetah-vel is in the repository");
+    let dir = Quickstart::resolve(&cheetah)
+        .shipped
+        .expect("assets/experts/cheetah-vel is in the repository");
     assert!(dir.ends_with("assets/experts/cheetah-vel"));
-    assert_eq!(horizon(&cheetah), None, "the family's 1000 steps");
-    check_budget(&cheetah).unwrap();
+    assert_eq!(
+        Quickstart::resolve(&cheetah).horizon(),
+        None,
+        "the family's 1000 steps"
+    );
+    check_budget(&Quickstart::resolve(&cheetah)).unwrap();
     // Elsewhere, or at the tiny budget, it trains its own expert on 200-step episodes.
     for other in [
         QuickstartConfig {
@@ -23,17 +29,20 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
             ..cheetah.clone()
         },
     ] {
-        assert_eq!(shipped(&other), None);
-        assert_eq!(horizon(&other), Some(200));
+        let other = Quickstart::resolve(&other);
+        assert_eq!(other.shipped, None);
+        assert_eq!(other.horizon(), Some(200));
     }
     let no_assets = QuickstartConfig {
         assets: Some(PathBuf::from("/nonexistent")),
         ..cheetah
     };
-    let err = check_budget(&no_assets).unwrap_err().to_string();
+    let err = check_budget(&Quickstart::resolve(&no_assets))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("no shipped one"), "{err}");
     assert_eq!(
-        shipped(&QuickstartConfig::default()),
+        Quickstart::resolve(&QuickstartConfig::default()).shipped,
         None,
         "point-goal is scripted"
     );
@@ -45,15 +54,19 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
         env: Family::AntLinClass,
         ..QuickstartConfig::default()
     };
-    let dir = shipped(&args).expect("assets/experts/ant-linclass is in the repository");
+    let resolved = Quickstart::resolve(&args);
+    let dir = resolved
+        .shipped
+        .clone()
+        .expect("assets/experts/ant-linclass is in the repository");
     assert!(dir.ends_with("assets/experts/ant-linclass"));
     let (train, test) = shipped_demos(Family::AntLinClass);
     assert!(dir.join(train).exists() && dir.join(test).exists());
-    assert_eq!(context_sizes(Family::AntLinClass), Some((8, 4)));
-    assert_eq!(context_sizes(Family::AntGoal), None);
-    check_budget(&args).unwrap();
+    let cfg = smile_config(&resolved).unwrap();
+    assert_eq!((cfg.max_context, cfg.eval_context_size), (8, 4));
+    check_budget(&resolved).unwrap();
     let out = std::env::temp_dir().join(format!("qs-alc-expert-{}", std::process::id()));
-    let (expert, note) = train_expert(&args, &out).unwrap();
+    let (expert, note) = train_expert(&resolved, &out).unwrap();
     assert_eq!(expert.name(), "scripted-linclass");
     assert!(note.contains("shipped scripted-linclass expert"), "{note}");
     // Without the shipped files the long budget would train SAC on a sparse reward: refused.
@@ -62,30 +75,65 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
         budget: Budget::Long,
         ..args
     };
-    let err = check_budget(&bare).unwrap_err().to_string();
+    let err = check_budget(&Quickstart::resolve(&bare))
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("scripted-linclass"), "{err}");
     std::fs::remove_dir_all(&out).ok();
 }
 
-/// The quickstart trains SMILe with the configuration behind each family's RESULTS row: the
-/// TOML files in docs/configs, read back and compared field by field.
+/// The quickstart trains both learners with the configuration files behind each family's
+/// RESULTS rows (docs/configs), read from disk here and compared field by field with what it
+/// compiled in, plus only its own settings (family, seed, SMILe's two learner threads).
 #[test]
-fn smile_configs_are_the_documented_ones() {
+fn its_configs_are_the_documented_files() {
     let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/configs");
-    for (family, file) in [
-        (Family::AntGoal, "ag-smile-rs1.toml"),
-        (Family::AntLinClass, "alc-smile.toml"),
+    let read = |file: &str| std::fs::read_to_string(docs.join(file)).unwrap();
+    for (family, smile_file, bc_file) in [
+        (Family::PointGoal, "pg-smile-2threads.toml", None),
+        (
+            Family::CheetahVel,
+            "cv1000-smile.toml",
+            Some("cv1000-bc-roll.toml"),
+        ),
+        (Family::WalkerDyn, "wd-smile.toml", Some("wd-bc-roll.toml")),
+        (
+            Family::AntGoal,
+            "ag-smile-rs1.toml",
+            Some("ag-bc-roll.toml"),
+        ),
+        (
+            Family::AntLinClass,
+            "alc-smile.toml",
+            Some("alc-bc-roll.toml"),
+        ),
     ] {
         let args = QuickstartConfig {
             env: family,
+            seed: 5,
             ..QuickstartConfig::default()
         };
-        let mut want: SmileConfig =
-            crate::from_toml_over_defaults(&std::fs::read_to_string(docs.join(file)).unwrap())
-                .unwrap();
-        // What the quickstart sets on top: the family, the seed, two learner threads.
-        want.env = family;
-        want.learner_threads = 2;
-        assert_eq!(smile_config(&args), want, "{family} vs {file}");
+        let q = Quickstart::resolve(&args);
+        let mut want: SmileConfig = crate::from_toml_over_defaults(&read(smile_file)).unwrap();
+        (want.env, want.seed, want.learner_threads) = (family, 5, 2);
+        assert_eq!(smile_config(&q).unwrap(), want, "{family} vs {smile_file}");
+        let mut want: MetaBcConfig = match bc_file {
+            Some(f) => crate::from_toml_over_defaults(&read(f)).unwrap(),
+            None => MetaBcConfig::default(),
+        };
+        (want.env, want.seed) = (family, 5);
+        assert_eq!(meta_bc_config(&q).unwrap(), want, "{family} vs {bc_file:?}");
     }
+    // The tiny budget shrinks what the file says, and nothing else.
+    let tiny = QuickstartConfig {
+        env: Family::AntGoal,
+        budget: Budget::Tiny,
+        ..QuickstartConfig::default()
+    };
+    let cfg = smile_config(&Quickstart::resolve(&tiny)).unwrap();
+    assert_eq!(
+        (cfg.total_updates, cfg.sac.hidden.clone()),
+        (200, vec![32, 32])
+    );
+    assert_eq!(cfg.sac.reward_scale, 1.0, "ag-smile-rs1.toml's scale stays");
 }
