@@ -360,7 +360,7 @@ struct CompareRow {
 
 #[derive(Debug, Serialize)]
 struct CompareReport {
-    env: String,
+    env: Family,
     metric: String,
     episodes_per_task: usize,
     host_mean: f32,
@@ -455,7 +455,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     let host_mean = rows.iter().map(|r| r.host_float).sum::<f32>() / n;
     let device_mean = rows.iter().map(|r| r.device_blob).sum::<f32>() / n;
     let report = CompareReport {
-        env: args.env.to_string(),
+        env: args.env,
         metric: reference["metric"].as_str().unwrap_or("metric").to_string(),
         episodes_per_task: args.episodes as usize,
         host_mean,

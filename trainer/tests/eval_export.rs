@@ -77,7 +77,7 @@ fn eval_report_and_blob_parity() {
     .unwrap();
     assert_eq!(r, r2);
     let report = EvalReport {
-        env: "point-goal".into(),
+        env: sim::Family::PointGoal,
         split: "test".into(),
         metric: "min distance to goal".into(),
         lower_is_better: true,

@@ -272,8 +272,8 @@ pub fn episode_seed(draw: usize, rollout: usize) -> u64 {
 /// A whole evaluation.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct EvalReport {
-    /// Family name.
-    pub env: String,
+    /// The family (by its name in the file).
+    pub env: Family,
     /// Split evaluated.
     pub split: String,
     /// Metric name.
@@ -475,7 +475,7 @@ impl EvalReport {
         methods: Vec<MethodResult>,
     ) -> Self {
         Self {
-            env: family.name().into(),
+            env: family,
             split: split.to_string(),
             metric: metric_name(family.metric_kind()).into(),
             lower_is_better: family.metric_kind().lower_is_better(),

@@ -88,8 +88,8 @@ pub struct NormalisedRow {
 /// The aggregated report.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Report {
-    /// Family.
-    pub env: String,
+    /// The family.
+    pub env: sim::Family,
     /// Metric name.
     pub metric: String,
     /// True if lower is better.
@@ -151,12 +151,8 @@ impl Report {
                         h.protocol.label()
                     )));
                 }
-                if (h.env.as_str(), h.metric.as_str(), &h.protocol.context_sizes)
-                    != (
-                        rep.env.as_str(),
-                        rep.metric.as_str(),
-                        &rep.protocol.context_sizes,
-                    )
+                if (h.env, h.metric.as_str(), &h.protocol.context_sizes)
+                    != (rep.env, rep.metric.as_str(), &rep.protocol.context_sizes)
                 {
                     return Err(Error::Data(format!(
                         "{} is a {} evaluation ({}, context sizes {:?}); the first was {} ({}, {:?})",

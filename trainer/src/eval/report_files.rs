@@ -98,7 +98,7 @@ pub fn per_task(report: &Report, path: &Path) -> Result<()> {
     let mut svg = String::new();
     let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
-    let x_desc = super::show::task_axis(&report.env);
+    let x_desc = super::show::task_axis(report.env);
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(

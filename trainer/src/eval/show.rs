@@ -23,7 +23,7 @@ impl EvalReport {
             self.protocol.context_sizes,
             self.protocol.draws,
             self.protocol.rollouts,
-            if self.env == sim::Family::WalkerDyn.name() {
+            if self.env == sim::Family::WalkerDyn {
                 format!("; walker protocol: {}", self.protocol.label())
             } else {
                 String::new()
@@ -161,7 +161,7 @@ impl EvalReport {
         let mut svg = String::new();
         let root = SVGBackend::with_string(&mut svg, (760, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let x_desc = task_axis(&self.env);
+        let x_desc = task_axis(self.env);
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 format!("{} {} tasks: {}", self.env, self.split, self.metric),
@@ -207,11 +207,10 @@ impl EvalReport {
 }
 
 /// What a family's task value is, for a plot's x axis ("task" for a name no family has).
-pub(super) fn task_axis(env: &str) -> &'static str {
-    match env.parse::<sim::Family>() {
-        Ok(sim::Family::PointGoal | sim::Family::AntGoal) => "goal angle (rad)",
-        Ok(sim::Family::CheetahVel) => "target velocity (m/s)",
-        Ok(sim::Family::WalkerDyn | sim::Family::AntLinClass) => "task seed",
-        Err(_) => "task",
+pub(super) fn task_axis(env: sim::Family) -> &'static str {
+    match env {
+        sim::Family::PointGoal | sim::Family::AntGoal => "goal angle (rad)",
+        sim::Family::CheetahVel => "target velocity (m/s)",
+        sim::Family::WalkerDyn | sim::Family::AntLinClass => "task seed",
     }
 }

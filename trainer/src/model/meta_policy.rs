@@ -241,8 +241,7 @@ impl MetaPolicy {
                 reason: "not a meta-policy file".into(),
             });
         }
-        let env: String = ck.meta_field("env")?;
-        let family = env.parse::<Family>()?;
+        let family: Family = ck.meta_field("env")?;
         let cfg: ContextConfig = ck.meta_field("context")?;
         let norm: ObsNorm = ck.meta_field("norm")?;
         let widths: Vec<usize> = ck.meta_field("policy_widths")?;
@@ -255,7 +254,7 @@ impl MetaPolicy {
             || *widths.last().unwrap_or(&0) != 2 * ad
         {
             return Err(Error::Shape(format!(
-                "policy widths {widths:?} do not fit {env}"
+                "policy widths {widths:?} do not fit {family}"
             )));
         }
         let policy = TanhGaussianPolicy::new(

@@ -42,7 +42,7 @@ use crate::{Error, Result};
 #[serde(deny_unknown_fields)]
 pub struct Plan {
     /// Task family.
-    pub env: String,
+    pub env: Family,
     /// Sweep directory; relative paths are relative to the current directory. Default
     /// `runs/<plan file stem>`.
     #[serde(default)]
@@ -269,10 +269,7 @@ impl Sweep {
             }
         };
         let err = |needle: Option<&str>, msg: String| plan_err(path, &text, needle, msg);
-        let family: Family = plan
-            .env
-            .parse()
-            .map_err(|e: sim::SimError| err(Some("env"), e.to_string()))?;
+        let family = plan.env;
         for (axis, empty) in [
             ("demos", plan.demos.is_empty()),
             ("seeds", plan.seeds.is_empty()),

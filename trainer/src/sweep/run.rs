@@ -98,7 +98,7 @@ pub struct Manifest {
     #[serde(with = "crate::io::os_path")]
     pub plan: PathBuf,
     /// The family.
-    pub env: String,
+    pub env: sim::Family,
     /// The cells by index.
     pub cells: Vec<ManifestCell>,
 }
@@ -133,7 +133,7 @@ pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
 pub fn write_manifest(sweep: &Sweep) -> Result<Manifest> {
     let manifest = Manifest {
         plan: sweep.path.clone(),
-        env: sweep.family.name().into(),
+        env: sweep.family,
         cells: sweep
             .cells
             .iter()

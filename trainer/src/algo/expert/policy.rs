@@ -148,8 +148,7 @@ impl Expert {
         if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") {
             return Err(bad("not an expert policy file"));
         }
-        let env: String = ck.meta_field("env")?;
-        let family = env.parse::<Family>().map_err(|e| bad(&e.to_string()))?;
+        let family: Family = ck.meta_field("env")?;
         match ck.meta_field::<String>("expert")?.as_str() {
             "scripted-pd" => Ok(Expert::ScriptedPd(PointGoalPdExpert {
                 kp: ck.meta_field("kp")?,

@@ -13,7 +13,7 @@ use trainer::{DemoSpec, record_demos_with};
 pub struct DemosArgs {
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long)]
-    env: String,
+    env: Family,
     /// Which task list to record (also the split label stored in the file).
     #[arg(long, default_value = "train")]
     split: String,
@@ -63,7 +63,7 @@ fn named_task(family: Family, value: f64) -> Result<Task> {
 
 /// Run `smile demos`.
 pub fn run(a: DemosArgs) -> Result<()> {
-    let family: Family = a.env.parse()?;
+    let family = a.env;
     let split: Split = a.split.parse().map_err(anyhow::Error::msg)?;
     let ex = ExpertSet::load(&a.expert)?;
     if ex.family() != family {

@@ -18,7 +18,7 @@ pub struct EvalArgs {
     policy: Vec<PathBuf>,
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long, default_value = "point-goal")]
-    env: String,
+    env: Family,
     /// Which tasks to evaluate on.
     #[arg(long, default_value = "test")]
     split: Split,
@@ -84,7 +84,7 @@ fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
 
 /// Run `smile eval`.
 pub fn run(a: EvalArgs) -> Result<()> {
-    let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let family = a.env;
     let ctx = crate::read_demos(&a.contexts, "--contexts", family)?;
     if ctx.split != a.split {
         bail!(

@@ -25,7 +25,7 @@ pub struct ExpertArgs {
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default:
     /// point-goal, or the --config file's `env`].
     #[arg(long)]
-    env: Option<String>,
+    env: Option<Family>,
     /// Expert kind.
     #[arg(long, value_enum, default_value_t = ExpertKind::Sac)]
     kind: ExpertKind,
@@ -109,8 +109,8 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         .with_context(|| format!("parsing {}", p.display()))?,
         None => ExpertConfig::default(),
     };
-    if let Some(v) = &a.env {
-        cfg.env = v.parse().map_err(|e| anyhow::anyhow!("--env: {e}"))?;
+    if let Some(v) = a.env {
+        cfg.env = v;
     }
     macro_rules! set {
         ($($f:ident).+ <- $v:expr) => { if let Some(v) = $v.clone() { cfg.$($f).+ = v; } };
@@ -156,8 +156,8 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
 /// Run `smile expert`.
 pub fn run(a: ExpertArgs) -> Result<()> {
     if a.kind == ExpertKind::ScriptedPd {
-        let env = a.env.as_deref().unwrap_or("point-goal");
-        if env != Family::PointGoal.name() {
+        let env = a.env.unwrap_or(Family::PointGoal);
+        if env != Family::PointGoal {
             bail!("the scripted PD expert exists only for point-goal, not {env}");
         }
         let dir = a
@@ -170,8 +170,8 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         return finish(&dir, a.eval_episodes, None, EnvConfig::default());
     }
     if a.kind == ExpertKind::ScriptedLinclass {
-        let env = a.env.as_deref().unwrap_or(Family::AntLinClass.name());
-        if env != Family::AntLinClass.name() {
+        let env = a.env.unwrap_or(Family::AntLinClass);
+        if env != Family::AntLinClass {
             bail!("the scripted classification expert exists only for ant-linclass, not {env}");
         }
         let Some(goal) = &a.goal_expert else {

@@ -17,7 +17,7 @@ pub struct LatentsArgs {
     policy: PathBuf,
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long)]
-    env: String,
+    env: Family,
     /// Which tasks.
     #[arg(long, default_value = "test")]
     split: Split,
@@ -40,7 +40,7 @@ pub struct LatentsArgs {
 
 /// Run `smile latents`.
 pub fn run(a: LatentsArgs) -> Result<()> {
-    let family: Family = a.env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let family = a.env;
     let ctx = crate::read_demos(&a.contexts, "--contexts", family)?;
     if ctx.split != a.split {
         bail!(

@@ -49,7 +49,7 @@ pub struct TrainArgs {
     algo: Option<Algo>,
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default: the demo file's].
     #[arg(long)]
-    env: Option<String>,
+    env: Option<Family>,
     /// Meta-train demos (`smile demos --split train`); a meta-test file is refused.
     #[arg(long)]
     demos: PathBuf,
@@ -231,11 +231,8 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
 
 /// Run `smile train`.
 pub fn run(mut a: TrainArgs) -> Result<()> {
-    let (family, ds) = match &a.env {
-        Some(env) => {
-            let family: Family = env.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-            (family, crate::read_demos(&a.demos, "--demos", family)?)
-        }
+    let (family, ds) = match a.env {
+        Some(family) => (family, crate::read_demos(&a.demos, "--demos", family)?),
         None => {
             let ds = crate::read_any_demos(&a.demos, "--demos")?;
             (ds.family, ds)
