@@ -20,6 +20,17 @@ pub enum Error {
     /// that are missing, empty, of another split or family, or inconsistent with each other.
     #[error("{0}")]
     Data(String),
+    /// An input is of another task family than the one asked for (demos for the config's
+    /// family, an expert among others, a policy for its demos).
+    #[error("{what} is {found}, not {expected}")]
+    WrongFamily {
+        /// The input, named for a person (a path, "the demos").
+        what: String,
+        /// Its family.
+        found: sim::Family,
+        /// The family it must be.
+        expected: sim::Family,
+    },
     /// Tensor shapes or dimensions disagree (e.g. a checkpoint for another network size).
     #[error("shape mismatch: {0}")]
     Shape(String),

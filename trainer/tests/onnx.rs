@@ -325,7 +325,7 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
     ] {
         let err = one_line_error(&o);
         assert!(
-            err.contains("cheetah-vel demos") && err.contains("trained on point-goal"),
+            err.contains("is cheetah-vel, not point-goal"),
             "{err}"
         );
     }

@@ -167,6 +167,33 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
 }
 
 #[test]
+fn demos_of_another_family_are_a_typed_error() {
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let cfg = SmileConfig {
+        env: Family::CheetahVel,
+        ..tiny(false)
+    };
+    let Err(e) = Smile::new(cfg, data) else {
+        panic!("point-goal demos under a cheetah-vel config were accepted")
+    };
+    assert!(
+        matches!(
+            e,
+            trainer::Error::WrongFamily {
+                found: Family::PointGoal,
+                expected: Family::CheetahVel,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(
+        e.to_string().contains("is point-goal, not cheetah-vel"),
+        "{e}"
+    );
+}
+
+#[test]
 fn learner_threads_are_deterministic_on_any_count_and_use_the_older_reward() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);

@@ -81,10 +81,11 @@ impl MetaBc {
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
         let family = cfg.env;
         if data.family != family {
-            return Err(Error::Data(format!(
-                "demos are {}, config says {family}",
-                data.family
-            )));
+            return Err(Error::WrongFamily {
+                what: "the demos (the config's `env` says otherwise)".into(),
+                found: data.family,
+                expected: family,
+            });
         }
         if cfg.dagger && expert.as_ref().is_none_or(|e| e.family() != family) {
             return Err(Error::Config(format!(

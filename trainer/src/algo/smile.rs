@@ -98,10 +98,11 @@ impl Smile {
         cfg.validate()?;
         let family = cfg.env;
         if data.family != family {
-            return Err(Error::Data(format!(
-                "demos are {}, config says {family}",
-                data.family
-            )));
+            return Err(Error::WrongFamily {
+                what: "the demos (the config's `env` says otherwise)".into(),
+                found: data.family,
+                expected: family,
+            });
         }
         let env = sim::make_env(family, cfg.rollout_env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);

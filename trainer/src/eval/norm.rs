@@ -47,11 +47,10 @@ impl References {
                 )));
             }
         };
-        let wrong_family = |path: &Path, found: Family| {
-            Error::Data(format!(
-                "{} is a {found} policy, not {family}",
-                path.display()
-            ))
+        let wrong_family = |path: &Path, found: Family| Error::WrongFamily {
+            what: format!("the policy {}", path.display()),
+            found,
+            expected: family,
         };
         let base_expert = Expert::load(base)?;
         if base_expert.family() != family {

@@ -76,10 +76,11 @@ pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibrat
 /// one line naming what differs.
 pub fn check_demos_fit(mp: &MetaPolicy, demos: &DemoDataset, what: &str) -> Result<()> {
     if demos.family != mp.family {
-        return Err(Error::Data(format!(
-            "{what} are {} demos, but the policy was trained on {}",
-            demos.family, mp.family
-        )));
+        return Err(Error::WrongFamily {
+            what: what.to_string(),
+            found: demos.family,
+            expected: mp.family,
+        });
     }
     let (od, ad) = (mp.family.obs_dim(), mp.family.act_dim());
     if (demos.obs_dim, demos.act_dim) != (od, ad) {

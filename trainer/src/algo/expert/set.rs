@@ -66,12 +66,11 @@ impl ExpertSet {
                 per_task: Vec::new(),
             });
             if ex.family() != s.family {
-                return Err(Error::Data(format!(
-                    "{} is a {} expert; the others are {}",
-                    p.display(),
-                    ex.family(),
-                    s.family
-                )));
+                return Err(Error::WrongFamily {
+                    what: format!("the expert {} (the others are {})", p.display(), s.family),
+                    found: ex.family(),
+                    expected: s.family,
+                });
             }
             let source = p.display().to_string();
             match task_value {

@@ -248,9 +248,10 @@ impl Builder {
                 .collect(),
             ..Default::default()
         };
-        model
-            .write_to_bytes()
-            .map_err(|e| Error::Data(format!("ONNX serialisation: {e}")))
+        model.write_to_bytes().map_err(|e| Error::Serialise {
+            what: "the ONNX model",
+            reason: e.to_string(),
+        })
     }
 }
 

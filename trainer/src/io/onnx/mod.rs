@@ -236,8 +236,10 @@ pub fn write_dir(
                 observations: r.observation_count(),
             });
         }
-        let json =
-            serde_json::to_vec_pretty(&meta).map_err(|e| Error::Data(format!("onnx.json: {e}")))?;
+        let json = serde_json::to_vec_pretty(&meta).map_err(|e| Error::Serialise {
+            what: "onnx.json",
+            reason: e.to_string(),
+        })?;
         checkpoint::write_atomic(&tmp.join(META_FILE), &json)?;
         // Swap in: an earlier export moves aside first and goes once the new one is in place.
         let old = parent.join(format!(".{name}.onnx-old-{}", std::process::id()));

@@ -149,7 +149,9 @@ impl Reference {
                     .map_err(|e| Error::Data(format!("reference tensor {name}: {e}")))
             })
             .collect::<Result<Vec<_>>>()?;
-        safetensors::tensor::serialize(views, Some(meta))
-            .map_err(|e| Error::Data(format!("reference serialisation: {e}")))
+        safetensors::tensor::serialize(views, Some(meta)).map_err(|e| Error::Serialise {
+            what: "the ONNX reference tensors",
+            reason: e.to_string(),
+        })
     }
 }
