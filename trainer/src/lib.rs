@@ -12,7 +12,10 @@
 //!   [`MetaPolicy`], each a type with `new` and `forward`, on one fused dense layer.
 //! * `optim`: [`Adam`], one fused in-place pass per parameter.
 //! * `algo`: one file per algorithm, its loss next to its equation: [`sac`], [`expert`],
-//!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger).
+//!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger). The meta-learners implement one
+//!   interface, [`MetaLearner`], named by [`Algo`] and reporting [`Progress`]: `smile train`,
+//!   the quickstart and the sweep drive them through it, so a new algorithm is its folder, an
+//!   `Algo` arm and an `impl MetaLearner`.
 //! * `data`: demos ([`record_demos`]), the meta-train / held-out split ([`MetaData`]),
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
@@ -41,7 +44,8 @@ pub mod quickstart;
 pub mod sweep;
 pub mod threads;
 
-// Algorithms: each module holds its configuration, its run type, `train` and its `Event`s.
+// Algorithms: each module holds its configuration, its run type and `train`; the
+// meta-learners' common interface is `MetaLearner`.
 pub use algo::{Algo, MetaLearner, Progress, expert, meta_bc, sac, smile};
 
 /// Errors and the result alias.
