@@ -101,40 +101,59 @@ pub struct ExpertArgs {
     quiet: bool,
 }
 
-fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
-    let mut cfg = match &a.config {
-        Some(p) => trainer::from_toml_over_defaults(
-            &std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?,
-        )
-        .with_context(|| format!("parsing {}", p.display()))?,
-        None => ExpertConfig::default(),
+/// The flags that set `ExpertConfig` keys, as a table in the config's own shape.
+fn flag_table(a: &ExpertArgs) -> Result<toml::Table> {
+    let mut t = toml::Table::new();
+    let mut set = |key: &str, v: toml::Value| {
+        trainer::set_config_key(&mut t, key, v).map_err(|e| anyhow::anyhow!("{key}: {e}"))
     };
+    let int = |v: u64| toml::Value::Integer(v as i64);
     if let Some(v) = a.env {
-        cfg.env = v;
+        set("env", v.name().into())?;
     }
-    macro_rules! set {
-        ($($f:ident).+ <- $v:expr) => { if let Some(v) = $v.clone() { cfg.$($f).+ = v; } };
+    for (key, v) in [
+        ("total_steps", a.total_steps),
+        ("seed", a.seed),
+        ("learner_threads", a.learner_threads.map(u64::from)),
+        ("sac.batch_size", a.batch_size.map(|v| v as u64)),
+        ("learning_starts", a.learning_starts),
+        ("checkpoint_every", a.checkpoint_every),
+        ("eval_every", a.eval_every),
+        ("horizon", a.horizon.map(|v| v as u64)),
+        ("task_index", a.task_index.map(|v| v as u64)),
+    ] {
+        if let Some(v) = v {
+            set(key, int(v))?;
+        }
     }
-    set!(total_steps <- a.total_steps);
-    set!(seed <- a.seed);
-    set!(learner_threads <- a.learner_threads.map(usize::from));
-    set!(sac.hidden <- a.hidden);
-    set!(sac.batch_size <- a.batch_size);
-    set!(learning_starts <- a.learning_starts);
-    set!(checkpoint_every <- a.checkpoint_every);
-    set!(eval_every <- a.eval_every);
-    if a.horizon.is_some() {
-        cfg.horizon = a.horizon;
+    if let Some(v) = &a.hidden {
+        set(
+            "sac.hidden",
+            v.iter().map(|&w| int(w as u64)).collect::<Vec<_>>().into(),
+        )?;
     }
-    if a.task_index.is_some() {
-        cfg.task_index = a.task_index;
-    }
-    if a.task_value.is_some() {
-        cfg.task_value = a.task_value;
+    if let Some(v) = a.task_value {
+        set("task_value", v.into())?;
     }
     if a.keep_best {
-        cfg.keep_best = true;
+        set("keep_best", true.into())?;
     }
+    Ok(t)
+}
+
+fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
+    let text = match &a.config {
+        Some(p) => {
+            std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?
+        }
+        None => String::new(),
+    };
+    let what = a.config.as_ref().map_or("reading the flags".into(), |p| {
+        format!("parsing {}", p.display())
+    });
+    let mut cfg: ExpertConfig =
+        trainer::from_toml_with_flags(&text, flag_table(a)?).context(what)?;
+    // A path is set here, not through TOML, which holds only UTF-8 strings.
     if a.init_from.is_some() {
         cfg.init_from = a.init_from.clone();
     }
@@ -301,4 +320,45 @@ fn finish(
         serde_json::to_string_pretty(&json)? + "\n",
     )?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        args: super::ExpertArgs,
+    }
+
+    #[test]
+    fn flags_lie_over_the_config_file_which_lies_over_the_defaults() {
+        let file = std::env::temp_dir().join(format!("expert-flags-{}.toml", std::process::id()));
+        std::fs::write(
+            &file,
+            "seed = 3\nlearning_starts = 77\n[sac]\nbatch_size = 32\n",
+        )
+        .unwrap();
+        let cli = Cli::try_parse_from([
+            "expert",
+            "--config",
+            file.to_str().unwrap(),
+            "--seed",
+            "9",
+            "--hidden",
+            "64,64",
+        ])
+        .unwrap();
+        let cfg = super::effective_config(&cli.args).unwrap();
+        let defaults = trainer::expert::ExpertConfig::default();
+        assert_eq!((cfg.seed, cfg.learning_starts), (9, 77));
+        assert_eq!(
+            (cfg.sac.batch_size, cfg.sac.hidden.clone()),
+            (32, vec![64, 64])
+        );
+        assert_eq!(cfg.sac.actor_lr, defaults.sac.actor_lr);
+        assert_eq!(cfg.total_steps, defaults.total_steps);
+        std::fs::remove_file(&file).unwrap();
+    }
 }
