@@ -40,6 +40,48 @@ pub fn write_atomic_with(
     result
 }
 
+/// The bytes of a safetensors file with its JSON header in one order: every object's keys
+/// sorted, padded with spaces to the header's length (the format's own padding).
+///
+/// safetensors writes `__metadata__` from a `HashMap`, whose order changes from process to
+/// process, so the same data and seed would give different files (and different SHA-256s,
+/// which runs record for their demos). Readers find tensors by name and offset, so the order
+/// means nothing to them. Bytes that are not a safetensors file come back unchanged.
+pub fn canonical_safetensors(mut bytes: Vec<u8>) -> Vec<u8> {
+    fn sorted(v: serde_json::Value) -> serde_json::Value {
+        match v {
+            serde_json::Value::Object(m) => {
+                let mut entries: Vec<_> = m.into_iter().collect();
+                entries.sort_by(|a, b| a.0.cmp(&b.0));
+                serde_json::Value::Object(
+                    entries.into_iter().map(|(k, v)| (k, sorted(v))).collect(),
+                )
+            }
+            other => other,
+        }
+    }
+    let Some(n) = bytes
+        .get(..8)
+        .and_then(|b| <[u8; 8]>::try_from(b).ok())
+        .map(|b| u64::from_le_bytes(b) as usize)
+    else {
+        return bytes;
+    };
+    let Some(header) = bytes.get(8..8usize.saturating_add(n)) else {
+        return bytes;
+    };
+    let Ok(v) = serde_json::from_slice::<serde_json::Value>(header) else {
+        return bytes;
+    };
+    let mut text = sorted(v).to_string().into_bytes();
+    if text.len() > n {
+        return bytes;
+    }
+    text.resize(n, b' ');
+    bytes[8..8 + n].copy_from_slice(&text);
+    bytes
+}
+
 /// SHA-256 of `bytes`, lower-case hex: how a run names its demos and an export report its blob.
 pub fn sha256_hex(bytes: &[u8]) -> String {
     use sha2::Digest;
@@ -68,5 +110,42 @@ mod tests {
         let left: Vec<_> = std::fs::read_dir(&dir).unwrap().collect();
         assert_eq!(left.len(), 1, "{left:?}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+}
+
+#[cfg(test)]
+mod canonical_tests {
+    use std::collections::HashMap;
+
+    use safetensors::{Dtype, SafeTensors, tensor::TensorView};
+
+    #[test]
+    fn canonical_safetensors_orders_the_header_and_keeps_the_contents() {
+        let data: Vec<u8> = (0..16).collect();
+        let files: Vec<Vec<u8>> = (0..8)
+            .map(|i| {
+                // Metadata maps built in different insertion orders (and, across processes,
+                // with different hash seeds): the serialised header order varies.
+                let mut keys: Vec<String> = (0..12).map(|k| format!("key{k}")).collect();
+                keys.rotate_left(i);
+                let meta: HashMap<String, String> = keys
+                    .into_iter()
+                    .map(|k| (k.clone(), format!("v-{k}")))
+                    .collect();
+                let a = TensorView::new(Dtype::F32, vec![2, 2], &data).unwrap();
+                let b = TensorView::new(Dtype::U8, vec![16], &data).unwrap();
+                super::canonical_safetensors(
+                    safetensors::serialize([("b", b), ("a", a)], Some(meta)).unwrap(),
+                )
+            })
+            .collect();
+        assert!(files.windows(2).all(|w| w[0] == w[1]), "headers differ");
+        let st = SafeTensors::deserialize(&files[0]).unwrap();
+        assert_eq!(st.tensor("a").unwrap().data(), &data[..]);
+        assert_eq!(st.tensor("b").unwrap().shape(), &[16]);
+        let (_, meta) = SafeTensors::read_metadata(&files[0]).unwrap();
+        assert_eq!(meta.metadata().as_ref().unwrap()["key3"], "v-key3");
+        // Not a safetensors file: unchanged.
+        assert_eq!(super::canonical_safetensors(vec![1, 2, 3]), vec![1, 2, 3]);
     }
 }

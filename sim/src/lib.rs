@@ -47,7 +47,7 @@ pub use dataset::{
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::SimError;
-pub use fsio::{sha256_hex, temp_sibling, write_atomic, write_atomic_with};
+pub use fsio::{canonical_safetensors, sha256_hex, temp_sibling, write_atomic, write_atomic_with};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;

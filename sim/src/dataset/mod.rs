@@ -511,6 +511,7 @@ impl DemoDataset {
         .map(|(k, v)| (k.to_string(), v))
         .collect();
         safetensors::serialize(views, Some(metadata))
+            .map(crate::canonical_safetensors)
             .map_err(|e| DatasetError::Corrupt(format!("serialising: {e}")))
     }
 

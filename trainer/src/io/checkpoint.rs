@@ -109,8 +109,9 @@ pub fn save_file(
     let mut doc = meta.clone();
     doc["format"] = serde_json::Value::from(CHECKPOINT_FORMAT);
     let info = HashMap::from([(META_KEY.to_string(), doc.to_string())]);
-    let bytes =
-        safetensors::serialize(views, Some(info)).map_err(|e| ckpt_err(path, e.to_string()))?;
+    let bytes = safetensors::serialize(views, Some(info))
+        .map(sim::canonical_safetensors)
+        .map_err(|e| ckpt_err(path, e.to_string()))?;
     write_atomic(path, &bytes)?;
     Ok(doc)
 }

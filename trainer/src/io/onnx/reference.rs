@@ -149,9 +149,11 @@ impl Reference {
                     .map_err(|e| Error::Data(format!("reference tensor {name}: {e}")))
             })
             .collect::<Result<Vec<_>>>()?;
-        safetensors::tensor::serialize(views, Some(meta)).map_err(|e| Error::Serialise {
-            what: "the ONNX reference tensors",
-            reason: e.to_string(),
-        })
+        safetensors::tensor::serialize(views, Some(meta))
+            .map(sim::canonical_safetensors)
+            .map_err(|e| Error::Serialise {
+                what: "the ONNX reference tensors",
+                reason: e.to_string(),
+            })
     }
 }
