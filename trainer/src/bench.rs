@@ -24,10 +24,10 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::Result;
 use crate::algo::sac::{Sac, SacConfig};
 use crate::algo::smile::{DiscBatch, DiscLearner, disc_update};
 use crate::data::BatchVecs;
+use crate::error::Result;
 use crate::model::{ContextConfig, ContextEncoder, ContextSpec, DiscInput, Discriminator, ObsNorm};
 use crate::optim::{Adam, AdamConfig};
 

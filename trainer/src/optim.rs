@@ -227,7 +227,7 @@ mod tests {
             ts.iter()
                 .find(|(k, _)| k == n)
                 .map(|(_, t)| t.clone())
-                .ok_or_else(|| crate::Error::Shape(n.into()))
+                .ok_or_else(|| crate::error::Error::Shape(n.into()))
         };
         let mut b = Adam::new(vars.clone(), AdamConfig::with_lr(0.1));
         b.load_from("opt", &get, t).unwrap();

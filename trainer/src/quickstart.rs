@@ -17,11 +17,12 @@ use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
 use crate::algo::smile::{Smile, SmileConfig};
 use crate::algo::{MetaLearner, Progress};
 use crate::data::MetaData;
+use crate::error::{Error, Result};
+use crate::eval::blob::{self, BlobActor};
 use crate::eval::{self, EvalReport, MethodResult, Protocol};
-use crate::export::{self, BlobActor};
 use crate::io::bar;
+use crate::io::export;
 use crate::model::MetaPolicy;
-use crate::{Error, Result};
 use indicatif::MultiProgress;
 
 mod device;
@@ -614,7 +615,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     write(&out.join("policy.blob"), &blob)?;
     let model = export::load_blob(&blob)?;
     let mut actor = BlobActor::new(&model)?;
-    let parity = export::parity(&smile_policy, &mut actor, &test)?;
+    let parity = blob::parity(&smile_policy, &mut actor, &test)?;
     eprintln!(
         "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
         blob.len(),
@@ -625,7 +626,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let blob_result = evaluate(args, &mut actor, "SMILe w8a8 blob", &test)?;
     // The same report `smile export` writes next to a blob, so that
     // `firmware-sim compare --blob policy.blob` works on the quickstart's blob as it is.
-    let export_report = export::ExportReport {
+    let export_report = blob::ExportReport {
         bytes: blob.len(),
         blob_sha256: crate::io::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),

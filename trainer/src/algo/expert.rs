@@ -23,10 +23,10 @@ use crate::data::ReplayBuffer;
 use crate::data::better;
 mod demos;
 mod set;
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::threads::LearnerPool;
-use crate::{Error, Result};
 pub use demos::{DemoSpec, record, record_with};
 pub use set::{EvalReport, ExpertSet, evaluate, evaluate_under_noise, trained_task_value};
 

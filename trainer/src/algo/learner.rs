@@ -17,8 +17,8 @@ use crate::algo::expert::ExpertSet;
 use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
 use crate::algo::smile::{Smile, SmileConfig};
 use crate::data::MetaData;
+use crate::error::{Error, Result};
 use crate::model::MetaPolicy;
-use crate::{Error, Result};
 
 /// The meta-learners, by the name `smile train --algo` and sweep plans take.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -147,7 +147,7 @@ pub trait MetaLearner: Sized {
 
     /// [`Self::Config`] from TOML text over the defaults, validated.
     fn read_config(text: &str) -> Result<Self::Config> {
-        let cfg = crate::from_toml_over_defaults::<Self::Config>(text)
+        let cfg = crate::io::from_toml_over_defaults::<Self::Config>(text)
             .map_err(|e| Error::Config(e.message().to_string()))?;
         Self::validate(&cfg)?;
         Ok(cfg)

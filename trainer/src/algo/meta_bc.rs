@@ -30,6 +30,7 @@ use sim::{Environment, TaskDemos};
 use crate::algo::Progress;
 use crate::algo::expert::ExpertSet;
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, run_episode, sample_context};
+use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
@@ -39,7 +40,6 @@ use crate::model::{
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
-use crate::{Error, Result};
 
 mod config;
 

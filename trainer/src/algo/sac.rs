@@ -19,9 +19,9 @@ use rand::Rng;
 use serde::{Deserialize, Serialize};
 
 use crate::data::Batch;
+use crate::error::{Error, Result};
 use crate::model::{FrozenMlp, Mlp, TanhGaussianPolicy, scalar};
 use crate::optim::{Adam, AdamConfig};
-use crate::{Error, Result};
 
 /// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
 /// "SAC-v2"), the SMILe reference implementation (`../shared/reference/smile-reference.md` §2,

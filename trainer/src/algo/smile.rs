@@ -2,7 +2,7 @@
 //!
 //! A context-conditioned AIRL discriminator `D(x, z)` with `x = [norm(s), a]` (or
 //! `[norm(s), norm(s')]` state-only) and `z ~ q(z | c)` from the context encoder of
-//! [`crate::ContextEncoder`]; a SAC policy `pi(a | [norm(s), z])` trained on the reward the
+//! [`crate::model::ContextEncoder`]; a SAC policy `pi(a | [norm(s), z])` trained on the reward the
 //! discriminator gives. Schedule and batches follow the reference (`smile-reference.md` §1-2):
 //!
 //! * warm start: one rollout of the untrained policy in every training task;
@@ -59,6 +59,7 @@ use crate::data::{
     Batch, BatchVecs, MetaData, TaskReplay, better, distinct_tasks, quick_eval, run_episode,
     sample_context,
 };
+use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::model::scalar;
 use crate::model::{
@@ -67,7 +68,6 @@ use crate::model::{
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
-use crate::{Error, Result};
 
 /// A SMILe run: data, networks, optimisers, replay, counters.
 pub struct Smile {

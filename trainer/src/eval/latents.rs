@@ -15,7 +15,7 @@ use serde::Serialize;
 use sim::{DemoDataset, Family, Split, Trajectory};
 
 use super::{ConditionedActor, context_draw, contexts_for};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// Ridge weight per row of the probe, on z standardised per dimension: coefficients shrink by
 /// about 1 / 1.1. With a 16-D z and 25-32 tasks a nearly unregularised fit (1e-3) overfits

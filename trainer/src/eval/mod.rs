@@ -30,28 +30,9 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
 
 use crate::data::{ActionNoise, run_episode};
-use crate::model::MetaPolicy;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
-/// Something that turns a context into z and acts deterministically given z: a candle
-/// [`MetaPolicy`] or an exported blob.
-pub trait ConditionedActor {
-    /// Posterior mean of z for a context of trajectories.
-    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>>;
-    /// Deterministic action for a raw observation.
-    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()>;
-}
-
-impl ConditionedActor for MetaPolicy {
-    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
-        MetaPolicy::latent(self, context)
-    }
-    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
-        let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic
-        action.copy_from_slice(&MetaPolicy::act(self, obs, z, true, &mut rng)?);
-        Ok(())
-    }
-}
+pub use crate::model::ConditionedActor;
 
 /// Context sizes, draws and rollouts of a family's protocol.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

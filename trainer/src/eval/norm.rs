@@ -18,8 +18,8 @@ use sim::{Environment, Family, Split, Task};
 
 use crate::algo::expert::{Expert, ExpertSet, trained_task_value};
 use crate::data::run_episode;
+use crate::error::{Error, Result};
 use crate::eval::{self, Protocol, ReferenceReturns};
-use crate::{Error, Result};
 
 /// The base policy and the experts of the normalised metric, checked against the family.
 #[derive(Debug, Clone)]
@@ -222,14 +222,25 @@ mod tests {
         let pd = d.join("pd");
         std::fs::create_dir_all(&pd).unwrap();
         crate::algo::expert::export_scripted_pd(&pd).unwrap();
-        config_err(
+        for r in [
             References::load(Family::WalkerDyn, &pd, &[&general]),
-            "point-goal policy",
-        );
-        config_err(
             References::load(Family::WalkerDyn, &base, &[&pd]),
-            "point-goal policy",
-        );
+        ] {
+            match r {
+                Err(
+                    e @ Error::WrongFamily {
+                        found, expected, ..
+                    },
+                ) => {
+                    assert_eq!((found, expected), (Family::PointGoal, Family::WalkerDyn));
+                    assert!(
+                        e.to_string().contains("pd is point-goal, not walker-dyn"),
+                        "{e}"
+                    );
+                }
+                other => panic!("expected a wrong-family error, got {other:?}"),
+            }
+        }
         // A walker policy file whose input width is not walker-dyn's oracle observation.
         let narrow = d.join("narrow");
         let meta = serde_json::json!({

@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use super::{EvalReport, MethodResult, mean_std};
+use crate::error::{Error, Result};
 use crate::sweep::{MANIFEST_FILE, Manifest};
-use crate::{Error, Result};
 
 /// One seed of one method in one setting.
 #[derive(Debug, Clone)]

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use plotters::prelude::*;
 
 use super::report::Report;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 impl Report {
     /// Writes `report.md`, `report.json`, `tasks.svg` and (with several context sizes)

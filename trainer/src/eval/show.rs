@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use super::{EvalReport, mean_std};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 impl EvalReport {
     /// The report as a markdown table: one row per task, one column per method, then the

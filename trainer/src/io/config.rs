@@ -82,7 +82,7 @@ pub(crate) fn merge_tables(base: &mut toml::Table, over: toml::Table) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::smile::SmileConfig;
+    use crate::algo::smile::SmileConfig;
 
     #[test]
     fn a_partial_nested_table_keeps_the_algorithms_defaults() {

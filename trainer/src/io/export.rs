@@ -1,8 +1,8 @@
-//! Export of a trained [`MetaPolicy`](crate::MetaPolicy) to an infer-core blob (its verification, which
-//! evaluates the blob, is `crate::eval::blob`; both under `trainer::export`).
+//! Export of a trained [`MetaPolicy`](crate::model::MetaPolicy) to an infer-core blob (its verification, which
+//! evaluates the blob, is `eval::blob`; both under `trainer::export`).
 //!
 //! The blob is written only through `infer_core::write_blob` (the one definition of the
-//! format), from [`MetaPolicy::to_float_model`](crate::MetaPolicy::to_float_model): observation normalisation and action scaling
+//! format), from [`MetaPolicy::to_float_model`](crate::model::MetaPolicy::to_float_model): observation normalisation and action scaling
 //! are baked in. `w8a8` activation scales are calibrated on the meta-train demos (contexts =
 //! every training task's demos, observations = their states).
 

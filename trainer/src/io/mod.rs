@@ -9,6 +9,7 @@ pub mod lock;
 mod metrics;
 pub mod onnx;
 pub(crate) mod os_path;
+mod policy_file;
 pub mod progress;
 
 pub use config::{from_toml_over_defaults, from_toml_with_flags, set_key};

@@ -1,20 +1,18 @@
-//! A trained meta-policy: the context encoder of [`crate::ContextEncoder`] composed with the
+//! A trained meta-policy: the context encoder of [`crate::model::ContextEncoder`] composed with the
 //! tanh-Gaussian policy on `[norm(obs), z]`; `action = tanh(mu)` (sim's actions live in
-//! `[-1, 1]`, so `act_scale = 1`, `act_offset = 0`). Saved as one safetensors file, and
+//! `[-1, 1]`, so `act_scale = 1`, `act_offset = 0`). Saved as one safetensors file (the file's
+//! reading and writing live with the other files, in `crate::io::policy_file`), and
 //! converted to [`infer_core::FloatModel`] for export with exactly infer-core's semantics
 //! (tested against `FloatModel::latent` / `FloatModel::act` and the f32 blob).
-
-use std::path::Path;
 
 use candle_core::Tensor;
 use rand::Rng;
 use sim::{Family, Trajectory};
 
-use crate::error::{Error, Result};
-use crate::io::checkpoint;
+use crate::error::Result;
 use crate::model::Mlp;
 use crate::model::TanhGaussianPolicy;
-use crate::model::{ContextConfig, ContextEncoder, ObsNorm};
+use crate::model::{ContextEncoder, ObsNorm};
 
 /// File name of a trained meta-policy inside a run directory.
 pub const META_POLICY_FILE: &str = "meta_policy.safetensors";
@@ -142,139 +140,26 @@ impl MetaPolicy {
             policy: mlp_to_layers(self.policy.net(), Some(ad))?,
         })
     }
+}
 
-    /// Writes `dir/meta_policy.safetensors` atomically, without a training mark (a policy
-    /// made outside a training run).
-    pub fn save(&self, dir: &Path) -> Result<()> {
-        self.save_marked(dir, None)
+/// Something that turns a context into z and acts deterministically given z: a candle
+/// [`MetaPolicy`] or an exported blob (`eval::blob::BlobActor`). The evaluation protocols and
+/// the ONNX reference values run any of them.
+pub trait ConditionedActor {
+    /// Posterior mean of z for a context of trajectories.
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>>;
+    /// Deterministic action for a raw observation.
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()>;
+}
+
+impl ConditionedActor for MetaPolicy {
+    fn latent(&mut self, context: &[&Trajectory]) -> Result<Vec<f32>> {
+        MetaPolicy::latent(self, context)
     }
-
-    /// Writes `dir/meta_policy.safetensors` atomically with how far its training had got.
-    pub fn save_marked(&self, dir: &Path, mark: Option<TrainingMark>) -> Result<()> {
-        let mut ts = Vec::new();
-        mlp_tensors("phi", &self.encoder.phi, &mut ts);
-        mlp_tensors("head", &self.encoder.head, &mut ts);
-        mlp_tensors("policy", self.policy.net(), &mut ts);
-        let meta = serde_json::json!({
-            "kind": "meta-policy",
-            "env": self.family.name(),
-            "algo": self.algo,
-            "context": self.encoder.config(),
-            "norm": self.norm,
-            "policy_widths": self.policy.net().widths(),
-            "training": mark,
-        });
-        checkpoint::save_file(&dir.join(META_POLICY_FILE), &ts, &meta).map(|_| ())
-    }
-
-    /// Marks the meta-policy file at `path` (a run directory or the file) finished, keeping its
-    /// weights: training calls it once the budget is spent or it stopped early.
-    pub fn mark_finished(path: &Path) -> Result<()> {
-        let file = Self::file_of(path);
-        let mp = Self::load(&file)?;
-        let mut mark = Self::training_mark(&file)?.unwrap_or(TrainingMark {
-            updates: 0,
-            total_updates: 0,
-            finished: true,
-        });
-        mark.finished = true;
-        let dir = file.parent().unwrap_or(Path::new("."));
-        mp.save_marked(dir, Some(mark))
-    }
-
-    /// The training mark of a meta-policy file (or a run directory's); `None` for files
-    /// written before marks existed, or outside a training run.
-    pub fn training_mark(path: &Path) -> Result<Option<TrainingMark>> {
-        let file = Self::file_of(path);
-        let ck = checkpoint::load(&file)?;
-        match ck.meta.get("training") {
-            None | Some(serde_json::Value::Null) => Ok(None),
-            Some(_) => ck.meta_field("training").map(Some),
-        }
-    }
-
-    /// Refuses a meta-policy whose training did not finish (killed, or still running), saying
-    /// how to finish it; `allow` turns the refusal into a warning on stderr.
-    pub fn ensure_finished(path: &Path, allow: bool) -> Result<()> {
-        let file = Self::file_of(path);
-        let Some(mark) = Self::training_mark(&file)? else {
-            return Ok(());
-        };
-        if mark.finished {
-            return Ok(());
-        }
-        let dir = file.parent().unwrap_or(Path::new("."));
-        let err = Error::Unfinished {
-            path: file.clone(),
-            updates: mark.updates,
-            total: mark.total_updates,
-            resume: format!("smile train --resume -o {} --demos DEMOS", dir.display()),
-        };
-        if allow {
-            eprintln!("warning: {err} (used anyway: --allow-unfinished)");
-            Ok(())
-        } else {
-            Err(err)
-        }
-    }
-
-    fn file_of(path: &Path) -> std::path::PathBuf {
-        if path.is_dir() {
-            path.join(META_POLICY_FILE)
-        } else {
-            path.to_path_buf()
-        }
-    }
-
-    /// Loads a meta-policy from a run directory or a `meta_policy.safetensors` file.
-    pub fn load(path: &Path) -> Result<Self> {
-        let file = if path.is_dir() {
-            path.join(META_POLICY_FILE)
-        } else {
-            path.to_path_buf()
-        };
-        let ck = checkpoint::load(&file)?;
-        ck.ensure_finite()?;
-        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("meta-policy") {
-            return Err(Error::Checkpoint {
-                path: file,
-                reason: "not a meta-policy file".into(),
-            });
-        }
-        let family: Family = ck.meta_field("env")?;
-        let cfg: ContextConfig = ck.meta_field("context")?;
-        let norm: ObsNorm = ck.meta_field("norm")?;
-        let widths: Vec<usize> = ck.meta_field("policy_widths")?;
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-        use rand::SeedableRng;
-        let (od, ad) = (family.obs_dim(), family.act_dim());
-        let encoder = ContextEncoder::new(od, ad, cfg, &mut rng)?;
-        if widths.len() < 2
-            || widths[0] != od + encoder.z_dim()
-            || *widths.last().unwrap_or(&0) != 2 * ad
-        {
-            return Err(Error::Shape(format!(
-                "policy widths {widths:?} do not fit {family}"
-            )));
-        }
-        let policy = TanhGaussianPolicy::new(
-            widths[0],
-            ad,
-            &widths[1..widths.len() - 1],
-            (-20.0, 2.0),
-            &mut rng,
-        )?;
-        let get = |n: &str| ck.get(n);
-        mlp_load("phi", &encoder.phi, &get)?;
-        mlp_load("head", &encoder.head, &get)?;
-        mlp_load("policy", policy.net(), &get)?;
-        Ok(Self {
-            family,
-            algo: ck.meta_field("algo")?,
-            norm,
-            encoder,
-            policy,
-        })
+    fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0); // unused: deterministic
+        action.copy_from_slice(&MetaPolicy::act(self, obs, z, true, &mut rng)?);
+        Ok(())
     }
 }
 

@@ -1,6 +1,6 @@
 //! Sweeps: a plan (TOML) of methods x demo files x config axes x seeds, expanded into one run
 //! directory per cell and run locally (`--jobs`, one process per cell) or as a Slurm array.
-//! Results are aggregated by [`crate::eval::report`] (`smile report`).
+//! Results are aggregated by `smile report` (the `eval::report` module).
 
 mod local;
 mod plan;

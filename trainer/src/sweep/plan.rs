@@ -35,7 +35,7 @@ use serde::{Deserialize, Serialize};
 use sim::Family;
 
 use crate::algo::Algo;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// A sweep plan as written.
 #[derive(Debug, Clone, Deserialize, Serialize)]

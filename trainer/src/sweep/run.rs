@@ -21,7 +21,7 @@ use std::process::Command;
 use serde::{Deserialize, Serialize};
 
 use super::plan::{Cell, Sweep};
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// File name of the manifest in a sweep directory.
 pub const MANIFEST_FILE: &str = "manifest.json";
@@ -114,7 +114,7 @@ pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
         Status::Failed
     } else if dir
         .join("train/last")
-        .join(crate::META_POLICY_FILE)
+        .join(crate::model::META_POLICY_FILE)
         .exists()
     {
         Status::Trained
@@ -238,7 +238,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<
     let s = |p: &Path| -> OsString { p.as_os_str().to_owned() };
     if !train_dir
         .join("last")
-        .join(crate::META_POLICY_FILE)
+        .join(crate::model::META_POLICY_FILE)
         .exists()
     {
         let mut args: Vec<OsString> = vec!["train".into()];

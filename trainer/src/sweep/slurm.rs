@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use super::plan::Sweep;
-use crate::{Error, Result};
+use crate::error::{Error, Result};
 
 /// The scripts written for a sweep.
 #[derive(Debug, Clone)]

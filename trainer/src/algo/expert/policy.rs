@@ -9,10 +9,10 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use sim::{Family, PointGoalPdExpert};
 
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::POLICY_FILE;
 use crate::model::TanhGaussianPolicy;
-use crate::{Error, Result};
 
 pub(super) fn write_policy(
     dir: &Path,

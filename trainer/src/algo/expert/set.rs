@@ -1,5 +1,5 @@
 //! Sets of experts (per-task experts for demos) and deterministic expert evaluation with the
-//! family's metric. Re-exported from [`crate::expert`].
+//! family's metric. Re-exported from [`crate::algo::expert`].
 
 use std::path::Path;
 
@@ -7,9 +7,9 @@ use serde::Serialize;
 use sim::{EnvConfig, EpisodeMetric, Family, Task};
 
 use super::Expert;
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::POLICY_FILE;
-use crate::{Error, Result};
 
 /// The task value a per-task expert was trained on (`smile expert --task-value`, `--nominal`),
 /// `None` for a general expert; `path` is a run directory or a policy file.

@@ -4,8 +4,8 @@ use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
 use crate::data::ContextDraw;
+use crate::error::{Error, Result};
 use crate::model::ContextConfig;
-use crate::{Error, Result};
 
 /// The validation signal that keeps the best policy and stops training, both measured on the
 /// held-out *train* tasks (never the meta-test tasks).

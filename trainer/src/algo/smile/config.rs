@@ -5,8 +5,8 @@ use sim::{EnvConfig, Family};
 
 use crate::algo::sac::SacConfig;
 use crate::data::ContextDraw;
+use crate::error::{Error, Result};
 use crate::model::ContextConfig;
-use crate::{Error, Result};
 
 /// SMILe hyper-parameters. Defaults are the reference's point-goal prototype (§7) scaled for a
 /// CPU: encoder 64 -> r 32 -> 64 x 64 head -> z 16, discriminator and SAC 2 x 128, reward

@@ -6,10 +6,10 @@ use candle_core::backprop::GradStore;
 use candle_core::{DType, Device, Tensor};
 use rand::Rng;
 
+use crate::error::{Error, Result};
 use crate::model::scalar;
 use crate::model::{ContextBatch, ContextEncoder, DiscStats, Discriminator, bce_with_logits};
 use crate::optim::Adam;
-use crate::{Error, Result};
 
 /// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
 /// `per_task` policy rows of `x` (row `r` belongs to task `r / per_task`).

@@ -8,10 +8,10 @@ use candle_core::Tensor;
 use super::{Smile, SmileConfig};
 use crate::algo::sac::SacCounters;
 use crate::data::MetaData;
+use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
 use crate::model::{mlp_load, mlp_tensors};
-use crate::{Error, Result};
 
 impl Smile {
     /// Writes the checkpoint (every tensor, the RNG, the counters and the config) to `dir`.

@@ -1,4 +1,4 @@
-//! Export of a trained [`MetaPolicy`](crate::MetaPolicy) as ONNX, for runtimes other than infer-core.
+//! Export of a trained [`MetaPolicy`](crate::model::MetaPolicy) as ONNX, for runtimes other than infer-core.
 //!
 //! Two graphs and a description, in one directory (`smile export --format onnx -o DIR`):
 //!
@@ -20,7 +20,7 @@
 //! * [`META_FILE`]: the family, the algorithm, the opset, every input and output with its shape,
 //!   the normalisation (the graphs apply it: feed raw observations).
 //!
-//! The weights and statistics come from [`MetaPolicy::to_float_model`](crate::MetaPolicy::to_float_model), the structure the blob
+//! The weights and statistics come from [`MetaPolicy::to_float_model`](crate::model::MetaPolicy::to_float_model), the structure the blob
 //! is written from, so the two exports cannot drift apart. The trajectory, step and batch axes
 //! are symbolic (`dim_param`). [`reference`](fn@reference) computes the trainer's z and actions on held-out
 //! contexts (padded and masked the way a runtime would get them), which `smile export` stores

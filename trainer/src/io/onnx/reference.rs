@@ -6,8 +6,8 @@ use std::collections::HashMap;
 use sim::{DemoDataset, Trajectory};
 
 use crate::error::{Error, Result};
-use crate::eval::ConditionedActor;
 use crate::io::export::{check_demos_fit, raw_transitions};
+use crate::model::ConditionedActor;
 use crate::model::MetaPolicy;
 
 /// One context of a [`Reference`], as a runtime is fed it, with the trainer's outputs.
