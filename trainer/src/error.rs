@@ -22,7 +22,7 @@ pub enum Error {
     Data(String),
     /// An input is of another task family than the one asked for (demos for the config's
     /// family, an expert among others, a policy for its demos).
-    #[error("{what} is {found}, not {expected}")]
+    #[error("{what}: family {found}, expected {expected}")]
     WrongFamily {
         /// The input, named for a person (a path, "the demos").
         what: String,

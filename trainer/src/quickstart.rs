@@ -543,8 +543,9 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     } else if let Some(assets) = &args.shipped {
         eprintln!(
             "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
-             (SMILe, 40k update pairs on {}-step episodes, is the long stage)",
+             (SMILe, {}k update pairs on {}-step episodes, is the long stage)",
             assets.display(),
+            smile_config(args)?.total_updates / 1000,
             args.horizon().unwrap_or_else(
                 || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
             )

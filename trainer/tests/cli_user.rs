@@ -79,7 +79,9 @@ fn export_refuses_demos_of_another_family_in_one_line_and_f32_needs_no_calibrati
         assert_eq!(out.status.code(), Some(1), "not a clean error exit: {err}");
         assert!(!err.contains("panicked"), "{err}");
         assert!(
-            err.contains("cheetah.safetensors is cheetah-vel, not point-goal"),
+            err.contains(
+                "cheetah.safetensors, for this policy: family cheetah-vel, expected point-goal"
+            ),
             "{err}"
         );
         assert!(!blob.exists(), "a blob was written from mismatched demos");

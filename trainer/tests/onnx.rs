@@ -324,7 +324,10 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
         export(&x, &["--demos", s(&cheetah)]),
     ] {
         let err = one_line_error(&o);
-        assert!(err.contains("is cheetah-vel, not point-goal"), "{err}");
+        assert!(
+            err.contains("family cheetah-vel, expected point-goal"),
+            "{err}"
+        );
     }
     // Unwritable outputs: below a file, a file, a directory of something else.
     let file = dir.join("a-file");

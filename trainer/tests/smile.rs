@@ -156,13 +156,38 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     assert!(cpu > 0.0);
     MetaPolicy::load(&dir).unwrap();
     MetaPolicy::load(&dir.join("last")).unwrap();
-    // Resumed without a budget, it runs to its (new) total.
+    // The budget counts the whole run: resumed under the same one, it stops again at once.
+    let mut again = Smile::resume(&dir, data.clone(), Some(1_000_000)).unwrap();
+    smile::train(&mut again, &dir, &mut |_| {}).unwrap();
+    assert_eq!(
+        again.updates(),
+        20,
+        "one iteration, then the spent budget stops it"
+    );
+    // Resumed without a budget, it runs to its (new) total; the CPU count carries on.
     let mut resumed = Smile::resume(&dir, data, Some(30)).unwrap();
-    assert_eq!(resumed.updates(), 10);
+    assert_eq!(resumed.updates(), 20);
     assert!(resumed.set_cpu_budget(-1.0).is_err());
     resumed.set_cpu_budget(0.0).unwrap();
     smile::train(&mut resumed, &dir, &mut |_| {}).unwrap();
     assert_eq!(resumed.updates(), 30);
+    let cpus: Vec<f64> = std::fs::read_to_string(dir.join("metrics.jsonl"))
+        .unwrap()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter_map(|v| v["charts/cpu_s"].as_f64())
+        .collect();
+    assert!(
+        cpus.windows(2).all(|w| w[1] >= w[0]) && cpus.len() == 3,
+        "charts/cpu_s over the three processes: {cpus:?}"
+    );
+    // A damaged count is refused, not silently reset to zero.
+    std::fs::write(dir.join("compute.json"), "{\"cpu_s\": \"lots\"}").unwrap();
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let Err(e) = Smile::resume(&dir, data, Some(40)) else {
+        panic!("a damaged compute.json was accepted")
+    };
+    assert!(e.to_string().contains("compute.json"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -188,7 +213,8 @@ fn demos_of_another_family_are_a_typed_error() {
         "{e}"
     );
     assert!(
-        e.to_string().contains("is point-goal, not cheetah-vel"),
+        e.to_string()
+            .contains("family point-goal, expected cheetah-vel"),
         "{e}"
     );
 }

@@ -79,6 +79,18 @@ fn bad_plans_are_refused_before_anything_runs() {
             "unknown algo \"smiley\"",
         ),
         (
+            good.replace("[algo.smile]", "[algo.smile]\nexpert = \"train.safetensors\""),
+            "smile takes no `expert`",
+        ),
+        (
+            good.replace("[algo.smile]", "[algo.smile]\nalgo = \"smile-state-only\"")
+                .replace(
+                    "total_updates = 600,",
+                    "total_updates = 600, bc_weight = 1.0,",
+                ),
+            "the state-only variant has none",
+        ),
+        (
             good.replace("rollouts = 2", "rollouts = 2\nbase = \"b\""),
             "`base` and `experts` go together",
         ),

@@ -60,12 +60,18 @@ impl Algo {
         }
     }
 
-    /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration and
+    /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
+    /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.
-    pub fn check_config(self, text: &str) -> Result<()> {
+    pub fn check_config(self, text: &str, family: Family) -> Result<()> {
+        fn check<L: MetaLearner>(text: &str, algo: Algo, family: Family) -> Result<()> {
+            let mut cfg = L::read_config(text)?;
+            L::configure(&mut cfg, algo, family);
+            L::validate(&cfg)
+        }
         match self {
-            Algo::Smile | Algo::SmileStateOnly => Smile::read_config(text).map(drop),
-            Algo::MetaBc | Algo::MetaDagger => MetaBc::read_config(text).map(drop),
+            Algo::Smile | Algo::SmileStateOnly => check::<Smile>(text, self, family),
+            Algo::MetaBc | Algo::MetaDagger => check::<MetaBc>(text, self, family),
         }
     }
 }
@@ -322,10 +328,20 @@ mod tests {
 
     #[test]
     fn configs_are_checked_against_their_algorithm() {
-        Algo::Smile.check_config("gp_weight = 10.0").unwrap();
+        let pg = Family::PointGoal;
+        Algo::Smile.check_config("gp_weight = 10.0", pg).unwrap();
         // A SMILe key is unknown to Meta-BC, and an invalid value is refused by its own type.
-        assert!(Algo::MetaBc.check_config("gp_weight = 10.0").is_err());
-        assert!(Algo::Smile.check_config("gp_weight = -1.0").is_err());
-        Algo::MetaDagger.check_config("total_steps = 10").unwrap();
+        assert!(Algo::MetaBc.check_config("gp_weight = 10.0", pg).is_err());
+        assert!(Algo::Smile.check_config("gp_weight = -1.0", pg).is_err());
+        Algo::MetaDagger
+            .check_config("total_steps = 10", pg)
+            .unwrap();
+        // What the algorithm sets is checked too: state-only SMILe has no actions to clone.
+        Algo::Smile.check_config("bc_weight = 1.0", pg).unwrap();
+        assert!(
+            Algo::SmileStateOnly
+                .check_config("bc_weight = 1.0", pg)
+                .is_err()
+        );
     }
 }

@@ -82,7 +82,7 @@ impl MetaBc {
         let family = cfg.env;
         if data.family != family {
             return Err(Error::WrongFamily {
-                what: "the demos (the config's `env` says otherwise)".into(),
+                what: "the demos, for the config's `env`".into(),
                 found: data.family,
                 expected: family,
             });

@@ -86,6 +86,8 @@ pub struct Smile {
     rng: ChaCha8Rng,
     updates: u64,
     env_steps: u64,
+    /// CPU-seconds its training processes have used so far, over every resume (`cpu_budget_s`).
+    cpu_s: f64,
     episodes: u64,
     best: f32,
     /// The learner threads of `learner_threads > 1`, started at the first update pair.
@@ -99,7 +101,7 @@ impl Smile {
         let family = cfg.env;
         if data.family != family {
             return Err(Error::WrongFamily {
-                what: "the demos (the config's `env` says otherwise)".into(),
+                what: "the demos, for the config's `env`".into(),
                 found: data.family,
                 expected: family,
             });
@@ -145,6 +147,7 @@ impl Smile {
             rng,
             updates: 0,
             env_steps: 0,
+            cpu_s: 0.0,
             episodes: 0,
             best: f32::NAN,
             pool: None,
@@ -428,9 +431,10 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
 /// `dir/meta_policy.safetensors`; the final one as `dir/last/meta_policy.safetensors`) and
 /// checkpointing every `checkpoint_every` updates and at the end.
 pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
-    // The compute budget (`cpu_budget_s`) counts this process's CPU time from here, warm
-    // start and first evaluation included.
-    let cpu0 = crate::threads::process_cpu_seconds();
+    // The compute budget (`cpu_budget_s`) counts the run's CPU time: what its earlier
+    // processes used (from the checkpoint) plus this process's from here, warm start and
+    // first evaluation included.
+    let (cpu_before, cpu0) = (run.cpu_s, crate::threads::process_cpu_seconds());
     if run.cfg.cpu_budget_s > 0.0 && cpu0.is_none() {
         return Err(Error::Config(
             "cpu_budget_s is set, but this platform does not report the process's CPU time".into(),
@@ -473,9 +477,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Resul
             on(Progress::Steps(run.updates));
         }
         let ups = (run.updates - u0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
-        let cpu_s = crate::threads::process_cpu_seconds()
-            .zip(cpu0)
-            .map_or(0.0, |(now, start)| now - start);
+        let cpu_s = cpu_before
+            + crate::threads::process_cpu_seconds()
+                .zip(cpu0)
+                .map_or(0.0, |(now, start)| now - start);
+        run.cpu_s = cpu_s;
         done = run.updates >= cfg.total_updates
             || (cfg.cpu_budget_s > 0.0 && cpu_s >= cfg.cpu_budget_s);
         let mut fields = vec![

@@ -234,7 +234,8 @@ mod tests {
                 ) => {
                     assert_eq!((found, expected), (Family::PointGoal, Family::WalkerDyn));
                     assert!(
-                        e.to_string().contains("pd is point-goal, not walker-dyn"),
+                        e.to_string()
+                            .contains("pd: family point-goal, expected walker-dyn"),
                         "{e}"
                     );
                 }

@@ -77,7 +77,7 @@ pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibrat
 pub fn check_demos_fit(mp: &MetaPolicy, demos: &DemoDataset, what: &str) -> Result<()> {
     if demos.family != mp.family {
         return Err(Error::WrongFamily {
-            what: what.to_string(),
+            what: format!("{what}, for this policy"),
             found: demos.family,
             expected: mp.family,
         });

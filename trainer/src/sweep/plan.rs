@@ -337,6 +337,12 @@ impl Sweep {
             let kind: Algo = algo
                 .parse()
                 .map_err(|e| err(Some(&format!("[algo.{name}]")), message(e)))?;
+            if !kind.needs_expert() && m.expert.is_some() {
+                return Err(err(
+                    Some(&format!("[algo.{name}]")),
+                    format!("{algo} takes no `expert` (only meta-dagger relabels with one)"),
+                ));
+            }
             // Point-goal's scripted PD controller relabels when no expert is named.
             if kind.needs_expert() && m.expert.is_none() && family != Family::PointGoal {
                 return Err(err(
@@ -369,7 +375,7 @@ impl Sweep {
                         }
                         t.insert("seed".into(), toml::Value::Integer(seed as i64));
                         t.insert("env".into(), toml::Value::String(family.name().into()));
-                        check_config(kind, &t).map_err(|e| {
+                        check_config(kind, &t, family).map_err(|e| {
                             let key = point
                                 .iter()
                                 .map(|(k, _)| k.as_str())
@@ -469,7 +475,7 @@ fn message(e: Error) -> String {
 }
 
 /// Deserialises `t` into the algorithm's config type and validates it.
-fn check_config(algo: Algo, t: &toml::Table) -> std::result::Result<(), String> {
+fn check_config(algo: Algo, t: &toml::Table, family: Family) -> std::result::Result<(), String> {
     let s = toml::to_string(t).map_err(|e| e.to_string())?;
-    algo.check_config(&s).map_err(message)
+    algo.check_config(&s, family).map_err(message)
 }

@@ -67,7 +67,7 @@ impl ExpertSet {
             });
             if ex.family() != s.family {
                 return Err(Error::WrongFamily {
-                    what: format!("the expert {} (the others are {})", p.display(), s.family),
+                    what: format!("the expert {}, beside the others", p.display()),
                     found: ex.family(),
                     expected: s.family,
                 });

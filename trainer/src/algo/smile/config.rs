@@ -80,9 +80,9 @@ pub struct SmileConfig {
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
-    /// A compute budget: stop at the end of the first iteration after the training process
-    /// has used this many CPU-seconds (user + system, every thread; a resumed run counts from
-    /// its resume), then evaluate, checkpoint and finish as at `total_updates`. Comparisons at
+    /// A compute budget: stop at the end of the first iteration after the run has used this
+    /// many CPU-seconds (user + system, every thread, summed over its resumes: the checkpoint
+    /// keeps the count), then evaluate, checkpoint and finish as at `total_updates`. Comparisons at
     /// equal compute then hold on a machine shared with other work, where wall-clock ones do
     /// not (issue 32: the authors' widths against narrow ones). 0: no budget. Like
     /// `total_updates` it may change on `--resume`. Default 0.

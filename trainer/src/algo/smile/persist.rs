@@ -40,6 +40,14 @@ impl Smile {
             "rng": rng_state(&self.rng),
         });
         checkpoint::save(dir, &ts, &meta)?;
+        // The compute used so far (`cpu_budget_s`) beside the checkpoint, not in it: a timing
+        // would make the checkpoints of two identical runs differ.
+        checkpoint::write_atomic(
+            &dir.join(COMPUTE_FILE),
+            serde_json::json!({ "cpu_s": self.cpu_s })
+                .to_string()
+                .as_bytes(),
+        )?;
         Ok(())
     }
 
@@ -80,9 +88,32 @@ impl Smile {
         run.replay.load_tensors("replay", &get).map_err(wrap)?;
         run.updates = ck.meta_field("updates")?;
         run.env_steps = ck.meta_field("env_steps")?;
+        run.cpu_s = read_compute(dir)?;
         run.episodes = ck.meta_field("episodes")?;
         run.best = ck.meta_field::<Option<f32>>("best")?.unwrap_or(f32::NAN);
         run.rng = ck.meta_rng("rng")?;
         Ok(run)
     }
+}
+
+/// The run's compute so far, written beside every checkpoint.
+const COMPUTE_FILE: &str = "compute.json";
+
+/// The CPU-seconds recorded in `dir`'s [`COMPUTE_FILE`]; 0 where there is none (a run from
+/// before the compute budget). A file that does not hold a count is an error, not a reset.
+fn read_compute(dir: &Path) -> Result<f64> {
+    let path = dir.join(COMPUTE_FILE);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(0.0);
+    };
+    serde_json::from_str::<serde_json::Value>(&text)
+        .ok()
+        .and_then(|v| v["cpu_s"].as_f64())
+        .filter(|v| v.is_finite() && *v >= 0.0)
+        .ok_or_else(|| Error::Checkpoint {
+            path,
+            reason: "does not hold the run's CPU-seconds ({\"cpu_s\": N}); restore it, or \
+                     delete it to count the compute from this resume"
+                .into(),
+        })
 }

@@ -60,17 +60,17 @@ pub struct TrainArgs {
     #[arg(long)]
     config: Option<PathBuf>,
     /// Continue the run in `--out` from its checkpoint, with the configuration it started
-    /// with: only `--updates` may change (a larger budget); other settings given here must
-    /// match the run's or are refused, as are other demos than the run's.
+    /// with: only `--updates` (and SMILe's `--cpu-budget`) may change; other settings given
+    /// here must match the run's or are refused, as are other demos than the run's.
     #[arg(long, conflicts_with = "config")]
     resume: bool,
     /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger), at least 1.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     updates: Option<u64>,
-    /// SMILe: a compute budget in CPU-seconds (user + system, every thread) for this
-    /// invocation; training stops at the first iteration end past it and finishes as at
+    /// SMILe: a compute budget in CPU-seconds (user + system, every thread) for the whole run,
+    /// resumes included; training stops at the first iteration end past it and finishes as at
     /// `--updates` (the config's `cpu_budget_s`; 0: none). For comparisons at equal compute on
-    /// a machine that also runs other work.
+    /// a machine that also runs other work; raise it on `--resume` to continue.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     cpu_budget: Option<f32>,
     /// Seed.
@@ -360,6 +360,12 @@ fn relabelling_expert(
     family: Family,
 ) -> Result<(Option<trainer::expert::ExpertSet>, Option<PathBuf>)> {
     if !algo.needs_expert() {
+        if let Some(p) = &a.expert {
+            bail!(
+                "--expert {} is Meta-DAgger's relabelling expert; {algo} learns from the demos                  alone (drop --expert, or train --algo meta-dagger)",
+                p.display()
+            );
+        }
         return Ok((None, None));
     }
     let scripted = a.expert.as_deref() == Some(std::path::Path::new(SCRIPTED_PD));
