@@ -79,7 +79,10 @@ fn bad_plans_are_refused_before_anything_runs() {
             "unknown algo \"smiley\"",
         ),
         (
-            good.replace("[algo.smile]", "[algo.smile]\nexpert = \"train.safetensors\""),
+            good.replace(
+                "[algo.smile]",
+                "[algo.smile]\nexpert = \"train.safetensors\"",
+            ),
             "smile takes no `expert`",
         ),
         (
