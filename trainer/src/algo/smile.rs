@@ -426,10 +426,11 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
     (j, k)
 }
 
-/// Trains until `total_updates` (or the `cpu_budget_s` compute budget), logging to `dir/metrics.jsonl`, evaluating on held-out train
-/// tasks every `eval_every` updates (the best policy so far is saved as
-/// `dir/meta_policy.safetensors`; the final one as `dir/last/meta_policy.safetensors`) and
-/// checkpointing every `checkpoint_every` updates and at the end.
+/// Trains until `total_updates` (or the `cpu_budget_s` compute budget), logging to
+/// `dir/metrics.jsonl`, evaluating on held-out train tasks every `eval_every` updates (the best
+/// policy so far is saved as `dir/meta_policy.safetensors`; the final one as
+/// `dir/last/meta_policy.safetensors`) and checkpointing every `checkpoint_every` updates and at
+/// the end.
 pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     // The compute budget (`cpu_budget_s`) counts the run's CPU time: what its earlier
     // processes used (from the checkpoint) plus this process's from here, warm start and
