@@ -151,12 +151,11 @@ pub trait MetaLearner: Sized {
     /// needs, [`MetaData::from_dataset`]).
     fn holdout_every(cfg: &Self::Config) -> usize;
 
-    /// [`Self::Config`] from TOML text over the defaults, validated.
+    /// [`Self::Config`] from TOML text over the defaults (not yet validated: the algorithm's
+    /// own settings, [`Self::configure`], come first).
     fn read_config(text: &str) -> Result<Self::Config> {
-        let cfg = crate::io::from_toml_over_defaults::<Self::Config>(text)
-            .map_err(|e| Error::Config(e.message().to_string()))?;
-        Self::validate(&cfg)?;
-        Ok(cfg)
+        crate::io::from_toml_over_defaults::<Self::Config>(text)
+            .map_err(|e| Error::Config(e.message().to_string()))
     }
 
     /// A fresh run; `expert` only where [`Algo::needs_expert`].
