@@ -8,23 +8,53 @@ fn read(name: &str) -> String {
     std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
 }
 
-/// The narrow-width twin of the authors' cheetah preset differs from it in the widths alone
-/// (issue 32's width comparison is a one-factor one), and in how often it evaluates.
+/// The narrow-width twins of the authors' presets (one per family) differ from them in the
+/// widths alone (issue 32's width comparison is a one-factor one, and the grid runs the
+/// winner), and in how often they evaluate.
 #[test]
-fn the_narrow_authors_preset_differs_only_in_width() {
-    let wide: SmileConfig = toml::from_str(&read("authors-cv-smile.toml")).unwrap();
-    let mut narrow: SmileConfig = toml::from_str(&read("authors-cv-smile-narrow.toml")).unwrap();
-    narrow.validate().unwrap();
-    assert_eq!(narrow.disc_hidden, vec![128, 128]);
-    assert_eq!(narrow.sac.hidden, vec![128, 128]);
-    assert_eq!((narrow.context.r_dim, narrow.context.z_dim), (32, 16));
-    narrow.disc_hidden = wide.disc_hidden.clone();
-    narrow.sac.hidden = wide.sac.hidden.clone();
-    narrow.context = wide.context.clone();
-    narrow.total_updates = wide.total_updates;
-    narrow.eval_every = wide.eval_every;
-    narrow.checkpoint_every = wide.checkpoint_every;
-    assert_eq!(narrow, wide);
+fn the_narrow_authors_presets_differ_only_in_width() {
+    for (wide, narrow, sac, actor) in [
+        (
+            "authors-cv-smile.toml",
+            "authors-cv-smile-narrow.toml",
+            [128, 128],
+            None,
+        ),
+        (
+            "authors-wd-smile.toml",
+            "authors-wd-smile-narrow.toml",
+            [128, 128],
+            None,
+        ),
+        (
+            "authors-ag-smile.toml",
+            "authors-ag-smile-narrow.toml",
+            [256, 256],
+            Some(vec![256, 256]),
+        ),
+        (
+            "authors-alc-smile.toml",
+            "authors-alc-smile-narrow.toml",
+            [256, 256],
+            Some(vec![256, 256]),
+        ),
+    ] {
+        let wide: SmileConfig = toml::from_str(&read(wide)).unwrap();
+        let mut narrow: SmileConfig = toml::from_str(&read(narrow)).unwrap();
+        narrow.validate().unwrap();
+        assert_eq!(narrow.disc_hidden, vec![128, 128]);
+        assert_eq!(narrow.sac.hidden, sac.to_vec());
+        assert_eq!(narrow.sac.actor_hidden, actor);
+        assert_eq!((narrow.context.r_dim, narrow.context.z_dim), (32, 16));
+        narrow.disc_hidden = wide.disc_hidden.clone();
+        narrow.sac.hidden = wide.sac.hidden.clone();
+        narrow.sac.actor_hidden = wide.sac.actor_hidden.clone();
+        narrow.context = wide.context.clone();
+        narrow.total_updates = wide.total_updates;
+        narrow.eval_every = wide.eval_every;
+        narrow.checkpoint_every = wide.checkpoint_every;
+        assert_eq!(narrow, wide);
+    }
 }
 
 #[test]

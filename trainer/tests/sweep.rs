@@ -506,3 +506,54 @@ fn a_set_table_merges_into_the_base_configs_table() {
     assert_eq!(sac["hidden"].as_array().map(Vec::len), Some(2), "{cfg}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Cells run one by one (`smile sweep run-cell`, as a hand-made queue or a cluster does) leave
+/// a manifest that `smile report` reads, naming what is not done yet; a directory that is
+/// neither a sweep nor an evaluation is refused with what to do, not "No such file".
+#[test]
+fn cells_run_one_by_one_leave_a_manifest_the_report_reads() {
+    let dir = tmp("run-cell");
+    let out = dir.join("out");
+    let plan = setup(
+        &dir,
+        &plan_with_out(&out).replace("total_updates = 600", "total_updates = 200"),
+    );
+    std::fs::create_dir_all(&out).unwrap();
+    let e = smile(&["report", out.to_str().unwrap(), "-o", "unused"]);
+    assert!(!e.status.success());
+    let err = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        err.contains("neither a sweep directory") && err.contains("run-cell"),
+        "{err}"
+    );
+    ok(&smile(&[
+        "sweep",
+        "run-cell",
+        plan.to_str().unwrap(),
+        "--index",
+        "1",
+    ]));
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&bytes(&out.join("manifest.json"))).unwrap();
+    let status: Vec<&str> = manifest["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["status"].as_str().unwrap())
+        .collect();
+    assert_eq!(status, ["pending", "done"]);
+    let rep = dir.join("report");
+    let err = ok(&smile(&[
+        "report",
+        out.to_str().unwrap(),
+        "-o",
+        rep.to_str().unwrap(),
+    ]));
+    assert!(
+        err.contains("smile-s0"),
+        "the cell left out is named: {err}"
+    );
+    let json: serde_json::Value = serde_json::from_slice(&bytes(&rep.join("report.json"))).unwrap();
+    assert_eq!(json["rows"][0]["seeds"].as_array().unwrap().len(), 1);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -213,6 +213,14 @@ impl Report {
                     }
                 }
             } else {
+                if input.is_dir() && !input.join("eval.json").exists() {
+                    return Err(Error::Data(format!(
+                        "{}: neither a sweep directory (no {MANIFEST_FILE}) nor an evaluation \
+                         (no eval.json); a sweep's manifest is written when it starts, by `--slurm` \
+                         and after each `smile sweep run-cell`",
+                        input.display()
+                    )));
+                }
                 for r in take(read_eval(input)?, input)? {
                     let method = r.name.split(" (").next().unwrap_or(&r.name).to_string();
                     entries.push(Entry {

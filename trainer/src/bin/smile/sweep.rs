@@ -79,7 +79,12 @@ fn run_cell(a: RunCellArgs) -> Result<()> {
         .cells
         .get(index)
         .map_or_else(String::new, |c| c.name.clone());
-    match sweep::run_cell(&sweep, index, &exe()?)? {
+    let outcome = sweep::run_cell(&sweep, index, &exe()?)?;
+    if outcome != CellOutcome::Busy {
+        // Every cell's status, so `smile report` reads a sweep whose cells ran one by one.
+        sweep::write_manifest(&sweep)?;
+    }
+    match outcome {
         CellOutcome::AlreadyDone => eprintln!("cell {index} ({name}) is done already"),
         CellOutcome::Ran => eprintln!("cell {index} ({name}) done"),
         CellOutcome::Busy => {
