@@ -6,7 +6,11 @@ one line per cell, coloured by method; with each cell's final
 meta-test metric (eval/eval.json) and its training's last step and wall-clock, so a table can
 state each method's updates and time.
 
-    python3 docs/scripts/learning_curves.py SWEEP_DIR OUT_PREFIX [TITLE]
+    python3 docs/scripts/learning_curves.py SWEEP_DIR OUT_PREFIX [TITLE] [--also [METHOD=]DIR]...
+
+`--also` adds cells from elsewhere to the same table and plot: DIR is another sweep directory
+or one cell's directory (`runs/cv-width/narrow-s0`); `METHOD=` names their method (else the
+cell name without its `-sN`), e.g. `--also smile=runs/cv-width/narrow-s0`.
 
 writes OUT_PREFIX.json (the curves and the per-cell summary) and OUT_PREFIX.svg (needs
 matplotlib), and prints a markdown table: method, seeds, test metric mean +- std over seeds,
@@ -18,11 +22,16 @@ import statistics
 import sys
 
 
-def cells(sweep):
+def cells(sweep, method=None):
+    """(cell name, method, directory) of every trained cell in a sweep, or of one cell."""
+    if os.path.exists(os.path.join(sweep, "train", "metrics.jsonl")):
+        name = os.path.basename(sweep.rstrip("/"))
+        yield name, method or method_of(name), sweep
+        return
     for name in sorted(os.listdir(sweep)):
         train = os.path.join(sweep, name, "train", "metrics.jsonl")
         if os.path.exists(train):
-            yield name, os.path.join(sweep, name)
+            yield name, method or method_of(name), os.path.join(sweep, name)
 
 
 def method_of(name):
@@ -30,10 +39,24 @@ def method_of(name):
 
 
 def main():
-    sweep, out = sys.argv[1], sys.argv[2]
-    title = sys.argv[3] if len(sys.argv) > 3 else os.path.basename(sweep.rstrip("/"))
+    args, also = [], []
+    it = iter(sys.argv[1:])
+    for a in it:
+        if a == "--also":
+            spec = next(it, None)
+            if spec is None:
+                sys.exit("--also needs [METHOD=]DIR")
+            method, _, d = spec.rpartition("=")
+            also.append((d, method or None))
+        else:
+            args.append(a)
+    if len(args) < 2:
+        sys.exit(__doc__)
+    sweep, out = args[0], args[1]
+    title = args[2] if len(args) > 2 else os.path.basename(sweep.rstrip("/"))
     data = []
-    for name, d in cells(sweep):
+    found = [c for src in [(sweep, None)] + also for c in cells(*src)]
+    for name, method, d in found:
         steps, walls, cpus, vals, last_step, last_wall = [], [], [], [], 0, 0.0
         cpu = 0.0
         for line in open(os.path.join(d, "train", "metrics.jsonl")):
@@ -49,12 +72,12 @@ def main():
         ev = os.path.join(d, "eval", "eval.json")
         if os.path.exists(ev):
             test = json.load(open(ev))["methods"][0]["mean"]
-        data.append({"cell": name, "method": method_of(name), "steps": steps, "wall_s": walls,
+        data.append({"cell": name, "method": method, "steps": steps, "wall_s": walls,
                      "cpu_s": cpus, "val_metric": vals, "last_step": last_step,
                      "last_wall_s": round(last_wall), "last_cpu_s": round(cpu),
                      "test_metric": test})
     with open(out + ".json", "w") as f:
-        json.dump({"sweep": sweep, "cells": data}, f, indent=1)
+        json.dump({"sweep": sweep, "also": [d for d, _ in also], "cells": data}, f, indent=1)
         f.write("\n")
     methods = sorted({c["method"] for c in data})
     print("| method | seeds | meta-test metric (mean +- std over seeds) | steps per cell | wall-clock per cell (s) | CPU per cell (s) |")
@@ -78,11 +101,13 @@ def main():
     with_cpu = any(c["last_cpu_s"] for c in data)
     fig, axes = plt.subplots(1, 3 if with_cpu else 2, figsize=(16 if with_cpu else 11, 4))
     colours = {m: f"C{i}" for i, m in enumerate(methods)}
+    labelled = set()
     for c in data:
-        label = c["method"] if c["cell"].endswith("-s0") else None
+        label = None if c["method"] in labelled else c["method"]
+        labelled.add(c["method"])
         axes[0].plot(c["steps"], c["val_metric"], color=colours[c["method"]], label=label, lw=1)
         axes[1].plot(c["wall_s"], c["val_metric"], color=colours[c["method"]], lw=1)
-        if with_cpu:
+        if with_cpu and c["last_cpu_s"]:  # runs from before charts/cpu_s have no CPU axis
             axes[2].plot(c["cpu_s"], c["val_metric"], color=colours[c["method"]], lw=1)
     axes[0].set_xlabel("update pairs (SMILe) / gradient steps (Meta-BC)")
     axes[1].set_xlabel("wall-clock (s)")
