@@ -161,6 +161,18 @@ fn process_tree(root: u32) -> Vec<u32> {
     tree
 }
 
+/// Each cell's status in the sweep directory's manifest, in cell order.
+fn manifest_status(sweep: &Path) -> Vec<String> {
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&bytes(&sweep.join("manifest.json"))).unwrap();
+    manifest["cells"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["status"].as_str().unwrap().to_string())
+        .collect()
+}
+
 fn bytes(p: &Path) -> Vec<u8> {
     std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
@@ -230,15 +242,7 @@ fn a_killed_local_sweep_resumes_to_the_same_results() {
             );
         }
     }
-    let manifest: serde_json::Value =
-        serde_json::from_slice(&bytes(&b.join("manifest.json"))).unwrap();
-    let status: Vec<&str> = manifest["cells"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["status"].as_str().unwrap())
-        .collect();
-    assert_eq!(status, ["done", "done"]);
+    assert_eq!(manifest_status(&b), ["done", "done"]);
 
     // `smile report` on the sweep directory: one row over both seeds.
     let rep = dir.join("report");
@@ -533,15 +537,7 @@ fn cells_run_one_by_one_leave_a_manifest_the_report_reads() {
         "--index",
         "1",
     ]));
-    let manifest: serde_json::Value =
-        serde_json::from_slice(&bytes(&out.join("manifest.json"))).unwrap();
-    let status: Vec<&str> = manifest["cells"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|c| c["status"].as_str().unwrap())
-        .collect();
-    assert_eq!(status, ["pending", "done"]);
+    assert_eq!(manifest_status(&out), ["pending", "done"]);
     let rep = dir.join("report");
     let err = ok(&smile(&[
         "report",
