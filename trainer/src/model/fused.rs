@@ -13,6 +13,8 @@
 //! The matrix products call the same `gemm` crate candle uses, one block per call; inside a
 //! learner thread pool large products are split across its threads ([`gemm_into`]).
 
+use std::mem::MaybeUninit;
+
 use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
 
 use super::policy::HALF_LN_2PI;
@@ -70,12 +72,75 @@ fn with_values<R>(
 /// same sum in the same order whichever block and thread computes it (the blocks only change
 /// which rows or columns a call covers, not the loop over `k`), so results do not depend on the
 /// thread count (tested: `split_products_are_bit_identical`).
+///
+/// (The layers call [`gemm_new`]; this entry, with accumulation, is kept for the tests of the
+/// splitting.)
+#[cfg(test)]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn gemm_into(
     m: usize,
     n: usize,
     k: usize,
     c: &mut [f32],
+    accumulate: bool,
+    a: &[f32],
+    a_rs: usize,
+    a_cs: usize,
+    b: &[f32],
+    b_rs: usize,
+    b_cs: usize,
+) {
+    debug_assert!(c.len() >= m * n);
+    // SAFETY: `MaybeUninit<f32>` has the layout of `f32`, and the product only writes
+    // initialised values (finite or not) into `c`, so `c` stays initialised.
+    let c = unsafe { &mut *(&mut c[..m * n] as *mut [f32] as *mut [MaybeUninit<f32>]) };
+    gemm_uninit(m, n, k, c, accumulate, a, a_rs, a_cs, b, b_rs, b_cs);
+}
+
+/// `A B` (`m x n`, row-major) in a new buffer; as [`gemm_into`] without accumulating, but the
+/// buffer is not zero-filled first (a non-accumulating product writes every element of `C`
+/// and reads none, so the fill was a wasted pass over the output: about 1% of an update pair
+/// at the SMILe authors' shapes).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn gemm_new(
+    m: usize,
+    n: usize,
+    k: usize,
+    a: &[f32],
+    a_rs: usize,
+    a_cs: usize,
+    b: &[f32],
+    b_rs: usize,
+    b_cs: usize,
+) -> Vec<f32> {
+    let mut c = Vec::with_capacity(m * n);
+    gemm_uninit(
+        m,
+        n,
+        k,
+        &mut c.spare_capacity_mut()[..m * n],
+        false,
+        a,
+        a_rs,
+        a_cs,
+        b,
+        b_rs,
+        b_cs,
+    );
+    // SAFETY: a non-accumulating product writes all `m x n` elements (gemm writes
+    // `0 * C + A B`, or zeros when `k == 0`, without reading `C`; split products write every
+    // row or column block), so the first `m n` elements are initialised.
+    unsafe { c.set_len(m * n) };
+    c
+}
+
+/// [`gemm_into`] on an output that may be uninitialised when `!accumulate`.
+#[allow(clippy::too_many_arguments)]
+fn gemm_uninit(
+    m: usize,
+    n: usize,
+    k: usize,
+    c: &mut [MaybeUninit<f32>],
     accumulate: bool,
     a: &[f32],
     a_rs: usize,
@@ -140,7 +205,7 @@ struct Product<'a> {
 
 impl Product<'_> {
     /// Rows `[0, m)` of `C` (`c` holds exactly them), in `parts` blocks of rows.
-    fn rows(&self, m: usize, c: &mut [f32], parts: usize) {
+    fn rows(&self, m: usize, c: &mut [MaybeUninit<f32>], parts: usize) {
         if parts <= 1 || m < 2 * SPLIT_MIN_ROWS {
             return self.call(m, self.n, c, self.n, 0);
         }
@@ -158,12 +223,14 @@ impl Product<'_> {
     }
 
     /// All of `C` (`m x n`, not accumulated) in `parts` blocks of columns.
-    fn cols(&self, m: usize, c: &mut [f32], parts: usize) {
+    fn cols(&self, m: usize, c: &mut [MaybeUninit<f32>], parts: usize) {
         debug_assert!(!self.accumulate);
         for (j0, cols, block) in self.col_blocks(m, 0, self.n, parts) {
             for r in 0..m {
-                c[r * self.n + j0..r * self.n + j0 + cols]
-                    .copy_from_slice(&block[r * cols..(r + 1) * cols]);
+                let row = &mut c[r * self.n + j0..r * self.n + j0 + cols];
+                for (d, v) in row.iter_mut().zip(&block[r * cols..(r + 1) * cols]) {
+                    d.write(*v);
+                }
             }
         }
     }
@@ -177,8 +244,16 @@ impl Product<'_> {
         parts: usize,
     ) -> Vec<(usize, usize, Vec<f32>)> {
         if parts <= 1 || cols < 2 * SPLIT_MIN_ROWS {
-            let mut block = vec![0.0f32; m * cols];
-            self.call(m, cols, &mut block, cols, j0);
+            let mut block = Vec::with_capacity(m * cols);
+            self.call(
+                m,
+                cols,
+                &mut block.spare_capacity_mut()[..m * cols],
+                cols,
+                j0,
+            );
+            // SAFETY: not accumulating (see `cols`), the call wrote all `m x cols` elements.
+            unsafe { block.set_len(m * cols) };
             return vec![(j0, cols, block)];
         }
         let lo_parts = parts / 2;
@@ -192,20 +267,21 @@ impl Product<'_> {
     }
 
     /// `C[.., j0..j0+cols] [+]= A B[.., j0..j0+cols]` into `c` with row stride `ldc`.
-    fn call(&self, m: usize, cols: usize, c: &mut [f32], ldc: usize, j0: usize) {
+    fn call(&self, m: usize, cols: usize, c: &mut [MaybeUninit<f32>], ldc: usize, j0: usize) {
         if m == 0 || cols == 0 {
             return;
         }
         debug_assert!(c.len() >= (m - 1) * ldc + cols);
         // SAFETY: the slices cover every element addressed by (m, cols, k) and the strides
-        // (checked in debug builds in `gemm_into`, and by construction from the tensors'
-        // shapes at every call site); `c` does not alias `a` or `b` (distinct allocations).
+        // (checked in debug builds in `gemm_uninit`, and by construction from the tensors'
+        // shapes at every call site); `c` does not alias `a` or `b` (distinct allocations);
+        // without `accumulate` gemm does not read `c`, which may be uninitialised then.
         unsafe {
             gemm::gemm(
                 m,
                 cols,
                 self.k,
-                c.as_mut_ptr(),
+                c.as_mut_ptr().cast::<f32>(),
                 1,
                 ldc as isize,
                 self.accumulate,
@@ -253,13 +329,17 @@ impl CustomOp3 for Linear {
             return Err(msg("shape mismatch"));
         }
         let (x, w, b) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
-        let mut y = Vec::with_capacity(rows * d_out);
-        for _ in 0..rows {
-            y.extend_from_slice(b);
-        }
-        gemm_into(rows, d_out, d_in, &mut y, true, x, d_in, 1, w, d_out, 1);
-        if self.relu {
-            y.iter_mut().for_each(|v| *v = v.max(0.0));
+        // x W into a fresh buffer, then bias and ReLU in one pass over it (a bias-filled
+        // buffer accumulated into, then a ReLU pass, went over the output three times).
+        let mut y = gemm_new(rows, d_out, d_in, x, d_in, 1, w, d_out, 1);
+        for row in y.chunks_exact_mut(d_out) {
+            if self.relu {
+                row.iter_mut()
+                    .zip(b)
+                    .for_each(|(v, b)| *v = (*v + b).max(0.0));
+            } else {
+                row.iter_mut().zip(b).for_each(|(v, b)| *v += b);
+            }
         }
         Ok((CpuStorage::F32(y), Shape::from((rows, d_out))))
     }
@@ -278,53 +358,55 @@ impl CustomOp3 for Linear {
         if !want_dx && !want_dw {
             return Ok((None, None, None));
         }
-        // g = dL/dy * 1[y > 0]
-        let g: Vec<f32> = with_values(grad_res, |gs| {
+        // g = dL/dy * 1[y > 0], and db = 1^T g in the same pass over the rows (only a ReLU
+        // layer needs g as a buffer of its own; without ReLU g is dL/dy as it is).
+        let mut db = vec![0.0f32; d_out];
+        let masked: Option<Vec<f32>> = with_values(grad_res, |gs| {
             if self.relu {
                 with_values(res, |ys| {
-                    Ok(gs
-                        .iter()
-                        .zip(ys)
-                        .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
-                        .collect())
+                    let mut g = Vec::with_capacity(gs.len());
+                    for (gr, yr) in gs.chunks_exact(d_out).zip(ys.chunks_exact(d_out)) {
+                        for ((g_o, y_o), d) in gr.iter().zip(yr).zip(db.iter_mut()) {
+                            let v = if *y_o > 0.0 { *g_o } else { 0.0 };
+                            g.push(v);
+                            *d += v;
+                        }
+                    }
+                    Ok(Some(g))
                 })
             } else {
-                Ok(gs.to_vec())
+                for gr in gs.chunks_exact(d_out) {
+                    db.iter_mut().zip(gr).for_each(|(d, g)| *d += g);
+                }
+                Ok(None)
             }
         })?;
         let dev = x.device();
-        let dx = if want_dx {
-            // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
-            let mut dx = vec![0.0f32; rows * d_in];
-            with_values(w, |ws| {
-                gemm_into(
-                    rows, d_in, d_out, &mut dx, false, &g, d_out, 1, ws, 1, d_out,
-                );
-                Ok(())
-            })?;
-            Some(Tensor::from_vec(dx, (rows, d_in), dev)?)
-        } else {
-            None
-        };
-        let (dw, db) = if want_dw {
-            // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
-            let mut dw = vec![0.0f32; d_in * d_out];
-            with_values(x, |xs| {
-                gemm_into(d_in, d_out, rows, &mut dw, false, xs, 1, d_in, &g, d_out, 1);
-                Ok(())
-            })?;
-            let mut db = vec![0.0f32; d_out];
-            for row in g.chunks_exact(d_out) {
-                db.iter_mut().zip(row).for_each(|(d, g)| *d += g);
-            }
-            (
-                Some(Tensor::from_vec(dw, (d_in, d_out), dev)?),
-                Some(Tensor::from_vec(db, (1, d_out), dev)?),
-            )
-        } else {
-            (None, None)
-        };
-        Ok((dx, dw, db))
+        with_values(grad_res, |gs| {
+            let g: &[f32] = masked.as_deref().unwrap_or(gs);
+            let dx = if want_dx {
+                // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
+                let dx = with_values(w, |ws| {
+                    Ok(gemm_new(rows, d_in, d_out, g, d_out, 1, ws, 1, d_out))
+                })?;
+                Some(Tensor::from_vec(dx, (rows, d_in), dev)?)
+            } else {
+                None
+            };
+            let (dw, db) = if want_dw {
+                // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
+                let dw = with_values(x, |xs| {
+                    Ok(gemm_new(d_in, d_out, rows, xs, 1, d_in, g, d_out, 1))
+                })?;
+                (
+                    Some(Tensor::from_vec(dw, (d_in, d_out), dev)?),
+                    Some(Tensor::from_vec(std::mem::take(&mut db), (1, d_out), dev)?),
+                )
+            } else {
+                (None, None)
+            };
+            Ok((dx, dw, db))
+        })
     }
 }
 
@@ -369,10 +451,7 @@ impl CustomOp3 for MaskedMatmulT {
             .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
             .collect();
         // out (rows x in) = G (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
-        let mut out = vec![0.0f32; rows * d_in];
-        gemm_into(
-            rows, d_in, d_out, &mut out, false, &masked, d_out, 1, w, 1, d_out,
-        );
+        let out = gemm_new(rows, d_in, d_out, &masked, d_out, 1, w, 1, d_out);
         Ok((CpuStorage::F32(out), Shape::from((rows, d_in))))
     }
 
@@ -395,12 +474,8 @@ impl CustomOp3 for MaskedMatmulT {
             with_values(y, |y| {
                 let dg = if want_dg {
                     // dG (rows x out) = dout (rows x in) W (in x out), then the mask
-                    let mut dg = vec![0.0f32; rows * d_out];
-                    with_values(w, |w| {
-                        gemm_into(
-                            rows, d_out, d_in, &mut dg, false, dout, d_in, 1, w, d_out, 1,
-                        );
-                        Ok(())
+                    let mut dg = with_values(w, |w| {
+                        Ok(gemm_new(rows, d_out, d_in, dout, d_in, 1, w, d_out, 1))
                     })?;
                     dg.iter_mut().zip(y).for_each(|(d, y)| {
                         if *y <= 0.0 {
@@ -420,10 +495,7 @@ impl CustomOp3 for MaskedMatmulT {
                     })?;
                     // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] =
                     // dout[r * in + i]
-                    let mut dw = vec![0.0f32; d_in * d_out];
-                    gemm_into(
-                        d_in, d_out, rows, &mut dw, false, dout, 1, d_in, &masked, d_out, 1,
-                    );
+                    let dw = gemm_new(d_in, d_out, rows, dout, 1, d_in, &masked, d_out, 1);
                     Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
                 } else {
                     None
@@ -573,6 +645,20 @@ mod tests {
                     .install(|| gemm_into(m, n, k, &mut c, accumulate, &a, a_rs, a_cs, &b, n, 1));
                 c
             };
+            let fresh = |threads: usize| -> Vec<f32> {
+                crate::threads::LearnerPool::new(threads)
+                    .unwrap()
+                    .install(|| gemm_new(m, n, k, &a, a_rs, a_cs, &b, n, 1))
+            };
+            for threads in [1, 2, 3] {
+                let (new, into) = (fresh(threads), run(threads, false));
+                assert!(
+                    new.iter()
+                        .zip(&into)
+                        .all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "gemm_new {m}x{n}x{k}, {threads} threads"
+                );
+            }
             for accumulate in [false, true] {
                 let one = run(1, accumulate);
                 for threads in [2, 3, 4, 7] {
@@ -586,6 +672,13 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A fresh product writes every element even with no inner dimension (what makes its
+    /// unfilled buffer sound).
+    #[test]
+    fn a_fresh_product_with_no_inner_dimension_is_zero() {
+        assert_eq!(gemm_new(3, 4, 0, &[], 0, 1, &[], 4, 1), vec![0.0f32; 12]);
     }
 
     /// The fused op's values and gradients equal plain candle's.
