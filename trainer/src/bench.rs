@@ -375,8 +375,10 @@ pub struct PairTiming {
     /// Median wall time of one iteration (rollouts + update pairs) divided by its pairs: what
     /// `charts/sps` measures in training (`1e6 / per_pair_us` pairs per second).
     pub per_pair_us: f64,
-    /// Median wall time of the iteration's update pairs alone, per pair: what the PyTorch
-    /// prototype's `ms_per_upd` measures.
+    /// Median wall time of the iteration less the time the learner's thread spent on
+    /// rollouts, per pair (`IterationReport::rollout_s`): the update pairs alone, what the
+    /// PyTorch prototype's `ms_per_upd` measures. With two or more learner threads the
+    /// rollouts run beside the pairs, which then take longer than they would alone.
     pub updates_only_per_pair_us: f64,
     /// `1e6 / per_pair_us`.
     pub pairs_per_s: f64,
@@ -395,21 +397,21 @@ pub fn bench_smile_pairs(
 ) -> Result<PairTiming> {
     let family = cfg.env;
     let data = crate::data::MetaData::from_dataset(demos, family, cfg.holdout_every)?;
-    let tasks = data.train.len();
-    let (rollouts, pairs) = (cfg.rollouts_per_iter, cfg.updates_per_iter.max(1));
+    let pairs = cfg.updates_per_iter.max(1);
+    // Every timed iteration runs all its pairs, whatever the config's training length.
+    let cfg = crate::algo::smile::SmileConfig {
+        total_updates: u64::MAX,
+        ..cfg
+    };
     let mut run = crate::algo::smile::Smile::new(cfg, data)?;
     run.warm_start()?;
-    let mut rng = ChaCha8Rng::seed_from_u64(1);
-    let mut iteration = |run: &mut crate::algo::smile::Smile| -> Result<(f64, f64)> {
+    // The training loop's own iteration (`Smile::iteration`): with two or more learner
+    // threads its rollouts run beside the pairs.
+    let iteration = |run: &mut crate::algo::smile::Smile| -> Result<(f64, f64)> {
         let t0 = Instant::now();
-        for _ in 0..rollouts {
-            run.rollout(rng.random_range(0..tasks))?;
-        }
-        let t1 = Instant::now();
-        for _ in 0..pairs {
-            run.update_pair()?;
-        }
-        Ok((t0.elapsed().as_secs_f64(), t1.elapsed().as_secs_f64()))
+        let report = run.iteration(&mut |_| {})?;
+        let all = t0.elapsed().as_secs_f64();
+        Ok((all, all - report.rollout_s))
     };
     for _ in 0..warmup {
         iteration(&mut run)?;

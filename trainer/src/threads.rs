@@ -75,6 +75,15 @@ impl LearnerPool {
         self.threads
     }
 
+    /// Starts `f` on a thread of the pool and returns at once (a thread that is free picks it
+    /// up; on a busy pool it waits its turn); without a pool `f` runs here, now.
+    pub fn spawn(&self, f: impl FnOnce() + Send + 'static) {
+        match &self.pool {
+            Some(p) => p.spawn(f),
+            None => f(),
+        }
+    }
+
     /// Runs `f` inside the pool (on the calling thread without one), the caller waiting.
     pub fn install<R: Send>(&self, f: impl FnOnce() -> R + Send) -> R {
         match &self.pool {

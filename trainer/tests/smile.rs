@@ -227,24 +227,33 @@ fn learner_threads_are_deterministic_on_any_count_and_use_the_older_reward() {
     let weights = |threads: usize| {
         // Widths and batches at which the pool splits products (>= 4 MFLOP each): the
         // discriminator's 2 x 4 x 32 rows through 192 x 192, SAC's 4 x 64 rows through 128 x 128.
+        // Whole iterations (3 rollouts, then 5 pairs): with two or more threads the rollouts
+        // run on the pool beside the pairs.
         let mut cfg = SmileConfig {
             learner_threads: threads,
             disc_hidden: vec![192, 192],
             sac_per_task: 64,
+            rollouts_per_iter: 3,
+            updates_per_iter: 5,
+            total_updates: 1000,
             ..tiny(false)
         };
         cfg.sac.hidden = vec![128, 128];
         let mut run = Smile::new(cfg, data.clone()).unwrap();
         run.warm_start().unwrap();
-        for ti in 0..run.data().train.len() {
-            run.rollout(ti).unwrap();
-        }
         let mut rewards = Vec::new();
-        for _ in 0..15 {
-            let (ds, _, r) = run.update_pair().unwrap();
+        for _ in 0..3 {
+            let (ds, _, r) = run.iteration(&mut |_| {}).unwrap().last.unwrap();
             assert!(ds.bce.is_finite() && r.is_finite());
             rewards.push(r);
         }
+        // Every rollout's steps arrived (warm start: one per task; then 3 per iteration, each
+        // the horizon's 30 steps).
+        assert_eq!(
+            run.env_steps(),
+            30 * (run.data().train.len() as u64 + 9),
+            "{threads} threads"
+        );
         let mut w = Vec::new();
         for net in [run.disc.net(), run.sac.actor.net()] {
             for v in net.vars() {

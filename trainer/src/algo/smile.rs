@@ -49,6 +49,7 @@ use sim::Environment;
 mod config;
 mod disc;
 mod persist;
+mod rollouts;
 
 pub use config::SmileConfig;
 pub(crate) use disc::{DiscBatch, DiscLearner, disc_grads, disc_update};
@@ -68,6 +69,7 @@ use crate::model::{
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
+use rollouts::{PlannedEpisode, RolloutJob};
 
 /// A SMILe run: data, networks, optimisers, replay, counters.
 pub struct Smile {
@@ -92,6 +94,19 @@ pub struct Smile {
     best: f32,
     /// The learner threads of `learner_threads > 1`, started at the first update pair.
     pool: Option<LearnerPool>,
+    /// The environment the rollouts beside the pairs step (`learner_threads > 1`; it travels
+    /// with each rollout job and comes back with its result).
+    rollout_env: Option<Box<dyn Environment>>,
+}
+
+/// What one [`Smile::iteration`] did.
+#[derive(Debug, Clone, Copy)]
+pub struct IterationReport {
+    /// The last update pair's statistics (discriminator, SAC, reward mean), if a pair ran.
+    pub last: Option<(DiscStats, SacStats, f32)>,
+    /// Seconds the learner's thread spent on rollouts: running them (one learner thread), or
+    /// planning them and waiting for them after the pairs (two or more).
+    pub rollout_s: f64,
 }
 
 impl Smile {
@@ -151,6 +166,7 @@ impl Smile {
             episodes: 0,
             best: f32::NAN,
             pool: None,
+            rollout_env: None,
         })
     }
 
@@ -204,22 +220,31 @@ impl Smile {
         }
     }
 
-    /// One rollout in training task `ti` with a sampled context and z; stored in its replay.
-    pub fn rollout(&mut self, ti: usize) -> Result<()> {
+    /// A fresh context of training task `ti` and its sampled z (a rollout's first draws).
+    fn rollout_z(&mut self, ti: usize) -> Result<Vec<f32>> {
         let spec = sample_context(&self.data.train[ti], self.cfg.context_draw(), &mut self.rng);
         let b = self.encoder.batch(&self.data.norm, &[spec])?;
-        let z = self
+        Ok(self
             .encoder
             .z(&b, true, &mut self.rng)?
             .detach()
             .flatten_all()?
-            .to_vec1::<f32>()?;
-        let task = self.data.train[ti].task;
-        let seed = self
-            .cfg
+            .to_vec1::<f32>()?)
+    }
+
+    /// The reset seed of the next training episode.
+    fn episode_seed(&self) -> u64 {
+        self.cfg
             .seed
             .wrapping_mul(sim::seeds::TRAINING_SEED_STRIDE)
-            .wrapping_add(self.episodes);
+            .wrapping_add(self.episodes)
+    }
+
+    /// One rollout in training task `ti` with a sampled context and z; stored in its replay.
+    pub fn rollout(&mut self, ti: usize) -> Result<()> {
+        let z = self.rollout_z(ti)?;
+        let task = self.data.train[ti].task;
+        let seed = self.episode_seed();
         let (actor, norm, rng) = (&self.sac.actor, &self.data.norm, &mut self.rng);
         let replay = self.replay.task_mut(ti);
         let ep = run_episode(
@@ -237,6 +262,78 @@ impl Smile {
         self.env_steps += ep.steps as u64;
         self.episodes += 1;
         Ok(())
+    }
+
+    /// One iteration of Algorithm 1: `rollouts_per_iter` rollouts, each in a uniform training
+    /// task, then `updates_per_iter` update pairs (fewer where `total_updates` ends the run);
+    /// `on_pair` sees the update count after every pair. With `learner_threads >= 2` the
+    /// rollouts run beside the pairs on the learner pool and enter the replays after them
+    /// (module `rollouts` says how, and the one way that differs from one thread).
+    pub fn iteration(&mut self, on_pair: &mut dyn FnMut(u64)) -> Result<IterationReport> {
+        let (m, t0) = (self.cfg.rollouts_per_iter, std::time::Instant::now());
+        let in_flight = if self.cfg.learner_threads >= 2 && m > 0 {
+            let job = self.plan_rollouts(m)?;
+            let pool = match self.pool.take() {
+                Some(p) => p,
+                None => LearnerPool::new(self.cfg.learner_threads)?,
+            };
+            let in_flight = job.start(&pool);
+            self.pool = Some(pool);
+            Some(in_flight)
+        } else {
+            for _ in 0..m {
+                let ti = self.rng.random_range(0..self.data.train.len());
+                self.rollout(ti)?;
+            }
+            None
+        };
+        let mut rollout_s = t0.elapsed().as_secs_f64();
+        let mut last = None;
+        for _ in 0..self.cfg.updates_per_iter {
+            if self.updates >= self.cfg.total_updates {
+                break;
+            }
+            last = Some(self.update_pair()?);
+            self.updates += 1;
+            on_pair(self.updates);
+        }
+        if let Some(in_flight) = in_flight {
+            let t1 = std::time::Instant::now();
+            let done = in_flight.wait()?;
+            done.store(&mut self.replay)?;
+            self.env_steps += done.steps;
+            self.rollout_env = Some(done.env);
+            rollout_s += t1.elapsed().as_secs_f64();
+        }
+        Ok(IterationReport { last, rollout_s })
+    }
+
+    /// Plans `n` rollouts (see module `rollouts`): the draws of `n` sequential rollouts from the
+    /// run's RNG (task, context, z, for each in turn), then the job's own RNG's seed.
+    fn plan_rollouts(&mut self, n: usize) -> Result<RolloutJob> {
+        let mut episodes = Vec::with_capacity(n);
+        for _ in 0..n {
+            let ti = self.rng.random_range(0..self.data.train.len());
+            let z = self.rollout_z(ti)?;
+            episodes.push(PlannedEpisode {
+                task_index: ti,
+                task: self.data.train[ti].task,
+                seed: self.episode_seed(),
+                z,
+            });
+            self.episodes += 1;
+        }
+        let env = match self.rollout_env.take() {
+            Some(env) => env,
+            None => sim::make_env(self.cfg.env, self.cfg.rollout_env_config())?,
+        };
+        Ok(RolloutJob {
+            actor: self.sac.actor.deep_copy()?,
+            norm: self.data.norm.clone(),
+            env,
+            episodes,
+            rng: ChaCha8Rng::seed_from_u64(self.rng.random()),
+        })
     }
 
     /// Warm start: one rollout of the current policy in every training task.
@@ -463,20 +560,11 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Resul
     // times between the discriminator (+ encoder) and the policy.
     let mut done = run.updates >= cfg.total_updates;
     while !done {
-        for _ in 0..cfg.rollouts_per_iter {
-            let ti = run.rng.random_range(0..run.data.train.len());
-            run.rollout(ti)?;
-        }
-        let (mut ds, mut ss, mut rm) = (DiscStats::default(), None, 0.0);
-        for _ in 0..cfg.updates_per_iter {
-            if run.updates >= cfg.total_updates {
-                break;
-            }
-            let (d, s, r) = run.update_pair()?;
-            (ds, ss, rm) = (d, Some(s), r);
-            run.updates += 1;
-            on(Progress::Steps(run.updates));
-        }
+        let report = run.iteration(&mut |u| on(Progress::Steps(u)))?;
+        let (ds, ss, rm) = match report.last {
+            Some((d, s, r)) => (d, Some(s), r),
+            None => (DiscStats::default(), None, 0.0),
+        };
         let ups = (run.updates - u0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
         let cpu_s = cpu_before
             + crate::threads::process_cpu_seconds()

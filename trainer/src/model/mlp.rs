@@ -98,6 +98,20 @@ impl Mlp {
         })
     }
 
+    /// A trainable copy in separate storage: later steps on either network leave the other as
+    /// it was (a plain `clone` shares the variables' storage, which optimisers update in place).
+    pub fn deep_copy(&self) -> Result<Mlp> {
+        let vars = self
+            .vars
+            .iter()
+            .map(|v| Var::from_tensor(&v.as_tensor().detach().copy()?))
+            .collect::<candle_core::Result<Vec<_>>>()?;
+        Ok(Mlp {
+            widths: self.widths.clone(),
+            vars,
+        })
+    }
+
     /// Overwrite all weights from `src` (same widths), e.g. when loading a checkpoint.
     pub fn load_from(&self, src: &[Tensor]) -> Result<()> {
         check_shapes(

@@ -66,6 +66,15 @@ impl TanhGaussianPolicy {
         })
     }
 
+    /// A copy in separate storage (see [`Mlp::deep_copy`]): what a rollout on another thread
+    /// acts with while the learner keeps training this one.
+    pub fn deep_copy(&self) -> Result<Self> {
+        Ok(Self {
+            net: self.net.deep_copy()?,
+            ..self.clone()
+        })
+    }
+
     /// The underlying network.
     pub fn net(&self) -> &Mlp {
         &self.net
