@@ -302,6 +302,14 @@ impl Product<'_> {
     }
 }
 
+/// `g` where the ReLU output `y` is positive, else `+0.0` (`if y > 0 { g } else { 0 }`),
+/// without a branch: the mask is about half ones on random rows, and a branch on it was
+/// mispredicted so often that the backward pass's masking took 9% of an update pair.
+#[inline(always)]
+fn relu_mask(g: f32, y: f32) -> f32 {
+    f32::from_bits(g.to_bits() & ((y > 0.0) as u32).wrapping_neg())
+}
+
 /// The op: `x (B, in)`, `w (in, out)`, `b (1, out)` -> `y (B, out)`.
 #[derive(Debug, Clone, Copy)]
 pub struct Linear {
@@ -364,14 +372,22 @@ impl CustomOp3 for Linear {
         let masked: Option<Vec<f32>> = with_values(grad_res, |gs| {
             if self.relu {
                 with_values(res, |ys| {
+                    // Row by row over equal-length slices, so the loop vectorises.
                     let mut g = Vec::with_capacity(gs.len());
-                    for (gr, yr) in gs.chunks_exact(d_out).zip(ys.chunks_exact(d_out)) {
-                        for ((g_o, y_o), d) in gr.iter().zip(yr).zip(db.iter_mut()) {
-                            let v = if *y_o > 0.0 { *g_o } else { 0.0 };
-                            g.push(v);
+                    let rows_out = g.spare_capacity_mut()[..gs.len()].chunks_exact_mut(d_out);
+                    for ((out, gr), yr) in rows_out
+                        .zip(gs.chunks_exact(d_out))
+                        .zip(ys.chunks_exact(d_out))
+                    {
+                        for (((o, g_o), y_o), d) in out.iter_mut().zip(gr).zip(yr).zip(&mut db) {
+                            let v = relu_mask(*g_o, *y_o);
+                            o.write(v);
                             *d += v;
                         }
                     }
+                    // SAFETY: the loop wrote all `gs.len()` elements (`gs` and `ys` are
+                    // `rows x d_out`, checked by the tensors' shapes).
+                    unsafe { g.set_len(gs.len()) };
                     Ok(Some(g))
                 })
             } else {
@@ -445,11 +461,7 @@ impl CustomOp3 for MaskedMatmulT {
             return Err(msg("masked matmul: shape mismatch"));
         }
         let (g, y, w) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
-        let masked: Vec<f32> = g
-            .iter()
-            .zip(y)
-            .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
-            .collect();
+        let masked: Vec<f32> = g.iter().zip(y).map(|(g, y)| relu_mask(*g, *y)).collect();
         // out (rows x in) = G (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
         let out = gemm_new(rows, d_in, d_out, &masked, d_out, 1, w, 1, d_out);
         Ok((CpuStorage::F32(out), Shape::from((rows, d_in))))
@@ -477,21 +489,16 @@ impl CustomOp3 for MaskedMatmulT {
                     let mut dg = with_values(w, |w| {
                         Ok(gemm_new(rows, d_out, d_in, dout, d_in, 1, w, d_out, 1))
                     })?;
-                    dg.iter_mut().zip(y).for_each(|(d, y)| {
-                        if *y <= 0.0 {
-                            *d = 0.0
-                        }
-                    });
+                    dg.iter_mut()
+                        .zip(y)
+                        .for_each(|(d, y)| *d = relu_mask(*d, *y));
                     Some(Tensor::from_vec(dg, (rows, d_out), dev)?)
                 } else {
                     None
                 };
                 let dw = if want_dw {
                     let masked: Vec<f32> = with_values(g, |g| {
-                        Ok(g.iter()
-                            .zip(y)
-                            .map(|(g, y)| if *y > 0.0 { *g } else { 0.0 })
-                            .collect())
+                        Ok(g.iter().zip(y).map(|(g, y)| relu_mask(*g, *y)).collect())
                     })?;
                     // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] =
                     // dout[r * in + i]
