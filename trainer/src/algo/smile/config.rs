@@ -72,11 +72,13 @@ pub struct SmileConfig {
     /// (discriminator step, then the SAC step on the updated discriminator's reward); N > 1
     /// runs the discriminator step *while* the SAC step runs, so SAC's reward comes from the
     /// discriminator before this pair's update (one update older), in a pool of N threads
-    /// that also splits every large matrix product of both steps (`crate::threads`).
-    /// Deterministic for a seed and the same on any N > 1 (the discriminator step has its own
-    /// RNG drawn from the run's; a split product equals an unsplit one). Measured in
-    /// docs/BENCHMARKS.md ("The authors' shapes": 1.64-1.73x on two cores). Each thread needs
-    /// a free core: `smile sweep` counts them when it packs cells. Default 1.
+    /// that also splits every large matrix product of both steps (`crate::threads`), and the
+    /// iteration's rollouts run on the pool beside its pairs, entering the replays after them
+    /// (`Smile::iteration`). Deterministic for a seed and the same on any N > 1 (the
+    /// discriminator step and the rollouts have their own RNGs drawn from the run's; a split
+    /// product equals an unsplit one). Measured in docs/BENCHMARKS.md ("The authors' shapes
+    /// after ...": 1.78-1.88x on two cores). Each thread needs a free core: `smile sweep`
+    /// counts them when it packs cells. Default 1.
     pub learner_threads: usize,
     /// Checkpoint every this many updates (at iteration ends). Default 2000.
     pub checkpoint_every: u64,
