@@ -62,7 +62,7 @@ fn with_values<R>(
     }
 }
 
-/// Row-major `C (m x n) [+]= A (m x k) B (k x n)` where A and B are given by strides
+/// Row-major `C (m x n) [+]= A (m x k) B (k x n)` where A and B are [`Mat`]s read through strides
 /// (row stride, column stride), so transposes are free.
 ///
 /// Inside a learner thread pool of N > 1 threads ([`crate::threads::LearnerPool`]) a product
@@ -76,57 +76,29 @@ fn with_values<R>(
 /// (The layers call [`gemm_new`]; this entry, with accumulation, is kept for the tests of the
 /// splitting.)
 #[cfg(test)]
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn gemm_into(
     m: usize,
     n: usize,
     k: usize,
     c: &mut [f32],
     accumulate: bool,
-    a: &[f32],
-    a_rs: usize,
-    a_cs: usize,
-    b: &[f32],
-    b_rs: usize,
-    b_cs: usize,
+    a: Mat<'_>,
+    b: Mat<'_>,
 ) {
     debug_assert!(c.len() >= m * n);
     // SAFETY: `MaybeUninit<f32>` has the layout of `f32`, and the product only writes
     // initialised values (finite or not) into `c`, so `c` stays initialised.
     let c = unsafe { &mut *(&mut c[..m * n] as *mut [f32] as *mut [MaybeUninit<f32>]) };
-    gemm_uninit(m, n, k, c, accumulate, a, a_rs, a_cs, b, b_rs, b_cs);
+    gemm_uninit(m, n, k, c, accumulate, a, b);
 }
 
 /// `A B` (`m x n`, row-major) in a new buffer; as [`gemm_into`] without accumulating, but the
 /// buffer is not zero-filled first (a non-accumulating product writes every element of `C`
 /// and reads none, so the fill was a wasted pass over the output: about 1% of an update pair
 /// at the SMILe authors' shapes).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn gemm_new(
-    m: usize,
-    n: usize,
-    k: usize,
-    a: &[f32],
-    a_rs: usize,
-    a_cs: usize,
-    b: &[f32],
-    b_rs: usize,
-    b_cs: usize,
-) -> Vec<f32> {
+pub(crate) fn gemm_new(m: usize, n: usize, k: usize, a: Mat<'_>, b: Mat<'_>) -> Vec<f32> {
     let mut c = Vec::with_capacity(m * n);
-    gemm_uninit(
-        m,
-        n,
-        k,
-        &mut c.spare_capacity_mut()[..m * n],
-        false,
-        a,
-        a_rs,
-        a_cs,
-        b,
-        b_rs,
-        b_cs,
-    );
+    gemm_uninit(m, n, k, &mut c.spare_capacity_mut()[..m * n], false, a, b);
     // SAFETY: a non-accumulating product writes all `m x n` elements (gemm writes
     // `0 * C + A B`, or zeros when `k == 0`, without reading `C`; split products write every
     // row or column block), so the first `m n` elements are initialised.
@@ -134,24 +106,44 @@ pub(crate) fn gemm_new(
     c
 }
 
+/// A matrix operand read through strides, so a transpose is free: element `(i, j)` is
+/// `v[i * rs + j * cs]`.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Mat<'a> {
+    v: &'a [f32],
+    rs: usize,
+    cs: usize,
+}
+
+impl<'a> Mat<'a> {
+    /// A row-major matrix of `cols` columns.
+    pub(crate) fn rows(v: &'a [f32], cols: usize) -> Self {
+        Self { v, rs: cols, cs: 1 }
+    }
+
+    /// The transpose of a row-major matrix of `cols` columns (no copy).
+    pub(crate) fn t(v: &'a [f32], cols: usize) -> Self {
+        Self { v, rs: 1, cs: cols }
+    }
+
+    /// Whether `rows x cols` elements at these strides lie inside the slice.
+    fn covers(&self, rows: usize, cols: usize) -> bool {
+        rows == 0 || cols == 0 || self.v.len() > (rows - 1) * self.rs + (cols - 1) * self.cs
+    }
+}
+
 /// [`gemm_into`] on an output that may be uninitialised when `!accumulate`.
-#[allow(clippy::too_many_arguments)]
 fn gemm_uninit(
     m: usize,
     n: usize,
     k: usize,
     c: &mut [MaybeUninit<f32>],
     accumulate: bool,
-    a: &[f32],
-    a_rs: usize,
-    a_cs: usize,
-    b: &[f32],
-    b_rs: usize,
-    b_cs: usize,
+    a: Mat<'_>,
+    b: Mat<'_>,
 ) {
     debug_assert!(c.len() >= m * n);
-    debug_assert!(m == 0 || k == 0 || a.len() > (m - 1) * a_rs + (k - 1) * a_cs);
-    debug_assert!(k == 0 || n == 0 || b.len() > (k - 1) * b_rs + (n - 1) * b_cs);
+    debug_assert!(a.covers(m, k) && b.covers(k, n));
     let parts =
         if rayon::current_thread_index().is_some() && 2.0 * (m * n * k) as f64 >= SPLIT_MIN_FLOPS {
             rayon::current_num_threads()
@@ -162,11 +154,7 @@ fn gemm_uninit(
         n,
         k,
         a,
-        a_rs,
-        a_cs,
         b,
-        b_rs,
-        b_cs,
         accumulate,
     };
     if parts > 1 && m >= 2 * SPLIT_MIN_ROWS {
@@ -194,12 +182,8 @@ const SPLIT_MIN_ROWS: usize = 32;
 struct Product<'a> {
     n: usize,
     k: usize,
-    a: &'a [f32],
-    a_rs: usize,
-    a_cs: usize,
-    b: &'a [f32],
-    b_rs: usize,
-    b_cs: usize,
+    a: Mat<'a>,
+    b: Mat<'a>,
     accumulate: bool,
 }
 
@@ -213,7 +197,10 @@ impl Product<'_> {
         let m_lo = m * lo_parts / parts;
         let (c_lo, c_hi) = c.split_at_mut(m_lo * self.n);
         let hi = Product {
-            a: &self.a[m_lo * self.a_rs..],
+            a: Mat {
+                v: &self.a.v[m_lo * self.a.rs..],
+                ..self.a
+            },
             ..*self
         };
         rayon::join(
@@ -285,12 +272,12 @@ impl Product<'_> {
                 1,
                 ldc as isize,
                 self.accumulate,
-                self.a.as_ptr(),
-                self.a_cs as isize,
-                self.a_rs as isize,
-                self.b.as_ptr().add(j0 * self.b_cs),
-                self.b_cs as isize,
-                self.b_rs as isize,
+                self.a.v.as_ptr(),
+                self.a.cs as isize,
+                self.a.rs as isize,
+                self.b.v.as_ptr().add(j0 * self.b.cs),
+                self.b.cs as isize,
+                self.b.rs as isize,
                 if self.accumulate { 1.0 } else { 0.0 },
                 1.0,
                 false,
@@ -339,7 +326,7 @@ impl CustomOp3 for Linear {
         let (x, w, b) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
         // x W into a fresh buffer, then bias and ReLU in one pass over it (a bias-filled
         // buffer accumulated into, then a ReLU pass, went over the output three times).
-        let mut y = gemm_new(rows, d_out, d_in, x, d_in, 1, w, d_out, 1);
+        let mut y = gemm_new(rows, d_out, d_in, Mat::rows(x, d_in), Mat::rows(w, d_out));
         for row in y.chunks_exact_mut(d_out) {
             if self.relu {
                 row.iter_mut()
@@ -403,7 +390,13 @@ impl CustomOp3 for Linear {
             let dx = if want_dx {
                 // dx (rows x in) = g (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
                 let dx = with_values(w, |ws| {
-                    Ok(gemm_new(rows, d_in, d_out, g, d_out, 1, ws, 1, d_out))
+                    Ok(gemm_new(
+                        rows,
+                        d_in,
+                        d_out,
+                        Mat::rows(g, d_out),
+                        Mat::t(ws, d_out),
+                    ))
                 })?;
                 Some(Tensor::from_vec(dx, (rows, d_in), dev)?)
             } else {
@@ -412,7 +405,13 @@ impl CustomOp3 for Linear {
             let (dw, db) = if want_dw {
                 // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
                 let dw = with_values(x, |xs| {
-                    Ok(gemm_new(d_in, d_out, rows, xs, 1, d_in, g, d_out, 1))
+                    Ok(gemm_new(
+                        d_in,
+                        d_out,
+                        rows,
+                        Mat::t(xs, d_in),
+                        Mat::rows(g, d_out),
+                    ))
                 })?;
                 (
                     Some(Tensor::from_vec(dw, (d_in, d_out), dev)?),
@@ -463,7 +462,13 @@ impl CustomOp3 for MaskedMatmulT {
         let (g, y, w) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
         let masked: Vec<f32> = g.iter().zip(y).map(|(g, y)| relu_mask(*g, *y)).collect();
         // out (rows x in) = G (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
-        let out = gemm_new(rows, d_in, d_out, &masked, d_out, 1, w, 1, d_out);
+        let out = gemm_new(
+            rows,
+            d_in,
+            d_out,
+            Mat::rows(&masked, d_out),
+            Mat::t(w, d_out),
+        );
         Ok((CpuStorage::F32(out), Shape::from((rows, d_in))))
     }
 
@@ -487,7 +492,13 @@ impl CustomOp3 for MaskedMatmulT {
                 let dg = if want_dg {
                     // dG (rows x out) = dout (rows x in) W (in x out), then the mask
                     let mut dg = with_values(w, |w| {
-                        Ok(gemm_new(rows, d_out, d_in, dout, d_in, 1, w, d_out, 1))
+                        Ok(gemm_new(
+                            rows,
+                            d_out,
+                            d_in,
+                            Mat::rows(dout, d_in),
+                            Mat::rows(w, d_out),
+                        ))
                     })?;
                     dg.iter_mut()
                         .zip(y)
@@ -502,7 +513,13 @@ impl CustomOp3 for MaskedMatmulT {
                     })?;
                     // dW (in x out) = dout^T (in x rows) G (rows x out); dout^T[i][r] =
                     // dout[r * in + i]
-                    let dw = gemm_new(d_in, d_out, rows, dout, 1, d_in, &masked, d_out, 1);
+                    let dw = gemm_new(
+                        d_in,
+                        d_out,
+                        rows,
+                        Mat::t(dout, d_in),
+                        Mat::rows(&masked, d_out),
+                    );
                     Some(Tensor::from_vec(dw, (d_in, d_out), dev)?)
                 } else {
                     None
@@ -644,18 +661,18 @@ mod tests {
         for (m, n, k, a_t) in [(300usize, 200usize, 150usize, false), (40, 700, 300, true)] {
             assert!(2.0 * (m * n * k) as f64 >= SPLIT_MIN_FLOPS);
             let (a, b) = (vals(m * k, 0.3), vals(k * n, 1.7));
-            let (a_rs, a_cs) = if a_t { (1, m) } else { (k, 1) };
+            let a_mat = if a_t { Mat::t(&a, m) } else { Mat::rows(&a, k) };
             let run = |threads: usize, accumulate: bool| -> Vec<f32> {
                 let mut c = vals(m * n, 2.9);
                 crate::threads::LearnerPool::new(threads)
                     .unwrap()
-                    .install(|| gemm_into(m, n, k, &mut c, accumulate, &a, a_rs, a_cs, &b, n, 1));
+                    .install(|| gemm_into(m, n, k, &mut c, accumulate, a_mat, Mat::rows(&b, n)));
                 c
             };
             let fresh = |threads: usize| -> Vec<f32> {
                 crate::threads::LearnerPool::new(threads)
                     .unwrap()
-                    .install(|| gemm_new(m, n, k, &a, a_rs, a_cs, &b, n, 1))
+                    .install(|| gemm_new(m, n, k, a_mat, Mat::rows(&b, n)))
             };
             for threads in [1, 2, 3] {
                 let (new, into) = (fresh(threads), run(threads, false));
@@ -685,7 +702,10 @@ mod tests {
     /// unfilled buffer sound).
     #[test]
     fn a_fresh_product_with_no_inner_dimension_is_zero() {
-        assert_eq!(gemm_new(3, 4, 0, &[], 0, 1, &[], 4, 1), vec![0.0f32; 12]);
+        assert_eq!(
+            gemm_new(3, 4, 0, Mat::rows(&[], 0), Mat::rows(&[], 4)),
+            vec![0.0f32; 12]
+        );
     }
 
     /// The fused op's values and gradients equal plain candle's.
