@@ -9,7 +9,8 @@
 //! * each iteration (section 3.5, Algorithm 1): `m = rollouts_per_iter` rollouts (a uniform
 //!   task, a context of k in 1..=4 of its demos, z sampled, stochastic actions) into that
 //!   task's replay buffer, then `d = updates_per_iter` x (1 discriminator+encoder step, 1 SAC
-//!   step).
+//!   step). With `learner_threads >= 2` the rollouts run beside the pairs and reach the replays
+//!   after them ([`Smile::iteration`], module `rollouts`).
 //!
 //! Discriminator step, on `tasks_per_batch` distinct tasks, each with a fresh context and its
 //! z (with gradient into the encoder) attached to `disc_per_task` expert transitions (label 1,
