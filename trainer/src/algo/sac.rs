@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::data::Batch;
 use crate::error::{Error, Result};
-use crate::model::{FrozenMlp, Mlp, TanhGaussianPolicy, scalar};
+use crate::model::{FrozenMlp, Input, Mlp, SharedCols, TanhGaussianPolicy, scalar};
 use crate::optim::{Adam, AdamConfig};
 
 /// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
@@ -275,15 +275,22 @@ impl Sac {
 
     /// `min(Q1, Q2)` on `[s, a]` (with gradients into the critics' weights if `const_weights` is
     /// false).
-    fn q_min(&self, s: &Tensor, a: &Tensor, const_weights: bool) -> Result<Tensor> {
+    fn q_min(
+        &self,
+        s: &Tensor,
+        a: &Tensor,
+        z_cols: Option<SharedCols>,
+        const_weights: bool,
+    ) -> Result<Tensor> {
         let sa = Tensor::cat(&[s, a], 1)?;
+        let sa = Input::shared(&sa, z_cols); // [s, a] keeps s's columns first
         let (q1, q2) = if const_weights {
             (
-                self.q1.forward_const_weights(&sa)?,
-                self.q2.forward_const_weights(&sa)?,
+                self.q1.forward_const_weights(sa)?,
+                self.q2.forward_const_weights(sa)?,
             )
         } else {
-            (self.q1.forward(&sa)?, self.q2.forward(&sa)?)
+            (self.q1.forward(sa)?, self.q2.forward(sa)?)
         };
         Ok(q1.minimum(&q2)?)
     }
@@ -320,28 +327,34 @@ impl Sac {
         let alpha = self.alpha()?;
         let (gamma, c) = (self.cfg.gamma as f64, self.cfg.reward_scale as f64);
 
+        // (Where the batch is task-major with each task's z on its rows, every network's first
+        // layer computes the z block once per task: `Batch::z_cols`.)
+        let zc = b.z_cols;
         // 1. critic. y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))
-        let next = self.actor.sample_const(&b.next_obs, rng)?;
+        let next = self
+            .actor
+            .sample_const(Input::shared(&b.next_obs, zc), rng)?;
         let next_sa = Tensor::cat(&[&b.next_obs, &next.action], 1)?;
+        let next_sa = Input::shared(&next_sa, zc);
         let q_targ = self
             .q1_targ
-            .forward(&next_sa)?
-            .minimum(&self.q2_targ.forward(&next_sa)?)?;
+            .forward(next_sa)?
+            .minimum(&self.q2_targ.forward(next_sa)?)?;
         let soft_v = (q_targ - (next.log_prob * alpha as f64)?)?;
         let not_done = b.done.affine(-gamma, gamma)?; // gamma (1 - d)
         let y = ((&b.rew * c)? + (not_done * soft_v)?)?.detach();
         //    L_Q = mean (Q1(s,a) - y)^2 + mean (Q2(s,a) - y)^2
         let sa = Tensor::cat(&[&b.obs, &b.act], 1)?;
-        let q1 = self.q1.forward(&sa)?;
-        let q2 = self.q2.forward(&sa)?;
+        let q1 = self.q1.forward(Input::shared(&sa, zc))?;
+        let q2 = self.q2.forward(Input::shared(&sa, zc))?;
         let qf_loss = ((&q1 - &y)?.sqr()?.mean_all()? + (&q2 - &y)?.sqr()?.mean_all()?)?;
         // Summed over the two critics for the step; logged as their mean, as CleanRL does.
         let qf_loss_v = self.finite("losses/qf_loss", scalar(&qf_loss)?)? / 2.0;
         self.critic_opt.backward_step(&qf_loss)?;
 
         // 2. actor. L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
-        let cur = self.actor.sample(&b.obs, rng)?;
-        let q_pi = self.q_min(&b.obs, &cur.action, true)?;
+        let cur = self.actor.sample(Input::shared(&b.obs, zc), rng)?;
+        let q_pi = self.q_min(&b.obs, &cur.action, zc, true)?;
         let mut actor_loss = ((&cur.log_prob * alpha as f64)? - q_pi)?.mean_all()?;
         if self.cfg.policy_reg > 0.0 {
             let reg = (cur.mean.sqr()?.mean_all()? + cur.log_std.sqr()?.mean_all()?)?;

@@ -65,8 +65,8 @@ use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::model::scalar;
 use crate::model::{
-    ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, MetaPolicy, TrainingMark,
-    policy_input,
+    ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, Input, MetaPolicy,
+    SharedCols, TrainingMark, policy_input,
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
@@ -689,9 +689,16 @@ impl SacBatchSource<'_> {
             );
             dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
         }
-        let rew = self
-            .disc
-            .reward(&Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?)?;
+        // Each task's z on its n rows: the first layer's z block once per task.
+        let xz = Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?;
+        let rew = self.disc.reward(Input::shared(
+            &xz,
+            Some(SharedCols {
+                start: self.disc.x_dim(),
+                len: zd,
+                group_rows: n,
+            }),
+        ))?;
         let reward_mean = scalar(&rew.mean_all()?)?;
         let batch = Batch {
             obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
@@ -699,6 +706,11 @@ impl SacBatchSource<'_> {
             rew,
             next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
             done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
+            z_cols: Some(SharedCols {
+                start: od,
+                len: zd,
+                group_rows: n,
+            }),
         };
         // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
         // when the weight is 0, so such a run is SMILe's, bit for bit.

@@ -12,6 +12,7 @@ use candle_core::{Device, Tensor};
 use rand::Rng;
 
 use crate::error::{Error, Result};
+use crate::model::SharedCols;
 
 /// A minibatch as tensors, ready for an update.
 #[derive(Debug, Clone)]
@@ -26,6 +27,10 @@ pub struct Batch {
     pub next_obs: Tensor,
     /// 1.0 where the transition ended in a true terminal state, `(B, 1)`.
     pub done: Tensor,
+    /// Columns of `obs` and `next_obs` that repeat within groups of rows (a meta-learner's
+    /// task-major batch: each task's `z` on its rows), for the networks' first layers; `None`
+    /// for a plain batch.
+    pub z_cols: Option<SharedCols>,
 }
 
 /// A minibatch as flat row-major vectors (for callers that edit it before making tensors, e.g.
@@ -55,6 +60,7 @@ impl BatchVecs {
             rew: Tensor::from_slice(&self.rew, (b, 1), dev)?,
             next_obs: Tensor::from_slice(&self.next_obs, (b, obs_dim), dev)?,
             done: Tensor::from_slice(&self.done, (b, 1), dev)?,
+            z_cols: None,
         })
     }
 }

@@ -16,8 +16,9 @@ use candle_core::{DType, Device, Tensor, Var};
 use rand::Rng;
 
 use super::context::ObsNorm;
-use super::mlp::Mlp;
-use crate::error::Result;
+use super::fused::SharedCols;
+use super::mlp::{Input, Mlp};
+use crate::error::{Error, Result};
 
 /// What the discriminator sees of a transition besides `z`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,14 +100,14 @@ impl Discriminator {
 
     /// `l = clamp(D([x, z]), -c, c)` for rows `[x, z]`; gradients flow into the weights and
     /// into `z` (so into the encoder).
-    pub fn logits(&self, xz: &Tensor) -> Result<Tensor> {
+    pub fn logits<'a>(&self, xz: impl Into<Input<'a>>) -> Result<Tensor> {
         let c = self.clamp as f64;
         Ok(self.net.forward(xz)?.clamp(-c, c)?)
     }
 
     /// The policy's reward `r = clamp(D([x, z]), -c, c) = log D - log(1 - D)`, a constant for
     /// the SAC step (no gradient anywhere).
-    pub fn reward(&self, xz: &Tensor) -> Result<Tensor> {
+    pub fn reward<'a>(&self, xz: impl Into<Input<'a>>) -> Result<Tensor> {
         let c = self.clamp as f64;
         Ok(self.net.forward_const_weights(xz)?.clamp(-c, c)?.detach())
     }
@@ -119,8 +120,9 @@ impl Discriminator {
         x_policy: &Tensor,
         z: &Tensor,
         u: &Tensor,
+        z_group_rows: Option<usize>,
     ) -> Result<Tensor> {
-        gradient_penalty(&self.net, x_expert, x_policy, z, u)
+        gradient_penalty(&self.net, x_expert, x_policy, z, u, z_group_rows)
     }
 }
 
@@ -131,17 +133,33 @@ impl Discriminator {
 /// (constants: ReLU's second derivative is zero almost everywhere, so this equals PyTorch's
 /// `create_graph=True` gradient).
 pub fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
+    input_gradient_first_cols(net, x.into(), x.dim(1)?)
+}
+
+/// [`input_gradient`]'s first `cols` columns only (the gradient penalty's `x~`, not its
+/// detached `z`): the last product of the chain then uses only the first `cols` rows of
+/// `W_0`, which skips `z`'s share of that product, of its backward and of `W_0`'s gradient
+/// (about a third of the discriminator's first layer there at the authors' shapes).
+fn input_gradient_first_cols(net: &Mlp, input: Input<'_>, cols: usize) -> Result<Tensor> {
+    let x = input.x;
+    if cols == 0 || cols > x.dim(1)? {
+        return Err(Error::Config(format!(
+            "input gradient of the first {cols} of {} columns",
+            x.dim(1)?
+        )));
+    }
     let vars = net.vars();
     let n = vars.len() / 2;
     // The hidden layers' ReLU outputs y_l (constants; y_l > 0 exactly where m_l = 1).
     let mut acts = Vec::with_capacity(n - 1);
     let mut h = x.detach();
     for l in 0..n - 1 {
-        h = super::fused::linear(
+        h = super::fused::linear_shared(
             &h,
             &vars[2 * l].as_tensor().detach(),
             &vars[2 * l + 1].as_tensor().detach(),
             true,
+            if l == 0 { input.shared } else { None },
         )?;
         acts.push(h.clone());
     }
@@ -149,8 +167,18 @@ pub fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
     let w_last = vars[2 * (n - 1)].as_tensor(); // (h, 1)
     let mut g = Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?.matmul(&w_last.t()?)?;
     for l in (0..n - 1).rev() {
-        // g <- (g . m_l) W_l^T, one fused node (its products split in a learner pool)
-        g = super::fused::masked_matmul_t(&g, &acts[l], vars[2 * l].as_tensor())?;
+        // g <- (g . m_l) W_l^T, one fused node (its products split in a learner pool); for the
+        // first layer only W_0's rows of the wanted input columns.
+        let w = vars[2 * l].as_tensor();
+        let w = if l == 0 {
+            w.narrow(0, 0, cols)?
+        } else {
+            w.clone()
+        };
+        g = super::fused::masked_matmul_t(&g, &acts[l], &w)?;
+    }
+    if n == 1 {
+        g = g.narrow(1, 0, cols)?; // no hidden layer: the chain is W_0^T alone
     }
     Ok(g)
 }
@@ -163,18 +191,25 @@ pub fn bce_with_logits(logits: &Tensor, labels: &Tensor) -> Result<Tensor> {
 
 /// `L_gp = mean[(||dD([x~, z])/dx~|| - 1)^2]` with `x~ = u x_E + (1 - u) x_pi` per row; `z`
 /// is detached (the penalty does not train the encoder) and the gradient is taken with
-/// respect to `x~` only.
+/// respect to `x~` only. `z_group_rows`: `z`'s rows repeat in groups of that many (a task's z
+/// on its rows), so the first layer computes the z block once per group.
 pub fn gradient_penalty(
     net: &Mlp,
     x_expert: &Tensor,
     x_policy: &Tensor,
     z: &Tensor,
     u: &Tensor,
+    z_group_rows: Option<usize>,
 ) -> Result<Tensor> {
     let xd = x_expert.dim(1)?;
     let x_mix = (x_expert.broadcast_mul(u)? + x_policy.broadcast_mul(&u.affine(-1.0, 1.0)?)?)?;
     let mix = Tensor::cat(&[&x_mix, &z.detach()], 1)?;
-    let g = input_gradient(net, &mix)?.narrow(1, 0, xd)?;
+    let shared = z_group_rows.map(|group_rows| SharedCols {
+        start: xd,
+        len: z.dim(1).unwrap_or(0),
+        group_rows,
+    });
+    let g = input_gradient_first_cols(net, Input::shared(&mix, shared), xd)?;
     let norm = (g.sqr()?.sum_keepdim(1)? + 1e-12)?.sqrt()?;
     Ok((norm - 1.0)?.sqr()?.mean_all()?)
 }
@@ -286,6 +321,43 @@ mod tests {
                 (None, None) => {} // the biases: the chain does not depend on them
                 (a, b) => panic!("gradient present {} vs {}", a.is_some(), b.is_some()),
             }
+        }
+    }
+
+    /// The penalty's chain on the first columns only is the full chain's first columns, and
+    /// its weight gradients (the double backward) are the full chain's when the loss reads only
+    /// those columns, `W_0`'s other rows getting zeros; every net depth, bad widths refused.
+    #[test]
+    fn first_cols_chain_is_the_full_chain_narrowed() {
+        let x: Vec<f32> = (0..35)
+            .map(|i| ((i * 31 % 17) as f32 - 8.0) * 0.2)
+            .collect();
+        let x = Tensor::from_vec(x, (5, 7), &Device::Cpu).unwrap();
+        for widths in [vec![7, 1], vec![7, 9, 1], vec![7, 9, 8, 1]] {
+            let net = Mlp::new(&widths, &mut ChaCha8Rng::seed_from_u64(3)).unwrap();
+            let full = input_gradient(&net, &x).unwrap().narrow(1, 0, 4).unwrap();
+            let first = input_gradient_first_cols(&net, (&x).into(), 4).unwrap();
+            assert_eq!(first.dims(), &[5, 4]);
+            let d = (&full - &first).unwrap().abs().unwrap().max_all().unwrap();
+            assert!(d.to_vec0::<f32>().unwrap() < 1e-6, "{widths:?}");
+            let loss = |g: Tensor| g.sqr().unwrap().sum_all().unwrap().backward().unwrap();
+            let (a, b) = (loss(full), loss(first));
+            for v in net.vars() {
+                match (a.get(v.as_tensor()), b.get(v.as_tensor())) {
+                    (Some(a), Some(b)) => {
+                        let d = (a - b).unwrap().abs().unwrap().max_all().unwrap();
+                        assert!(
+                            d.to_vec0::<f32>().unwrap() < 1e-5,
+                            "{widths:?} {:?}",
+                            v.shape()
+                        );
+                    }
+                    (None, None) => {}
+                    (a, b) => panic!("gradient present {} vs {}", a.is_some(), b.is_some()),
+                }
+            }
+            assert!(input_gradient_first_cols(&net, (&x).into(), 0).is_err());
+            assert!(input_gradient_first_cols(&net, (&x).into(), 8).is_err());
         }
     }
 }

@@ -11,13 +11,18 @@
 //! * `dW = x^T g`, `db = 1^T g` only if `W` is tracked (a `Var`, not detached)
 //!
 //! The matrix products call the same `gemm` crate candle uses, one block per call; inside a
-//! learner thread pool large products are split across its threads ([`gemm_into`]).
+//! learner thread pool large products are split across its threads ([`gemm_into`]). Where some
+//! input columns repeat within groups of rows (a task's `z` on each of its rows, module
+//! `shared`), their product is computed once per group.
 
 use std::mem::MaybeUninit;
 
 use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
 
 use super::policy::HALF_LN_2PI;
+
+mod shared;
+pub use shared::SharedCols;
 
 fn msg(m: &str) -> candle_core::Error {
     candle_core::Error::Msg(format!("fused linear: {m}"))
@@ -302,6 +307,9 @@ fn relu_mask(g: f32, y: f32) -> f32 {
 pub struct Linear {
     /// Apply ReLU to the output.
     pub relu: bool,
+    /// Input columns that repeat within groups of rows: their product is computed once per
+    /// group (module `shared`).
+    pub shared: Option<SharedCols>,
 }
 
 impl CustomOp3 for Linear {
@@ -326,14 +334,24 @@ impl CustomOp3 for Linear {
         let (x, w, b) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
         // x W into a fresh buffer, then bias and ReLU in one pass over it (a bias-filled
         // buffer accumulated into, then a ReLU pass, went over the output three times).
-        let mut y = gemm_new(rows, d_out, d_in, Mat::rows(x, d_in), Mat::rows(w, d_out));
-        for row in y.chunks_exact_mut(d_out) {
-            if self.relu {
-                row.iter_mut()
-                    .zip(b)
-                    .for_each(|(v, b)| *v = (*v + b).max(0.0));
-            } else {
-                row.iter_mut().zip(b).for_each(|(v, b)| *v += b);
+        let Some(sc) = self.shared else {
+            let mut y = gemm_new(rows, d_out, d_in, Mat::rows(x, d_in), Mat::rows(w, d_out));
+            for row in y.chunks_exact_mut(d_out) {
+                bias_act(row, b, self.relu);
+            }
+            return Ok((CpuStorage::F32(y), Shape::from((rows, d_out))));
+        };
+        sc.groups(rows, d_in).map_err(|e| msg(&e))?;
+        debug_assert!(sc.holds(x, d_in), "shared columns differ within a group");
+        // The shared block's product once per group, added with the bias in the same pass.
+        let (mut y, zw) = sc.forward(x, rows, d_in, w, d_out);
+        for (grp, zrow) in y
+            .chunks_mut(sc.group_rows * d_out)
+            .zip(zw.chunks_exact(d_out))
+        {
+            let zb: Vec<f32> = zrow.iter().zip(b).map(|(z, b)| z + b).collect();
+            for row in grp.chunks_exact_mut(d_out) {
+                bias_act(row, &zb, self.relu);
             }
         }
         Ok((CpuStorage::F32(y), Shape::from((rows, d_out))))
@@ -353,20 +371,26 @@ impl CustomOp3 for Linear {
         if !want_dx && !want_dw {
             return Ok((None, None, None));
         }
-        // g = dL/dy * 1[y > 0], and db = 1^T g in the same pass over the rows (only a ReLU
-        // layer needs g as a buffer of its own; without ReLU g is dL/dy as it is).
-        let mut db = vec![0.0f32; d_out];
+        // g = dL/dy * 1[y > 0], and its column sums in the same pass over the rows (only a
+        // ReLU layer needs g as a buffer of its own; without ReLU g is dL/dy as it is). The
+        // sums are per group of rows where the input has shared columns (their weights'
+        // gradient needs them; db is then the groups' total), else db = 1^T g directly.
+        let shared = self.shared.filter(|_| want_dw);
+        let group_rows = shared.map_or(rows.max(1), |sc| sc.group_rows);
+        let mut sums = vec![0.0f32; rows.div_ceil(group_rows).max(1) * d_out];
         let masked: Option<Vec<f32>> = with_values(grad_res, |gs| {
             if self.relu {
                 with_values(res, |ys| {
                     // Row by row over equal-length slices, so the loop vectorises.
                     let mut g = Vec::with_capacity(gs.len());
                     let rows_out = g.spare_capacity_mut()[..gs.len()].chunks_exact_mut(d_out);
-                    for ((out, gr), yr) in rows_out
+                    for (r, ((out, gr), yr)) in rows_out
                         .zip(gs.chunks_exact(d_out))
                         .zip(ys.chunks_exact(d_out))
+                        .enumerate()
                     {
-                        for (((o, g_o), y_o), d) in out.iter_mut().zip(gr).zip(yr).zip(&mut db) {
+                        let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
+                        for (((o, g_o), y_o), d) in out.iter_mut().zip(gr).zip(yr).zip(acc) {
                             let v = relu_mask(*g_o, *y_o);
                             o.write(v);
                             *d += v;
@@ -378,12 +402,17 @@ impl CustomOp3 for Linear {
                     Ok(Some(g))
                 })
             } else {
-                for gr in gs.chunks_exact(d_out) {
-                    db.iter_mut().zip(gr).for_each(|(d, g)| *d += g);
+                for (r, gr) in gs.chunks_exact(d_out).enumerate() {
+                    let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
+                    acc.iter_mut().zip(gr).for_each(|(d, g)| *d += g);
                 }
                 Ok(None)
             }
         })?;
+        let mut db = vec![0.0f32; d_out];
+        for s in sums.chunks_exact(d_out) {
+            db.iter_mut().zip(s).for_each(|(d, s)| *d += s);
+        }
         let dev = x.device();
         with_values(grad_res, |gs| {
             let g: &[f32] = masked.as_deref().unwrap_or(gs);
@@ -405,13 +434,10 @@ impl CustomOp3 for Linear {
             let (dw, db) = if want_dw {
                 // dW (in x out) = x^T (in x rows) g (rows x out); x^T[i][r] = x[r * in + i]
                 let dw = with_values(x, |xs| {
-                    Ok(gemm_new(
-                        d_in,
-                        d_out,
-                        rows,
-                        Mat::t(xs, d_in),
-                        Mat::rows(g, d_out),
-                    ))
+                    Ok(match shared {
+                        Some(sc) => sc.weight_grad(xs, rows, d_in, g, &sums, d_out),
+                        None => gemm_new(d_in, d_out, rows, Mat::t(xs, d_in), Mat::rows(g, d_out)),
+                    })
                 })?;
                 (
                     Some(Tensor::from_vec(dw, (d_in, d_out), dev)?),
@@ -425,9 +451,34 @@ impl CustomOp3 for Linear {
     }
 }
 
+/// `row + b`, then ReLU when `relu`, in one pass.
+#[inline]
+fn bias_act(row: &mut [f32], b: &[f32], relu: bool) {
+    if relu {
+        row.iter_mut()
+            .zip(b)
+            .for_each(|(v, b)| *v = (*v + b).max(0.0));
+    } else {
+        row.iter_mut().zip(b).for_each(|(v, b)| *v += b);
+    }
+}
+
 /// `act(x W + b)` as one autograd node.
+#[cfg(test)]
 pub fn linear(x: &Tensor, w: &Tensor, b: &Tensor, relu: bool) -> candle_core::Result<Tensor> {
-    x.contiguous()?.apply_op3(w, b, Linear { relu })
+    linear_shared(x, w, b, relu, None)
+}
+
+/// [`linear`] on an input whose `shared` columns repeat within groups of rows (module
+/// `shared`): the same values up to rounding, with the shared block's products once per group.
+pub fn linear_shared(
+    x: &Tensor,
+    w: &Tensor,
+    b: &Tensor,
+    relu: bool,
+    shared: Option<SharedCols>,
+) -> candle_core::Result<Tensor> {
+    x.contiguous()?.apply_op3(w, b, Linear { relu, shared })
 }
 
 /// One step of the gradient penalty's input-gradient chain as one autograd node (see
@@ -752,5 +803,119 @@ mod tests {
         let y = linear(&x, &w.as_tensor().detach(), &b.as_tensor().detach(), true).unwrap();
         let g = y.sum_all().unwrap().backward().unwrap();
         assert!(g.get(&x).is_some() && g.get(&w).is_none() && g.get(&b).is_none());
+    }
+
+    /// A layer on an input with shared columns (before, inside or after the other columns;
+    /// with and without ReLU; input tracked or not) has plain candle's values and gradients,
+    /// on one learner thread and split across three (bit-identical between the two).
+    #[test]
+    fn shared_columns_match_plain_candle() {
+        let dev = &Device::Cpu;
+        let mk = |n: usize, s: f32| -> Vec<f32> {
+            (0..n).map(|i| (i as f32 * 0.37 + s).sin()).collect()
+        };
+        let (groups, group_rows, d_in, d_out) = (3usize, 40usize, 7usize, 90usize);
+        let rows = groups * group_rows;
+        for start in [0usize, 2, 4] {
+            let len = 3;
+            // x with columns [start, start + len) equal within each group of rows
+            let mut xv = mk(rows * d_in, 0.1);
+            for r in 0..rows {
+                for c in start..start + len {
+                    xv[r * d_in + c] = ((r / group_rows) as f32 * 0.9 + c as f32).cos();
+                }
+            }
+            let sc = SharedCols {
+                start,
+                len,
+                group_rows,
+            };
+            let x = Var::from_vec(xv, (rows, d_in), dev).unwrap();
+            let w = Var::from_vec(mk(d_in * d_out, 0.7), (d_in, d_out), dev).unwrap();
+            let b = Var::from_vec(mk(d_out, 1.3), (1, d_out), dev).unwrap();
+            let weights = Tensor::new(mk(d_out, 2.1), dev).unwrap();
+            for relu in [false, true] {
+                for track_x in [false, true] {
+                    let xin = if track_x {
+                        x.as_tensor().clone()
+                    } else {
+                        x.as_tensor().detach()
+                    };
+                    let run = |threads: usize| {
+                        crate::threads::LearnerPool::new(threads)
+                            .unwrap()
+                            .install(|| {
+                                let y = linear_shared(&xin, &w, &b, relu, Some(sc)).unwrap();
+                                let g = y.broadcast_mul(&weights).unwrap().sum_all().unwrap();
+                                (y.clone(), g.backward().unwrap())
+                            })
+                    };
+                    let (y, g) = run(1);
+                    let mut plain = xin.matmul(&w).unwrap().broadcast_add(&b).unwrap();
+                    if relu {
+                        plain = plain.relu().unwrap();
+                    }
+                    let gp = plain
+                        .broadcast_mul(&weights)
+                        .unwrap()
+                        .sum_all()
+                        .unwrap()
+                        .backward()
+                        .unwrap();
+                    // Relative to the largest value: a weight gradient sums 120 rows, and the
+                    // shared block's sums run in another order than the plain product's.
+                    let close = |a: &Tensor, b: &Tensor| {
+                        let max = |t: Tensor| t.abs().unwrap().max_all().unwrap();
+                        let d = max((a - b).unwrap()).to_vec0::<f32>().unwrap();
+                        d <= 1e-5 * (1.0 + max(b.clone()).to_vec0::<f32>().unwrap())
+                    };
+                    let what = format!("start {start} relu {relu} track_x {track_x}");
+                    assert!(close(&y, &plain), "{what}");
+                    for v in [&w, &b] {
+                        assert!(close(g.get(v).unwrap(), gp.get(v).unwrap()), "{what}");
+                    }
+                    assert_eq!(g.get(&x).is_some(), track_x, "{what}");
+                    if track_x {
+                        assert!(close(g.get(&x).unwrap(), gp.get(&x).unwrap()), "{what}");
+                    }
+                    let (y3, g3) = run(3);
+                    let bits = |t: &Tensor| {
+                        t.flatten_all()
+                            .unwrap()
+                            .to_vec1::<f32>()
+                            .unwrap()
+                            .iter()
+                            .map(|v| v.to_bits())
+                            .collect::<Vec<_>>()
+                    };
+                    assert_eq!(bits(&y), bits(&y3), "{what}");
+                    assert_eq!(
+                        bits(g.get(&w).unwrap()),
+                        bits(g3.get(&w).unwrap()),
+                        "{what}"
+                    );
+                }
+            }
+        }
+    }
+
+    /// Shared columns that do not fit the input are an error, not a wrong answer.
+    #[test]
+    fn shared_columns_that_do_not_fit_are_refused() {
+        let dev = &Device::Cpu;
+        let x = Tensor::zeros((10, 4), candle_core::DType::F32, dev).unwrap();
+        let w = Tensor::zeros((4, 3), candle_core::DType::F32, dev).unwrap();
+        let b = Tensor::zeros((1, 3), candle_core::DType::F32, dev).unwrap();
+        let sc = |start, len, group_rows| {
+            Some(SharedCols {
+                start,
+                len,
+                group_rows,
+            })
+        };
+        assert!(linear_shared(&x, &w, &b, true, sc(2, 2, 5)).is_ok());
+        assert!(linear_shared(&x, &w, &b, true, sc(2, 2, 3)).is_err()); // 10 rows, groups of 3
+        assert!(linear_shared(&x, &w, &b, true, sc(3, 2, 5)).is_err()); // past the last column
+        assert!(linear_shared(&x, &w, &b, true, sc(0, 1, 0)).is_err());
     }
 }

@@ -11,19 +11,45 @@
 use candle_core::{CpuStorage, Device, InplaceOp2, Layout, Tensor, Var};
 use rand::Rng;
 
-use super::fused::{f32_slice, f32_slice_mut};
+use super::fused::{SharedCols, f32_slice, f32_slice_mut};
 use crate::error::{Error, Result};
 
 /// Weights and biases of one MLP as plain tensors, in layer order `[w0, b0, w1, b1, ...]`.
 ///
 /// `w_i` has shape `(in, out)`, `b_i` shape `(1, out)`.
-fn forward_params(params: &[Tensor], x: &Tensor) -> Result<Tensor> {
+fn forward_params(params: &[Tensor], x: Input<'_>) -> Result<Tensor> {
     let n_layers = params.len() / 2;
-    let mut h = x.clone();
+    let mut h = x.x.clone();
     for (i, wb) in params.chunks_exact(2).enumerate() {
-        h = super::fused::linear(&h, &wb[0], &wb[1], i + 1 < n_layers)?;
+        // Only the first layer sees the input's shared columns.
+        let shared = if i == 0 { x.shared } else { None };
+        h = super::fused::linear_shared(&h, &wb[0], &wb[1], i + 1 < n_layers, shared)?;
     }
     Ok(h)
+}
+
+/// A network's input rows, and the columns that repeat within groups of them if any (a task's
+/// `z` on each of the task's rows): the first layer then computes their product once per group.
+/// A plain `&Tensor` converts into an input without shared columns.
+#[derive(Debug, Clone, Copy)]
+pub struct Input<'a> {
+    /// The rows `(B, in)`.
+    pub x: &'a Tensor,
+    /// The columns that repeat within groups of rows, if any.
+    pub shared: Option<SharedCols>,
+}
+
+impl<'a> Input<'a> {
+    /// `x` with the given shared columns (`None`: a plain input).
+    pub fn shared(x: &'a Tensor, shared: Option<SharedCols>) -> Self {
+        Self { x, shared }
+    }
+}
+
+impl<'a> From<&'a Tensor> for Input<'a> {
+    fn from(x: &'a Tensor) -> Self {
+        Self { x, shared: None }
+    }
 }
 
 /// A ReLU multi-layer perceptron with trainable weights.
@@ -72,17 +98,17 @@ impl Mlp {
     }
 
     /// Forward pass; gradients flow into this network's weights.
-    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
+    pub fn forward<'a>(&self, x: impl Into<Input<'a>>) -> Result<Tensor> {
         let params: Vec<Tensor> = self.vars.iter().map(|v| v.as_tensor().clone()).collect();
-        forward_params(&params, x)
+        forward_params(&params, x.into())
     }
 
     /// Forward pass with the weights treated as constants: gradients flow into `x` only.
     ///
     /// This is how the SAC actor loss evaluates `Q(s, pi(s))` without computing critic gradients.
-    pub fn forward_const_weights(&self, x: &Tensor) -> Result<Tensor> {
+    pub fn forward_const_weights<'a>(&self, x: impl Into<Input<'a>>) -> Result<Tensor> {
         let params: Vec<Tensor> = self.vars.iter().map(|v| v.as_tensor().detach()).collect();
-        forward_params(&params, x)
+        forward_params(&params, x.into())
     }
 
     /// A deep copy in separate storage, for target networks.
@@ -138,8 +164,9 @@ pub struct FrozenMlp {
 
 impl FrozenMlp {
     /// Forward pass (no gradient anywhere).
-    pub fn forward(&self, x: &Tensor) -> Result<Tensor> {
-        forward_params(&self.params, &x.detach())
+    pub fn forward<'a>(&self, x: impl Into<Input<'a>>) -> Result<Tensor> {
+        let x = x.into();
+        forward_params(&self.params, Input::shared(&x.x.detach(), x.shared))
     }
 
     /// The weights, `[w0, b0, w1, b1, ...]`.

@@ -20,6 +20,7 @@ pub use context::{
 pub use discriminator::{
     DiscInput, DiscStats, Discriminator, bce_with_logits, gradient_penalty, input_gradient,
 };
+pub use fused::SharedCols;
 pub(crate) use fused::TanhGaussian;
 pub(crate) use fused::{f32_slice, f32_slice_mut};
 pub use meta_policy::{
@@ -27,7 +28,7 @@ pub use meta_policy::{
 };
 pub(crate) use meta_policy::{mlp_load, mlp_tensors};
 pub(crate) use mlp::check_shapes;
-pub use mlp::{FrozenMlp, Mlp};
+pub use mlp::{FrozenMlp, Input, Mlp};
 pub use policy::{PolicySample, TanhGaussianPolicy};
 
 /// The single value of a one-element tensor (a loss or a mean), for logging.

@@ -13,7 +13,7 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 use crate::error::Result;
-use crate::model::Mlp;
+use crate::model::{Input, Mlp};
 
 /// `0.5 * ln(2 pi)`.
 pub(crate) const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
@@ -91,11 +91,11 @@ impl TanhGaussianPolicy {
     }
 
     /// `(mu, clamp(log sigma))` for a batch of observations `(B, obs_dim)`.
-    pub fn heads(&self, obs: &Tensor) -> Result<(Tensor, Tensor)> {
-        self.heads_impl(obs, false)
+    pub fn heads<'a>(&self, obs: impl Into<Input<'a>>) -> Result<(Tensor, Tensor)> {
+        self.heads_impl(obs.into(), false)
     }
 
-    fn heads_impl(&self, obs: &Tensor, const_weights: bool) -> Result<(Tensor, Tensor)> {
+    fn heads_impl(&self, obs: Input<'_>, const_weights: bool) -> Result<(Tensor, Tensor)> {
         let out = if const_weights {
             self.net.forward_const_weights(obs)?
         } else {
@@ -117,18 +117,27 @@ impl TanhGaussianPolicy {
     }
 
     /// Reparameterised sample `a = tanh(mu + sigma * eps)` and its log-density, given `eps`.
-    pub fn sample_with_noise(&self, obs: &Tensor, eps: &Tensor) -> Result<PolicySample> {
-        self.sample_impl(obs, eps, false)
+    pub fn sample_with_noise<'a>(
+        &self,
+        obs: impl Into<Input<'a>>,
+        eps: &Tensor,
+    ) -> Result<PolicySample> {
+        self.sample_impl(obs.into(), eps, false)
     }
 
     /// As [`TanhGaussianPolicy::sample`] with the weights treated as constants (no graph into
     /// the policy; used for the critic's bootstrap target).
-    pub fn sample_const(&self, obs: &Tensor, rng: &mut impl Rng) -> Result<PolicySample> {
-        let eps = self.noise(obs.dim(0)?, rng)?;
+    pub fn sample_const<'a>(
+        &self,
+        obs: impl Into<Input<'a>>,
+        rng: &mut impl Rng,
+    ) -> Result<PolicySample> {
+        let obs = obs.into();
+        let eps = self.noise(obs.x.dim(0)?, rng)?;
         self.sample_impl(obs, &eps, true)
     }
 
-    fn sample_impl(&self, obs: &Tensor, eps: &Tensor, const_w: bool) -> Result<PolicySample> {
+    fn sample_impl(&self, obs: Input<'_>, eps: &Tensor, const_w: bool) -> Result<PolicySample> {
         let out = if const_w {
             self.net.forward_const_weights(obs)?
         } else {
@@ -171,13 +180,18 @@ impl TanhGaussianPolicy {
     }
 
     /// Reparameterised sample with fresh noise from `rng`.
-    pub fn sample(&self, obs: &Tensor, rng: &mut impl Rng) -> Result<PolicySample> {
-        let eps = self.noise(obs.dim(0)?, rng)?;
+    pub fn sample<'a>(
+        &self,
+        obs: impl Into<Input<'a>>,
+        rng: &mut impl Rng,
+    ) -> Result<PolicySample> {
+        let obs = obs.into();
+        let eps = self.noise(obs.x.dim(0)?, rng)?;
         self.sample_with_noise(obs, &eps)
     }
 
     /// The deterministic action `tanh(mu)` used for evaluation and demos.
-    pub fn mean_action(&self, obs: &Tensor) -> Result<Tensor> {
+    pub fn mean_action<'a>(&self, obs: impl Into<Input<'a>>) -> Result<Tensor> {
         let (mean, _) = self.heads(obs)?;
         Ok(mean.tanh()?)
     }
@@ -186,7 +200,7 @@ impl TanhGaussianPolicy {
     pub fn act(&self, obs: &[f32], deterministic: bool, rng: &mut impl Rng) -> Result<Vec<f32>> {
         let o = Tensor::from_slice(obs, (1, obs.len()), &Device::Cpu)?;
         let a = if deterministic {
-            self.heads_impl(&o, true)?.0.tanh()?
+            self.heads_impl((&o).into(), true)?.0.tanh()?
         } else {
             self.sample_const(&o, rng)?.action
         };

@@ -8,7 +8,9 @@ use rand::Rng;
 
 use crate::error::{Error, Result};
 use crate::model::scalar;
-use crate::model::{ContextBatch, ContextEncoder, DiscStats, Discriminator, bce_with_logits};
+use crate::model::{
+    ContextBatch, ContextEncoder, DiscStats, Discriminator, Input, SharedCols, bce_with_logits,
+};
 use crate::optim::Adam;
 
 /// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
@@ -99,7 +101,15 @@ pub(crate) fn disc_grads(
         ],
         0,
     )?;
-    let logits = disc.logits(&inp)?; // (2 t n, 1): expert rows, then policy rows
+    // (2 t n, 1): expert rows, then policy rows; each task's z on its n rows of each half, so
+    // the first layer computes the z block once per n rows.
+    let zd = z_rows.dim(1)?;
+    let shared = SharedCols {
+        start: inp.dim(1)? - zd,
+        len: zd,
+        group_rows: batch.per_task,
+    };
+    let logits = disc.logits(Input::shared(&inp, Some(shared)))?;
     let labels = Tensor::cat(
         &[
             Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?,
@@ -115,7 +125,13 @@ pub(crate) fn disc_grads(
     if gp_weight > 0.0 {
         let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
         let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu)?;
-        let gp = disc.gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u)?;
+        let gp = disc.gradient_penalty(
+            &batch.x_expert,
+            &batch.x_policy,
+            &z_rows,
+            &u,
+            Some(batch.per_task),
+        )?;
         gp_v = scalar(&gp)?;
         // L_D = L_bce + lambda_gp L_gp
         loss = (loss + (gp * gp_weight as f64)?)?;

@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# A whole SMILe update pair at the authors' cheetah recipe, ours beside PyTorch doing the same
+# work (docs/scripts/torch_smile_pair.py: the SAC batch's reward through the discriminator, the
+# recipe's contexts of whole demos, per-step sampling), on 1 and 2 threads, two rounds, in one
+# sitting (docs/BENCHMARKS.md, "The whole pair against PyTorch's whole pair").
+#
+#   docs/scripts/bench-pair.sh OUT_DIR
+#
+# Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
+# release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
+# ../shared/bench/torch_reference.py). Takes about 12 minutes on a 2-vCPU machine.
+set -euo pipefail
+cd "$(dirname "$0")/../.."
+out=${1:?usage: bench-pair.sh OUT_DIR}
+mkdir -p "$out"
+py=.venv-torch/bin/python
+smile=target/release/smile
+echo "machine: $(nproc) vCPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2), $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$out/machine.txt"
+for round in 1 2; do
+  for t in 1 2; do
+    echo "== ours SMILe pairs, docs/configs/authors-cv-smile.toml, learner threads $t (round $round)"
+    $smile bench --workload pair --config docs/configs/authors-cv-smile.toml \
+      --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors \
+      --iters 3 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-t$t-r$round.json" | tail -1
+  done
+  echo "== PyTorch SMILe pair, the same recipe, threads 1 2 (round $round)"
+  $py docs/scripts/torch_smile_pair.py --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-pair-r$round.json"
+done
+echo "done $(date -u +%T)"
