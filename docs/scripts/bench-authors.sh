@@ -2,13 +2,14 @@
 # The learner at the SMILe authors' shapes beside PyTorch, in one sitting (docs/BENCHMARKS.md,
 # "The authors' shapes"): the single-core sgemm anchor, SAC and discriminator steps on 1 and 2
 # threads each side, whole SMILe pairs of the authors' cheetah recipe on 1 and 2 learner
-# threads, and the narrow-width pair against the PyTorch prototype.
+# threads beside PyTorch doing the same pair (docs/scripts/torch_smile_pair.py), and the
+# narrow-width pair against the PyTorch prototype.
 #
 #   docs/scripts/bench-authors.sh OUT_DIR
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
 # release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
-# ../shared/bench/torch_reference.py). Takes about 15 minutes on a 2-vCPU machine.
+# ../shared/bench/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:?usage: bench-authors.sh OUT_DIR}
@@ -47,6 +48,10 @@ for t in 1 2 1 2; do
     --config docs/configs/authors-cv-smile.toml \
     --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors \
     --iters 3 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-authors-t$t.json" 2>&1 | tail -2
+done
+for round in 1 2; do
+  echo "== PyTorch SMILe pair doing our pair's work (docs/scripts/torch_smile_pair.py), threads 1 2 (round $round)"
+  $py docs/scripts/torch_smile_pair.py --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-pair-r$round.json"
 done
 for t in 1 2; do
   echo "== ours SMILe pairs, prototype layout H=128, learner threads $t"
