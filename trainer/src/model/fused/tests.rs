@@ -1,7 +1,18 @@
 //! Tests of the fused layers: products split across threads, the layer against plain candle,
 //! shared columns.
 use super::*;
+use candle_core::backprop::GradStore;
 use candle_core::{Device, Var};
+
+/// The gradients of `sum(y * weights)`, `weights` broadcast over the rows.
+fn weighted_backward(y: &Tensor, weights: &Tensor) -> GradStore {
+    y.broadcast_mul(weights)
+        .unwrap()
+        .sum_all()
+        .unwrap()
+        .backward()
+        .unwrap()
+}
 
 /// A product split into row or column blocks across a pool of any size equals the product
 /// computed in one call, bit for bit (what makes runs independent of the thread count).
@@ -83,20 +94,8 @@ fn matches_plain_candle() {
         };
         assert!(close(&fused, &plain));
         let weights = Tensor::new(&[1.0f32, -2.0, 0.5, 3.0], dev).unwrap();
-        let gf = fused
-            .broadcast_mul(&weights)
-            .unwrap()
-            .sum_all()
-            .unwrap()
-            .backward()
-            .unwrap();
-        let gp = plain
-            .broadcast_mul(&weights)
-            .unwrap()
-            .sum_all()
-            .unwrap()
-            .backward()
-            .unwrap();
+        let gf = weighted_backward(&fused, &weights);
+        let gp = weighted_backward(&plain, &weights);
         for v in [&x, &w, &b] {
             assert!(close(gf.get(v).unwrap(), gp.get(v).unwrap()), "relu {relu}");
         }
@@ -147,8 +146,8 @@ fn shared_columns_match_plain_candle() {
                         .unwrap()
                         .install(|| {
                             let y = linear_shared(&xin, &w, &b, relu, Some(sc)).unwrap();
-                            let g = y.broadcast_mul(&weights).unwrap().sum_all().unwrap();
-                            (y.clone(), g.backward().unwrap())
+                            let g = weighted_backward(&y, &weights);
+                            (y, g)
                         })
                 };
                 let (y, g) = run(1);
@@ -156,13 +155,7 @@ fn shared_columns_match_plain_candle() {
                 if relu {
                     plain = plain.relu().unwrap();
                 }
-                let gp = plain
-                    .broadcast_mul(&weights)
-                    .unwrap()
-                    .sum_all()
-                    .unwrap()
-                    .backward()
-                    .unwrap();
+                let gp = weighted_backward(&plain, &weights);
                 // Relative to the largest value: a weight gradient sums 120 rows, and the
                 // shared block's sums run in another order than the plain product's.
                 let close = |a: &Tensor, b: &Tensor| {
