@@ -204,9 +204,10 @@ pub fn gradient_penalty(
     let xd = x_expert.dim(1)?;
     let x_mix = (x_expert.broadcast_mul(u)? + x_policy.broadcast_mul(&u.affine(-1.0, 1.0)?)?)?;
     let mix = Tensor::cat(&[&x_mix, &z.detach()], 1)?;
+    let zd = z.dim(1)?;
     let shared = z_group_rows.map(|group_rows| SharedCols {
         start: xd,
-        len: z.dim(1).unwrap_or(0),
+        len: zd,
         group_rows,
     });
     let g = input_gradient_first_cols(net, Input::shared(&mix, shared), xd)?;
