@@ -93,6 +93,24 @@ impl LearnerPool {
     }
 }
 
+/// Runs `a` and `b` as the two sides of a `rayon::join` inside a learner pool of two or more
+/// threads (a free thread takes `b` whole), and one after the other, `a` first, elsewhere
+/// (one learner thread, or outside any pool: never rayon's global pool).
+pub fn join<A, B, RA, RB>(a: A, b: B) -> (RA, RB)
+where
+    A: FnOnce() -> RA + Send,
+    B: FnOnce() -> RB + Send,
+    RA: Send,
+    RB: Send,
+{
+    if rayon::current_thread_index().is_some() && rayon::current_num_threads() > 1 {
+        rayon::join(a, b)
+    } else {
+        let ra = a();
+        (ra, b())
+    }
+}
+
 /// `skip_serializing_if` of the configs' `learner_threads` (1, the default, is not written, so
 /// configs and checkpoints of one-thread runs stay as they were).
 pub(crate) fn is_one(v: &usize) -> bool {

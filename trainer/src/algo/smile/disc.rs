@@ -83,6 +83,11 @@ pub(crate) fn disc_update(
 /// The loss `L_D` of one discriminator + encoder update and its gradients, the networks only
 /// read (an overlapped pair computes them while the SAC side reads the same networks for its
 /// reward, and steps the optimisers after both sides are done).
+///
+/// `L_bce` and `L_gp` share no node but the discriminator's weights (the penalty's `z` is
+/// detached), so their gradients come from two backward passes, added afterwards: inside a
+/// learner pool the two run as the sides of a join ([`crate::threads::join`]), which a free
+/// core can take whole instead of only the blocks of their matrix products.
 pub(crate) fn disc_grads(
     encoder: &ContextEncoder,
     disc: &Discriminator,
@@ -94,10 +99,50 @@ pub(crate) fn disc_grads(
     let rows = batch.tasks * batch.per_task;
     let z = encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
     let z_rows = batch.z_rows(&z)?; // (t n, z)
+    // The penalty's mixing weights, drawn before the two halves split (a fixed draw order).
+    let u = if gp_weight > 0.0 {
+        let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
+        Some(Tensor::from_vec(u, (rows, 1), &Device::Cpu)?)
+    } else {
+        None
+    };
+    let (bce, gp) = crate::threads::join(
+        || bce_grads(disc, batch, &z_rows, update),
+        || match &u {
+            Some(u) => gp_grads(disc, batch, &z_rows, u, gp_weight, update).map(Some),
+            None => Ok(None),
+        },
+    );
+    let (mut grads, bce_v, lg) = bce?;
+    let mut gp_v = 0.0;
+    if let Some((gp_grads, v)) = gp? {
+        // dL_D/dtheta = dL_bce/dtheta + lambda_gp dL_gp/dtheta
+        grads.extend(gp_grads)?;
+        gp_v = v;
+    }
+    let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
+    let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
+    let stats = DiscStats {
+        bce: bce_v,
+        gp: gp_v,
+        acc_expert: acc_e,
+        acc_policy: acc_p,
+    };
+    Ok((grads, stats))
+}
+
+/// `L_bce`'s gradients (discriminator and encoder), its value and the batch's logits.
+fn bce_grads(
+    disc: &Discriminator,
+    batch: &DiscBatch,
+    z_rows: &Tensor,
+    update: u64,
+) -> Result<(GradStore, f32, Vec<f32>)> {
+    let rows = batch.tasks * batch.per_task;
     let inp = Tensor::cat(
         &[
-            &Tensor::cat(&[&batch.x_expert, &z_rows], 1)?,
-            &Tensor::cat(&[&batch.x_policy, &z_rows], 1)?,
+            &Tensor::cat(&[&batch.x_expert, z_rows], 1)?,
+            &Tensor::cat(&[&batch.x_policy, z_rows], 1)?,
         ],
         0,
     )?;
@@ -119,42 +164,190 @@ pub(crate) fn disc_grads(
     )?;
     // L_bce = mean[softplus(l) - y l]
     let bce = bce_with_logits(&logits, &labels)?;
+    let v = finite("losses/disc_bce", scalar(&bce)?, update)?;
+    let grads = bce.backward()?;
+    Ok((grads, v, logits.detach().flatten_all()?.to_vec1::<f32>()?))
+}
+
+/// `lambda_gp L_gp`'s gradients (the discriminator's only) and `L_gp`'s value.
+fn gp_grads(
+    disc: &Discriminator,
+    batch: &DiscBatch,
+    z_rows: &Tensor,
+    u: &Tensor,
+    gp_weight: f32,
+    update: u64,
+) -> Result<(GradStore, f32)> {
     // L_gp = mean[(||dD/dx~|| - 1)^2], x~ = u x_E + (1 - u) x_pi, z detached
-    let mut loss = bce.clone();
-    let mut gp_v = 0.0;
-    if gp_weight > 0.0 {
-        let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
-        let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu)?;
-        let gp = disc.gradient_penalty(
-            &batch.x_expert,
-            &batch.x_policy,
-            &z_rows,
-            &u,
-            Some(batch.per_task),
-        )?;
-        gp_v = scalar(&gp)?;
-        // L_D = L_bce + lambda_gp L_gp
-        loss = (loss + (gp * gp_weight as f64)?)?;
+    let gp = disc.gradient_penalty(
+        &batch.x_expert,
+        &batch.x_policy,
+        z_rows,
+        u,
+        Some(batch.per_task),
+    )?;
+    let v = finite("losses/disc_gp", scalar(&gp)?, update)?;
+    Ok(((gp * gp_weight as f64)?.backward()?, v))
+}
+
+/// `v`, or the non-finite-loss error naming `what` and the update.
+fn finite(what: &'static str, v: f32, update: u64) -> Result<f32> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::NonFinite {
+            what,
+            value: v,
+            update,
+        })
     }
-    let bce_v = scalar(&bce)?;
-    for (what, v) in [("losses/disc_bce", bce_v), ("losses/disc_gp", gp_v)] {
-        if !v.is_finite() {
-            return Err(Error::NonFinite {
-                what,
-                value: v,
-                update,
-            });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::model::{ContextConfig, ContextSpec, DiscInput, ObsNorm};
+    use crate::threads::LearnerPool;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// A small encoder, discriminator and batch of random rows (3 tasks x 8 rows).
+    fn setup() -> (ContextEncoder, Discriminator, DiscBatch) {
+        let (od, ad, tasks, per_task) = (5, 2, 3, 8);
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let cfg = ContextConfig {
+            enc_hidden: vec![16],
+            r_dim: 8,
+            z_dim: 4,
+            head_hidden: vec![],
+            stochastic_z: false,
+            ..ContextConfig::default()
+        };
+        let encoder = ContextEncoder::new(od, ad, cfg, &mut rng).unwrap();
+        let disc = Discriminator::new(od, ad, 4, &[32, 32], DiscInput::StateAction, 10.0, &mut rng)
+            .unwrap();
+        let mut normal = |n: usize| -> Vec<f32> {
+            (0..n)
+                .map(|_| rng.sample::<f32, _>(rand_distr::StandardNormal))
+                .collect()
+        };
+        let trajs: Vec<sim::Trajectory> = (0..tasks * 2)
+            .map(|_| {
+                let mut t = sim::Trajectory::new(0);
+                for i in 0..4 {
+                    let (o, a, n) = (normal(od), normal(ad), normal(od));
+                    let tr = sim::TransitionRef {
+                        obs: &o,
+                        action: &a,
+                        reward: 0.0,
+                        next_obs: &n,
+                        done: false,
+                    };
+                    t.push(i, tr);
+                }
+                t
+            })
+            .collect();
+        let (xe, xp) = (
+            normal(tasks * per_task * (od + ad)),
+            normal(tasks * per_task * (od + ad)),
+        );
+        let specs: Vec<ContextSpec<'_>> = trajs
+            .chunks(2)
+            .map(|c| ContextSpec::all(c.iter().collect()))
+            .collect();
+        let context = encoder.batch(&ObsNorm::identity(od), &specs).unwrap();
+        let batch = DiscBatch::new(context, xe, xp, tasks, per_task).unwrap();
+        (encoder, disc, batch)
+    }
+
+    /// Every variable's gradient in `g`, flattened, in the networks' order.
+    fn flat(g: &GradStore, enc: &ContextEncoder, disc: &Discriminator) -> Vec<Vec<f32>> {
+        enc.vars()
+            .iter()
+            .chain(disc.vars().iter())
+            .map(|v| {
+                g.get(v.as_tensor())
+                    .expect("every variable has a gradient")
+                    .flatten_all()
+                    .unwrap()
+                    .to_vec1::<f32>()
+                    .unwrap()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn split_gradients_are_one_backward_of_the_sum_on_any_thread_count() {
+        let (enc, disc, batch) = setup();
+        let gp_w = 10.0;
+        let (g1, s1) = disc_grads(
+            &enc,
+            &disc,
+            gp_w,
+            &batch,
+            1,
+            &mut ChaCha8Rng::seed_from_u64(3),
+        )
+        .unwrap();
+        // Two learner threads: the halves run as a join, the result is the same bits.
+        let pool = LearnerPool::new(2).unwrap();
+        let (g2, s2) = pool.install(|| {
+            disc_grads(
+                &enc,
+                &disc,
+                gp_w,
+                &batch,
+                1,
+                &mut ChaCha8Rng::seed_from_u64(3),
+            )
+            .unwrap()
+        });
+        assert_eq!(flat(&g1, &enc, &disc), flat(&g2, &enc, &disc));
+        assert_eq!((s1.bce, s1.gp), (s2.bce, s2.gp));
+        assert!(s1.gp > 0.0 && s1.bce > 0.0);
+
+        // The reference: L_D = L_bce + lambda L_gp in one graph, one backward, the same draws
+        // (z first, then u).
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let rows = batch.tasks * batch.per_task;
+        let z_rows = batch
+            .z_rows(&enc.z(&batch.context, true, &mut rng).unwrap())
+            .unwrap();
+        let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
+        let u = Tensor::from_vec(u, (rows, 1), &Device::Cpu).unwrap();
+        let inp = Tensor::cat(
+            &[
+                &Tensor::cat(&[&batch.x_expert, &z_rows], 1).unwrap(),
+                &Tensor::cat(&[&batch.x_policy, &z_rows], 1).unwrap(),
+            ],
+            0,
+        )
+        .unwrap();
+        let logits = disc.logits(Input::from(&inp)).unwrap();
+        let labels = Tensor::cat(
+            &[
+                Tensor::ones((rows, 1), DType::F32, &Device::Cpu).unwrap(),
+                Tensor::zeros((rows, 1), DType::F32, &Device::Cpu).unwrap(),
+            ],
+            0,
+        )
+        .unwrap();
+        let bce = bce_with_logits(&logits, &labels).unwrap();
+        let gp = disc
+            .gradient_penalty(&batch.x_expert, &batch.x_policy, &z_rows, &u, None)
+            .unwrap();
+        assert!((scalar(&gp).unwrap() - s1.gp).abs() <= 1e-5 * s1.gp);
+        let reference = (bce + (gp * gp_w as f64).unwrap())
+            .unwrap()
+            .backward()
+            .unwrap();
+        for (a, b) in flat(&g1, &enc, &disc)
+            .iter()
+            .flatten()
+            .zip(flat(&reference, &enc, &disc).iter().flatten())
+        {
+            assert!((a - b).abs() <= 1e-4 * (1.0 + b.abs()), "{a} vs {b}");
         }
     }
-    let grads = loss.backward()?;
-    let lg = logits.detach().flatten_all()?.to_vec1::<f32>()?;
-    let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
-    let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
-    let stats = DiscStats {
-        bce: bce_v,
-        gp: gp_v,
-        acc_expert: acc_e,
-        acc_policy: acc_p,
-    };
-    Ok((grads, stats))
 }
