@@ -87,10 +87,7 @@ impl InplaceOp2 for AdamStep<'_> {
         // steal (every element's update is independent, so the result is the same bit for
         // bit): the discriminator's optimiser step follows the join of a SMILe pair, where
         // one thread would otherwise work alone.
-        if rayon::current_thread_index().is_some()
-            && rayon::current_num_threads() > 1
-            && p.len() >= PARALLEL_MIN_PARAMS
-        {
+        if crate::threads::in_pool() && p.len() >= PARALLEL_MIN_PARAMS {
             use rayon::prelude::*;
             let block = p.len().div_ceil(rayon::current_num_threads());
             p.par_chunks_mut(block)

@@ -93,6 +93,11 @@ impl LearnerPool {
     }
 }
 
+/// Whether the caller runs inside a learner pool of two or more threads.
+pub fn in_pool() -> bool {
+    rayon::current_thread_index().is_some() && rayon::current_num_threads() > 1
+}
+
 /// Runs `a` and `b` as the two sides of a `rayon::join` inside a learner pool of two or more
 /// threads (a free thread takes `b` whole), and one after the other, `a` first, elsewhere
 /// (one learner thread, or outside any pool: never rayon's global pool).
@@ -103,7 +108,7 @@ where
     RA: Send,
     RB: Send,
 {
-    if rayon::current_thread_index().is_some() && rayon::current_num_threads() > 1 {
+    if in_pool() {
         rayon::join(a, b)
     } else {
         let ra = a();
