@@ -7,10 +7,13 @@ meta-test metric (eval/eval.json) and its training's last step and wall-clock, s
 state each method's updates and time.
 
     python3 docs/scripts/learning_curves.py SWEEP_DIR OUT_PREFIX [TITLE] [--also [METHOD=]DIR]...
+        [--keep EARLIER.json]
 
 `--also` adds cells from elsewhere to the same table and plot: DIR is another sweep directory
 or one cell's directory (`runs/cv-width/narrow-s0`); `METHOD=` names their method (else the
-cell name without its `-sN`), e.g. `--also smile=runs/cv-width/narrow-s0`.
+cell name without its `-sN`), e.g. `--also smile=runs/cv-width/narrow-s0`. `--keep` carries the
+cells of an earlier OUT_PREFIX.json whose run directories are gone (a later session adding a
+seed): each is kept unless a cell of the same name is found again.
 
 writes OUT_PREFIX.json (the curves and the per-cell summary) and OUT_PREFIX.svg (needs
 matplotlib), and prints a markdown table: method, seeds, test metric mean +- std over seeds,
@@ -39,10 +42,14 @@ def method_of(name):
 
 
 def main():
-    args, also = [], []
+    args, also, keep = [], [], None
     it = iter(sys.argv[1:])
     for a in it:
-        if a == "--also":
+        if a == "--keep":
+            keep = next(it, None)
+            if keep is None:
+                sys.exit("--keep needs an earlier OUT_PREFIX.json")
+        elif a == "--also":
             spec = next(it, None)
             if spec is None:
                 sys.exit("--also needs [METHOD=]DIR")
@@ -76,8 +83,17 @@ def main():
                      "cpu_s": cpus, "val_metric": vals, "last_step": last_step,
                      "last_wall_s": round(last_wall), "last_cpu_s": round(cpu),
                      "test_metric": test})
+    kept = []
+    if keep:
+        earlier = json.load(open(keep))
+        names = {c["cell"] for c in data}
+        kept = [c for c in earlier["cells"] if c["cell"] not in names]
+        data = kept + data
     with open(out + ".json", "w") as f:
-        json.dump({"sweep": sweep, "also": [d for d, _ in also], "cells": data}, f, indent=1)
+        doc = {"sweep": sweep, "also": [d for d, _ in also], "cells": data}
+        if kept:
+            doc["kept_from"] = {"file": keep, "cells": [c["cell"] for c in kept]}
+        json.dump(doc, f, indent=1)
         f.write("\n")
     methods = sorted({c["method"] for c in data})
     print("| method | seeds | meta-test metric (mean +- std over seeds) | steps per cell | wall-clock per cell (s) | CPU per cell (s) |")
