@@ -1,0 +1,30 @@
+#!/usr/bin/env bash
+# Keeps what a sweep's tables and curves are made from, without its checkpoints: the manifest
+# and, per cell, its config, evaluation and training metrics (a few hundred KB a cell, where the
+# run directory holds tens of MB). `smile report` and docs/scripts/learning_curves.py read the
+# copy as they read the sweep, so a table can be made again after runs/ is gone.
+#
+#   docs/scripts/archive-sweep.sh runs/SWEEP [DEST]      # DEST defaults to docs/results/SWEEP
+#   smile report docs/results/SWEEP -o /tmp/report
+#   python3 docs/scripts/learning_curves.py docs/results/SWEEP /tmp/curves
+set -euo pipefail
+src=${1:?usage: archive-sweep.sh SWEEP_DIR [DEST]}
+src=${src%/}
+dest=${2:-docs/results/$(basename "$src")}
+[ -f "$src/manifest.json" ] || { echo "$src has no manifest.json: not a sweep directory" >&2; exit 1; }
+mkdir -p "$dest"
+cp "$src/manifest.json" "$dest/"
+n=0
+for cell in "$src"/*/; do
+  cell=${cell%/}
+  name=$(basename "$cell")
+  [ -f "$cell/eval/eval.json" ] || continue   # only finished, evaluated cells
+  mkdir -p "$dest/$name/eval" "$dest/$name/train"
+  for f in cell.toml cell.json; do [ -f "$cell/$f" ] && cp "$cell/$f" "$dest/$name/"; done
+  for f in eval.json plan.json eval.md; do [ -f "$cell/eval/$f" ] && cp "$cell/eval/$f" "$dest/$name/eval/"; done
+  for f in config.toml run.json compute.json metrics.jsonl; do
+    [ -f "$cell/train/$f" ] && cp "$cell/train/$f" "$dest/$name/train/"
+  done
+  n=$((n + 1))
+done
+echo "archived $n evaluated cells of $src in $dest ($(du -sh "$dest" | cut -f1))"
