@@ -132,9 +132,8 @@ pub(crate) fn disc_grads(
     for (gp_grads, v) in [gp_a?, gp_b?].into_iter().flatten() {
         // dL_D/dtheta = dL_bce/dtheta + lambda_gp dL_gp/dtheta
         grads.extend(gp_grads)?;
-        gp_v += v;
+        gp_v += v; // each share was checked finite before its backward
     }
-    finite("losses/disc_gp", gp_v, update)?;
     let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
     let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
     let stats = DiscStats {
