@@ -369,7 +369,7 @@ impl CustomOp3 for Linear {
         if !want_dx && !want_dw {
             return Ok((None, None, None));
         }
-        // g = dL/dy * 1[y > 0], and its column sums in the same pass over the rows (only a
+        // g = dL/dy * 1[y > 0], and (for dW) its column sums in the same pass over the rows (only a
         // ReLU layer needs g as a buffer of its own; without ReLU g is dL/dy as it is). The
         // sums are per group of rows where the input has shared columns (their weights'
         // gradient needs them; db is then the groups' total), else db = 1^T g directly.
@@ -382,16 +382,25 @@ impl CustomOp3 for Linear {
                     // Row by row over equal-length slices, so the loop vectorises.
                     let mut g = Vec::with_capacity(gs.len());
                     let rows_out = g.spare_capacity_mut()[..gs.len()].chunks_exact_mut(d_out);
-                    for (r, ((out, gr), yr)) in rows_out
+                    let rows_in = rows_out
                         .zip(gs.chunks_exact(d_out))
-                        .zip(ys.chunks_exact(d_out))
-                        .enumerate()
-                    {
-                        let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
-                        for (((o, g_o), y_o), d) in out.iter_mut().zip(gr).zip(yr).zip(acc) {
-                            let v = relu_mask(*g_o, *y_o);
-                            o.write(v);
-                            *d += v;
+                        .zip(ys.chunks_exact(d_out));
+                    if want_dw {
+                        for (r, ((out, gr), yr)) in rows_in.enumerate() {
+                            let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
+                            for (((o, g_o), y_o), d) in out.iter_mut().zip(gr).zip(yr).zip(acc) {
+                                let v = relu_mask(*g_o, *y_o);
+                                o.write(v);
+                                *d += v;
+                            }
+                        }
+                    } else {
+                        // No weight gradient, so no bias gradient: the mask alone (the SAC
+                        // actor's loss through the critics, whose weights are constants there).
+                        for ((out, gr), yr) in rows_in {
+                            for ((o, g_o), y_o) in out.iter_mut().zip(gr).zip(yr) {
+                                o.write(relu_mask(*g_o, *y_o));
+                            }
                         }
                     }
                     // SAFETY: the loop wrote all `gs.len()` elements (`gs` and `ys` are
@@ -400,9 +409,11 @@ impl CustomOp3 for Linear {
                     Ok(Some(g))
                 })
             } else {
-                for (r, gr) in gs.chunks_exact(d_out).enumerate() {
-                    let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
-                    acc.iter_mut().zip(gr).for_each(|(d, g)| *d += g);
+                if want_dw {
+                    for (r, gr) in gs.chunks_exact(d_out).enumerate() {
+                        let acc = &mut sums[(r / group_rows) * d_out..][..d_out];
+                        acc.iter_mut().zip(gr).for_each(|(d, g)| *d += g);
+                    }
                 }
                 Ok(None)
             }

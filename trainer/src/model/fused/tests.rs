@@ -100,10 +100,25 @@ fn matches_plain_candle() {
             assert!(close(gf.get(v).unwrap(), gp.get(v).unwrap()), "relu {relu}");
         }
     }
-    // Detached weights: no weight gradients are produced.
-    let y = linear(&x, &w.as_tensor().detach(), &b.as_tensor().detach(), true).unwrap();
-    let g = y.sum_all().unwrap().backward().unwrap();
-    assert!(g.get(&x).is_some() && g.get(&w).is_none() && g.get(&b).is_none());
+    // Detached weights: no weight gradients are produced, and the input's gradient (the
+    // mask-only path of the backward pass) is still plain candle's.
+    let (wd, bd) = (w.as_tensor().detach(), b.as_tensor().detach());
+    let weights = Tensor::new(&[1.0f32, -2.0, 0.5, 3.0], dev).unwrap();
+    for relu in [false, true] {
+        let y = linear(&x, &wd, &bd, relu).unwrap();
+        let mut plain = x.matmul(&wd).unwrap().broadcast_add(&bd).unwrap();
+        if relu {
+            plain = plain.relu().unwrap();
+        }
+        let g = weighted_backward(&y, &weights);
+        assert!(g.get(&w).is_none() && g.get(&b).is_none());
+        let (gx, px) = (g.get(&x).unwrap(), weighted_backward(&plain, &weights));
+        let d = (gx - px.get(&x).unwrap()).unwrap().abs().unwrap();
+        assert!(
+            d.max_all().unwrap().to_vec0::<f32>().unwrap() < 1e-5,
+            "relu {relu}"
+        );
+    }
 }
 
 /// A layer on an input with shared columns (before, inside or after the other columns;
