@@ -349,45 +349,8 @@ impl Smile {
     /// context and `disc_per_task` expert rows (uniform over its demo transitions) and as many
     /// policy rows (its replay).
     fn sample_disc_batch(&mut self) -> Result<DiscBatch> {
-        let cfg = &self.cfg;
-        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, &mut self.rng);
-        let per_task = cfg.disc_per_task;
-        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
-        let norm = &self.data.norm;
-        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(tasks.len());
-        let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
-        for &ti in &tasks {
-            let demos = &self.data.train[ti];
-            specs.push(sample_context(demos, cfg.context_draw(), &mut self.rng));
-            // Expert rows: uniform over the task's demo transitions.
-            let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-            for _ in 0..per_task {
-                let (j, k) = draw_transition(&lens, &mut self.rng);
-                let tr = &demos.trajectories[j];
-                self.disc.push_x(
-                    norm,
-                    &tr.obs[k * od..(k + 1) * od],
-                    &tr.actions[k * ad..(k + 1) * ad],
-                    &tr.next_obs[k * od..(k + 1) * od],
-                    &mut x_exp,
-                );
-            }
-            let mut pol = BatchVecs::default();
-            self.replay
-                .task(ti)
-                .sample_into(per_task, &mut self.rng, &mut pol)?;
-            for r in 0..per_task {
-                self.disc.push_x(
-                    norm,
-                    &pol.obs[r * od..(r + 1) * od],
-                    &pol.act[r * ad..(r + 1) * ad],
-                    &pol.next_obs[r * od..(r + 1) * od],
-                    &mut x_pol,
-                );
-            }
-        }
-        let context = self.encoder.batch(norm, &specs)?;
-        DiscBatch::new(context, x_exp, x_pol, tasks.len(), per_task)
+        let (source, _, rng) = self.sac_side();
+        source.disc_batch(rng)
     }
 
     /// One discriminator + encoder step (Algorithm 1's inner loop, first half; the losses are
@@ -441,20 +404,23 @@ impl Smile {
     }
 
     /// [`Self::update_pair`] with N > 1 learner threads, run inside the pool: the
-    /// discriminator's loss and gradients on one side of a join; the SAC batch (its reward from
-    /// the discriminator as it is before this pair) and the SAC step on the other; then the
-    /// discriminator's and encoder's optimiser steps. Both sides only read the discriminator
-    /// and the encoder; every random draw has a fixed order (the discriminator batch, then its
-    /// own RNG's seed, from the run's RNG, before the join; the SAC side draws from the run's
-    /// RNG alone).
+    /// discriminator's batch, loss and gradients on one side of a join; the SAC batch (its
+    /// reward from the discriminator as it is before this pair) and the SAC step on the other;
+    /// then the discriminator's and encoder's optimiser steps. Both sides only read the
+    /// networks, data and replay; every random draw has a fixed order (the discriminator side
+    /// draws from its own RNG, seeded from the run's RNG before the join; the SAC side draws
+    /// from the run's RNG alone). Nothing but that seed runs before the join, so neither core
+    /// waits there.
     fn overlapped_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
-        let disc_batch = self.sample_disc_batch()?;
         let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
         let update = self.updates;
         let (source, sac, rng) = self.sac_side();
         let (encoder, disc, gp_weight) = (source.encoder, source.disc, source.cfg.gp_weight);
         let (d, s) = rayon::join(
-            || disc_grads(encoder, disc, gp_weight, &disc_batch, update, &mut disc_rng),
+            || {
+                let disc_batch = source.disc_batch(&mut disc_rng)?;
+                disc_grads(encoder, disc, gp_weight, &disc_batch, update, &mut disc_rng)
+            },
             || -> Result<(SacStats, f32)> {
                 let (batch, reward_mean, bc) = source.draw(rng)?;
                 Ok((sac.update_with_bc(&batch, bc.as_ref(), rng)?, reward_mean))
@@ -476,7 +442,7 @@ impl Smile {
     /// What the SAC side of a pair uses, borrowed field by field: what its batch is drawn
     /// from (read only, so the discriminator side may read the same networks meanwhile), the
     /// SAC learner and the run's RNG.
-    fn sac_side(&mut self) -> (SacBatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
+    fn sac_side(&mut self) -> (BatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
         let Smile {
             cfg,
             data,
@@ -488,7 +454,7 @@ impl Smile {
             rng,
             ..
         } = self;
-        let source = SacBatchSource {
+        let source = BatchSource {
             cfg,
             data,
             encoder,
@@ -638,9 +604,10 @@ pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Resul
     Ok(())
 }
 
-/// The networks and data a SAC batch is drawn from, borrowed field by field, so that the SAC
-/// side of an overlapped pair can draw it while the discriminator side reads the same networks.
-struct SacBatchSource<'a> {
+/// The networks, data and replay that both steps' batches are drawn from, borrowed field by
+/// field, so that the two sides of an overlapped pair can draw their batches at once while
+/// both read the same networks.
+struct BatchSource<'a> {
     cfg: &'a SmileConfig,
     data: &'a MetaData,
     encoder: &'a ContextEncoder,
@@ -649,7 +616,48 @@ struct SacBatchSource<'a> {
     updates: u64,
 }
 
-impl SacBatchSource<'_> {
+impl BatchSource<'_> {
+    /// [`Smile::sample_disc_batch`]: every random choice drawn from `rng`.
+    fn disc_batch(&self, rng: &mut ChaCha8Rng) -> Result<DiscBatch> {
+        let cfg = &self.cfg;
+        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
+        let per_task = cfg.disc_per_task;
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        let norm = &self.data.norm;
+        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(tasks.len());
+        let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
+        for &ti in &tasks {
+            let demos = &self.data.train[ti];
+            specs.push(sample_context(demos, cfg.context_draw(), rng));
+            // Expert rows: uniform over the task's demo transitions.
+            let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+            for _ in 0..per_task {
+                let (j, k) = draw_transition(&lens, rng);
+                let tr = &demos.trajectories[j];
+                self.disc.push_x(
+                    norm,
+                    &tr.obs[k * od..(k + 1) * od],
+                    &tr.actions[k * ad..(k + 1) * ad],
+                    &tr.next_obs[k * od..(k + 1) * od],
+                    &mut x_exp,
+                );
+            }
+            let mut pol = BatchVecs::default();
+            self.replay.task(ti).sample_into(per_task, rng, &mut pol)?;
+            for r in 0..per_task {
+                self.disc.push_x(
+                    norm,
+                    &pol.obs[r * od..(r + 1) * od],
+                    &pol.act[r * ad..(r + 1) * ad],
+                    &pol.next_obs[r * od..(r + 1) * od],
+                    &mut x_pol,
+                );
+            }
+        }
+        let context = self.encoder.batch(norm, &specs)?;
+        DiscBatch::new(context, x_exp, x_pol, tasks.len(), per_task)
+    }
+
     /// [`Smile::sac_batch`]: every random choice drawn from `rng`.
     fn draw(&self, rng: &mut ChaCha8Rng) -> Result<(Batch, f32, Option<BcTerm>)> {
         let cfg = &self.cfg;
