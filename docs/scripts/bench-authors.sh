@@ -5,7 +5,7 @@
 # threads beside PyTorch doing the same pair (docs/scripts/torch_smile_pair.py), and the
 # narrow-width pair against the PyTorch prototype.
 #
-#   docs/scripts/bench-authors.sh OUT_DIR
+#   [ROUNDS=2] docs/scripts/bench-authors.sh OUT_DIR   (ROUNDS: rounds of the steps and of PyTorch's pair)
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
 # release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
@@ -29,7 +29,7 @@ for m, n, k in [(2048, 512, 512), (1024, 512, 512), (1024, 256, 256)]:
     s = (time.perf_counter() - t) / r
     print(f"{m}x{n}x{k}: {2*m*n*k/s/1e9:.1f} GFLOP/s")
 PY
-for round in 1 2; do
+for round in $(seq 1 "${ROUNDS:-2}"); do
   for t in 1 2; do
     echo "== ours sac+disc, authors' shapes, learner threads $t (round $round)"
     $smile bench --workload sac disc --authors --iters 40 --warmup 5 --learner-threads "$t" \
@@ -49,7 +49,7 @@ for t in 1 2 1 2; do
     --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors \
     --iters 3 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-authors-t$t.json" 2>&1 | tail -2
 done
-for round in 1 2; do
+for round in $(seq 1 "${ROUNDS:-2}"); do
   echo "== PyTorch SMILe pair doing our pair's work (docs/scripts/torch_smile_pair.py), threads 1 2 (round $round)"
   $py docs/scripts/torch_smile_pair.py --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-pair-r$round.json"
 done
