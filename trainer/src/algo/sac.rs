@@ -336,21 +336,36 @@ impl Sac {
             .sample_const(Input::shared(&b.next_obs, zc), rng)?;
         let next_sa = Tensor::cat(&[&b.next_obs, &next.action], 1)?;
         let next_sa = Input::shared(&next_sa, zc);
-        let q_targ = self
-            .q1_targ
-            .forward(next_sa)?
-            .minimum(&self.q2_targ.forward(next_sa)?)?;
+        let (q1_targ, q2_targ) = crate::threads::join(
+            || self.q1_targ.forward(next_sa),
+            || self.q2_targ.forward(next_sa),
+        );
+        let q_targ = q1_targ?.minimum(&q2_targ?)?;
         let soft_v = (q_targ - (next.log_prob * alpha as f64)?)?;
         let not_done = b.done.affine(-gamma, gamma)?; // gamma (1 - d)
         let y = ((&b.rew * c)? + (not_done * soft_v)?)?.detach();
         //    L_Q = mean (Q1(s,a) - y)^2 + mean (Q2(s,a) - y)^2
+        // Each critic's weights get gradient from its own term only, so the two terms' backward
+        // passes are separate and their gradients the same bits as one backward of the sum;
+        // inside a learner pool the two critics run as the sides of a join.
         let sa = Tensor::cat(&[&b.obs, &b.act], 1)?;
-        let q1 = self.q1.forward(Input::shared(&sa, zc))?;
-        let q2 = self.q2.forward(Input::shared(&sa, zc))?;
-        let qf_loss = ((&q1 - &y)?.sqr()?.mean_all()? + (&q2 - &y)?.sqr()?.mean_all()?)?;
+        let critic = |q: &Mlp| -> Result<(Tensor, f32, candle_core::backprop::GradStore)> {
+            let qv = q.forward(Input::shared(&sa, zc))?;
+            let loss = (&qv - &y)?.sqr()?.mean_all()?;
+            let v = scalar(&loss)?;
+            let grads = if v.is_finite() {
+                loss.backward()?
+            } else {
+                candle_core::backprop::GradStore::default()
+            };
+            Ok((qv, v, grads))
+        };
+        let (c1, c2) = crate::threads::join(|| critic(&self.q1), || critic(&self.q2));
+        let ((q1, l1, mut grads), (_, l2, g2)) = (c1?, c2?);
         // Summed over the two critics for the step; logged as their mean, as CleanRL does.
-        let qf_loss_v = self.finite("losses/qf_loss", scalar(&qf_loss)?)? / 2.0;
-        self.critic_opt.backward_step(&qf_loss)?;
+        let qf_loss_v = self.finite("losses/qf_loss", l1 + l2)? / 2.0;
+        grads.extend(g2)?;
+        self.critic_opt.step(&grads)?;
 
         // 2. actor. L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
         let cur = self.actor.sample(Input::shared(&b.obs, zc), rng)?;
