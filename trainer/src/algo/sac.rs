@@ -284,15 +284,15 @@ impl Sac {
     ) -> Result<Tensor> {
         let sa = Tensor::cat(&[s, a], 1)?;
         let sa = Input::shared(&sa, z_cols); // [s, a] keeps s's columns first
-        let (q1, q2) = if const_weights {
-            (
-                self.q1.forward_const_weights(sa)?,
-                self.q2.forward_const_weights(sa)?,
-            )
-        } else {
-            (self.q1.forward(sa)?, self.q2.forward(sa)?)
+        let q = |net: &Mlp| {
+            if const_weights {
+                net.forward_const_weights(sa)
+            } else {
+                net.forward(sa)
+            }
         };
-        Ok(q1.minimum(&q2)?)
+        let (q1, q2) = crate::threads::join(|| q(&self.q1), || q(&self.q2));
+        Ok(q1?.minimum(&q2?)?)
     }
 
     fn finite(&self, what: &'static str, value: f32) -> Result<f32> {
