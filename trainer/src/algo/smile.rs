@@ -439,9 +439,9 @@ impl Smile {
         source.draw(rng)
     }
 
-    /// What the SAC side of a pair uses, borrowed field by field: what its batch is drawn
-    /// from (read only, so the discriminator side may read the same networks meanwhile), the
-    /// SAC learner and the run's RNG.
+    /// The run borrowed field by field: what both batches are drawn from (read only, so the
+    /// two sides of an overlapped pair may read the same networks at once), the SAC learner
+    /// and the run's RNG.
     fn sac_side(&mut self) -> (BatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
         let Smile {
             cfg,
