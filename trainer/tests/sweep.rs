@@ -553,3 +553,64 @@ fn cells_run_one_by_one_leave_a_manifest_the_report_reads() {
     assert_eq!(json["rows"][0]["seeds"].as_array().unwrap().len(), 1);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A SMILe cell whose plan only raised its budget continues from its checkpoint (the updates
+/// it made are not made again) and keeps its earlier evaluation beside the new one; lowering
+/// the budget again is another setting, trained again.
+#[test]
+fn a_raised_budget_extends_a_smile_cell() {
+    let dir = tmp("extend");
+    let out = dir.join("out");
+    let plan = |updates: u32| {
+        plan_with_out(&out)
+            .replace("seeds = [0, 1]", "seeds = [0]")
+            .replace("total_updates = 600", &format!("total_updates = {updates}"))
+    };
+    let p = setup(&dir, &plan(200));
+    let p = p.to_str().unwrap();
+    ok(&smile(&["sweep", p, "--jobs", "1", "--quiet"]));
+    let cell = out.join("smile-s0");
+    let evals_at = |step: u64| {
+        std::fs::read_to_string(cell.join("train/metrics.jsonl"))
+            .unwrap()
+            .lines()
+            .map(|l| serde_json::from_str::<serde_json::Value>(l).unwrap())
+            .filter(|v| v["step"] == step && v.get("eval/val_metric").is_some())
+            .count()
+    };
+    assert_eq!(evals_at(200), 1);
+    let first_eval = bytes(&cell.join("eval/eval.json"));
+
+    std::fs::write(p, plan(400)).unwrap();
+    let o = smile(&["sweep", p, "--dry-run"]);
+    ok(&o);
+    let dry = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(dry.contains("extend"), "{dry}");
+    ok(&smile(&["sweep", p, "--jobs", "1", "--quiet"]));
+    // One training, continued: the evaluation at 200 updates was logged once, then 400.
+    assert_eq!(evals_at(200), 1);
+    assert_eq!(evals_at(400), 1);
+    let toml = std::fs::read_to_string(cell.join("cell.toml")).unwrap();
+    assert!(toml.contains("total_updates = 400"), "{toml}");
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .chain(std::fs::read_dir(&cell).unwrap())
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!names.iter().any(|n| n.contains(".stale-")), "{names:?}");
+    let before: Vec<&String> = names
+        .iter()
+        .filter(|n| n.starts_with("eval.before-"))
+        .collect();
+    assert_eq!(before.len(), 1, "{names:?}");
+    assert_eq!(bytes(&cell.join(before[0]).join("eval.json")), first_eval);
+    serde_json::from_slice::<serde_json::Value>(&bytes(&cell.join("eval/eval.json"))).unwrap();
+    let done = ok(&smile(&["sweep", p, "--jobs", "1"]));
+    assert!(done.contains("1 of 1 cells done"), "{done}");
+
+    // A lower budget is not an extension: the cell trains again, the longer one kept aside.
+    std::fs::write(p, plan(200)).unwrap();
+    let dry = String::from_utf8_lossy(&smile(&["sweep", p, "--dry-run"]).stdout).into_owned();
+    assert!(dry.contains("stale"), "{dry}");
+    std::fs::remove_dir_all(&dir).ok();
+}

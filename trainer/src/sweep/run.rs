@@ -10,7 +10,11 @@
 //! A cell directory records what it was made from (`cell.json`: the training key; `cell.toml`:
 //! the config; `eval/plan.json`: the evaluation settings). After a plan is edited, a cell
 //! trained for other settings is *stale*: its directory is moved aside (`<name>.stale-<key>`)
-//! and it trains again; a cell whose evaluation settings changed is evaluated again. A
+//! and it trains again, except a SMILe cell whose plan only raised its budget
+//! (`total_updates`, `cpu_budget_s`): that one *extends*, continuing from its checkpoint with
+//! `smile train --resume` (its earlier evaluation kept as `eval.before-<key>`), so a longer
+//! budget costs only the extra updates. A cell whose evaluation settings changed is evaluated
+//! again. A
 //! finished evaluation is one whose `eval.json` parses, written last (atomically) by
 //! `smile eval`.
 
@@ -46,6 +50,9 @@ pub enum Status {
     /// The directory holds a training for other settings (the plan was edited): it is moved
     /// aside and the cell runs again.
     Stale,
+    /// A SMILe training whose plan only raised its budget (`total_updates`, `cpu_budget_s`):
+    /// it continues from its checkpoint and is evaluated again.
+    Extend,
 }
 
 /// The record of what a cell directory was trained for.
@@ -61,6 +68,54 @@ fn is_stale(dir: &Path, cell: &Cell) -> bool {
     }
     // Cells made before cell.json: their cell.toml is the config they trained with.
     std::fs::read_to_string(dir.join("cell.toml")).is_ok_and(|t| t != cell.config)
+}
+
+/// True when the cell directory holds a SMILe training for the same settings as `cell` but a
+/// smaller budget: the recorded key is the key of `cell` with the recorded config, and the two
+/// configs differ only in `total_updates` and `cpu_budget_s`, neither lower now (a budget of 0,
+/// none, counts as unlimited) and at least one higher.
+fn extends(dir: &Path, cell: &Cell) -> bool {
+    use crate::algo::smile::SmileConfig;
+    if !cell.algo.starts_with("smile") {
+        return false;
+    }
+    let (Ok(record), Ok(old_text)) = (
+        std::fs::read_to_string(dir.join("cell.json")),
+        std::fs::read_to_string(dir.join("cell.toml")),
+    ) else {
+        return false;
+    };
+    let Ok(record) = serde_json::from_str::<CellRecord>(&record) else {
+        return false;
+    };
+    let old_cell = Cell {
+        config: old_text.clone(),
+        ..cell.clone()
+    };
+    if record.key == cell.key || old_cell.training_key() != record.key {
+        return false;
+    }
+    let (Ok(old), Ok(new)) = (
+        toml::from_str::<SmileConfig>(&old_text),
+        toml::from_str::<SmileConfig>(&cell.config),
+    ) else {
+        return false;
+    };
+    let budget = |c: &SmileConfig| {
+        if c.cpu_budget_s > 0.0 {
+            c.cpu_budget_s
+        } else {
+            f64::INFINITY
+        }
+    };
+    let same_but_budget = SmileConfig {
+        total_updates: new.total_updates,
+        cpu_budget_s: new.cpu_budget_s,
+        ..old.clone()
+    } == new;
+    let not_lower = new.total_updates >= old.total_updates && budget(&new) >= budget(&old);
+    let higher = new.total_updates > old.total_updates || budget(&new) > budget(&old);
+    same_but_budget && not_lower && higher
 }
 
 /// The evaluation settings of a sweep, as recorded beside a cell's eval.json.
@@ -107,7 +162,11 @@ pub struct Manifest {
 pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
     let dir = sweep.cell_dir(cell);
     if is_stale(&dir, cell) {
-        Status::Stale
+        if extends(&dir, cell) {
+            Status::Extend
+        } else {
+            Status::Stale
+        }
     } else if eval_done(sweep, &dir) {
         Status::Done
     } else if dir.join("failed").exists() {
@@ -213,25 +272,69 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
         }
         _ => {}
     }
+    let extend = match status(sweep, cell) {
+        Status::Extend => {
+            // The evaluation at the smaller budget is someone's result too: kept beside.
+            let eval = dir.join("eval");
+            if eval.join("eval.json").exists() {
+                let old_key = std::fs::read_to_string(dir.join("cell.json"))
+                    .ok()
+                    .and_then(|t| serde_json::from_str::<CellRecord>(&t).ok())
+                    .map_or_else(|| "earlier".to_string(), |r| r.key);
+                let aside = dir.join(format!("eval.before-{old_key}"));
+                if !aside.exists() {
+                    std::fs::rename(&eval, &aside).map_err(io_err(&eval))?;
+                }
+            }
+            true
+        }
+        _ => false,
+    };
     let _ = std::fs::remove_file(dir.join("failed"));
-    let result = train_and_eval(sweep, cell, &dir, exe);
+    let result = train_and_eval(sweep, cell, &dir, exe, extend);
     if let Err(e) = &result {
         let _ = crate::io::checkpoint::write_atomic(&dir.join("failed"), e.to_string().as_bytes());
     }
     result.map(|()| CellOutcome::Ran)
 }
 
-fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path) -> Result<()> {
+/// Trains the cell (or continues it: `extend`, see [`Status::Extend`]), then evaluates it.
+fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bool) -> Result<()> {
     let cfg_path = dir.join("cell.toml");
-    crate::io::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
     let record = serde_json::to_string(&CellRecord {
         key: cell.key.clone(),
     })
     .unwrap_or_default();
-    crate::io::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())?;
+    let write_record = || -> Result<()> {
+        crate::io::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
+        crate::io::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())
+    };
     let log_path = dir.join("log.txt");
     let train_dir = dir.join("train");
     let env = sweep.family.name();
+    if extend {
+        // The old record stays until the longer training is done, so an interrupted extension
+        // is found as one again and resumes from its latest checkpoint.
+        let new: crate::algo::smile::SmileConfig = toml::from_str(&cell.config)
+            .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
+        let args: Vec<OsString> = vec![
+            "train".into(),
+            "--resume".into(),
+            "--updates".into(),
+            new.total_updates.to_string().into(),
+            "--cpu-budget".into(),
+            new.cpu_budget_s.to_string().into(),
+            "--env".into(),
+            env.into(),
+            "--demos".into(),
+            cell.demos.clone().into_os_string(),
+            "-o".into(),
+            train_dir.as_os_str().to_owned(),
+            "--quiet".into(),
+        ];
+        child(exe, &args, &log_path)?;
+    }
+    write_record()?;
     // Arguments as OS strings: a plan under a folder whose name is not UTF-8 passes its paths
     // through unchanged (a lossy conversion would name files that do not exist).
     let demos: OsString = cell.demos.clone().into_os_string();
