@@ -22,6 +22,13 @@ for cell in "$src"/*/; do
   mkdir -p "$dest/$name/eval" "$dest/$name/train"
   for f in cell.toml cell.json; do [ -f "$cell/$f" ] && cp "$cell/$f" "$dest/$name/"; done
   for f in eval.json plan.json eval.md; do [ -f "$cell/eval/$f" ] && cp "$cell/eval/$f" "$dest/$name/eval/"; done
+  # An extended cell's evaluations at its earlier budgets (`smile sweep`: eval.before-KEY).
+  for before in "$cell"/eval.before-*/; do
+    [ -f "$before/eval.json" ] || continue
+    b=$(basename "$before")
+    mkdir -p "$dest/$name/$b"
+    for f in eval.json plan.json eval.md; do [ -f "$before/$f" ] && cp "$before/$f" "$dest/$name/$b/"; done
+  done
   for f in config.toml run.json compute.json metrics.jsonl; do
     [ -f "$cell/train/$f" ] && cp "$cell/train/$f" "$dest/$name/train/"
   done
