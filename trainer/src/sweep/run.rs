@@ -250,7 +250,7 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
         Err(std::fs::TryLockError::WouldBlock) => return Ok(CellOutcome::Busy),
         Err(std::fs::TryLockError::Error(e)) => return Err(io_err(&lock_path)(e)),
     }
-    match status(sweep, cell) {
+    let extend = match status(sweep, cell) {
         Status::Done => return Ok(CellOutcome::AlreadyDone),
         Status::Stale => {
             // Keep the old training (it is someone's result), out of the way.
@@ -270,9 +270,6 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
             );
             return run_cell(sweep, index, exe);
         }
-        _ => {}
-    }
-    let extend = match status(sweep, cell) {
         Status::Extend => {
             // The evaluation at the smaller budget is someone's result too: kept beside.
             let eval = dir.join("eval");
@@ -312,40 +309,33 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
     let log_path = dir.join("log.txt");
     let train_dir = dir.join("train");
     let env = sweep.family.name();
-    if extend {
-        // The old record stays until the longer training is done, so an interrupted extension
-        // is found as one again and resumes from its latest checkpoint.
-        let new: crate::algo::smile::SmileConfig = toml::from_str(&cell.config)
-            .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
-        let args: Vec<OsString> = vec![
-            "train".into(),
-            "--resume".into(),
-            "--updates".into(),
-            new.total_updates.to_string().into(),
-            "--cpu-budget".into(),
-            new.cpu_budget_s.to_string().into(),
-            "--env".into(),
-            env.into(),
-            "--demos".into(),
-            cell.demos.clone().into_os_string(),
-            "-o".into(),
-            train_dir.as_os_str().to_owned(),
-            "--quiet".into(),
-        ];
-        child(exe, &args, &log_path)?;
+    // An extension keeps the old record until the longer training is done, so an interrupted
+    // one is found as one again and resumes from its latest checkpoint; any other training
+    // records its settings first.
+    if !extend {
+        write_record()?;
     }
-    write_record()?;
     // Arguments as OS strings: a plan under a folder whose name is not UTF-8 passes its paths
     // through unchanged (a lossy conversion would name files that do not exist).
     let demos: OsString = cell.demos.clone().into_os_string();
     let s = |p: &Path| -> OsString { p.as_os_str().to_owned() };
-    if !train_dir
+    let trained = train_dir
         .join("last")
         .join(crate::model::META_POLICY_FILE)
-        .exists()
-    {
+        .exists();
+    if extend || !trained {
         let mut args: Vec<OsString> = vec!["train".into()];
-        if train_dir
+        if extend {
+            let new: crate::algo::smile::SmileConfig = toml::from_str(&cell.config)
+                .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
+            args.extend([
+                "--resume".into(),
+                "--updates".into(),
+                new.total_updates.to_string().into(),
+                "--cpu-budget".into(),
+                new.cpu_budget_s.to_string().into(),
+            ]);
+        } else if train_dir
             .join(crate::io::checkpoint::CHECKPOINT_FILE)
             .exists()
         {
@@ -371,6 +361,9 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
             "--quiet".into(),
         ]);
         child(exe, &args, &log_path)?;
+    }
+    if extend {
+        write_record()?;
     }
     let e = &sweep.plan.eval;
     let mut args: Vec<OsString> = vec![
