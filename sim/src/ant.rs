@@ -11,7 +11,9 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier3d::prelude::*;
 
+use crate::WalkerDynamics;
 use crate::planar::Start;
+use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};
 
 mod episode;
@@ -160,6 +162,58 @@ pub(crate) const ANT_CONTACT_SOFTNESS: [f32; 2] = [60.0, 10.0];
 
 fn flat(p: [f32; 2]) -> Vector {
     Vector::new(p[0], p[1], 0.0)
+}
+
+/// The ant on Rapier: its spec, rebuilt in a fresh world at every reset.
+pub(crate) struct RapierAnt {
+    spec: AntSpec,
+    robot: AntRobot,
+}
+
+impl RapierAnt {
+    /// Gymnasium's ant ([`ant`]), reset with seed 0.
+    pub fn new() -> Self {
+        let spec = ant();
+        let robot = AntRobot::build(&spec, 0);
+        Self { spec, robot }
+    }
+}
+
+impl Plant for RapierAnt {
+    fn control_dt(&self) -> f32 {
+        self.spec.physics_dt * self.spec.substeps as f32
+    }
+
+    /// The ant's dynamics are not randomised: `dynamics` is ignored.
+    fn reset(&mut self, seed: u64, _dynamics: Option<&WalkerDynamics>) {
+        self.robot = AntRobot::build(&self.spec, seed);
+    }
+
+    fn step(&mut self, action: &[f32]) {
+        self.robot.set_torques(action);
+        self.robot.advance();
+    }
+
+    fn diverged(&self) -> bool {
+        self.robot.diverged()
+    }
+
+    fn observe(&self, out: &mut [f32], velocity_clip: f32) {
+        if let Ok(out) = <&mut [f32; OBS_DIM]>::try_from(out) {
+            self.robot.observe(out, velocity_clip);
+        }
+    }
+
+    fn torso(&self) -> TorsoPose {
+        TorsoPose {
+            position: self.robot.torso_position(),
+            pitch: 0.0,
+        }
+    }
+
+    fn shapes(&self) -> Vec<Shape> {
+        self.robot.top_view_shapes()
+    }
 }
 
 /// A built ant in its own physics world.

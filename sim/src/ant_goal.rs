@@ -23,14 +23,14 @@ pub struct AntGoalEnv {
 }
 
 impl AntGoalEnv {
-    /// An ant-goal environment reset to the first train goal with seed 0.
-    pub fn new(config: EnvConfig) -> Self {
+    /// An ant-goal environment on `config.physics` reset to the first train goal with seed 0.
+    pub fn new(config: EnvConfig) -> Result<Self, SimError> {
         let task = Family::AntGoal.train_tasks()[0];
-        Self {
-            ant: AntEpisode::new(Family::AntGoal, config.horizon.unwrap_or(HORIZON)),
+        Ok(Self {
+            ant: AntEpisode::new(Family::AntGoal, config, HORIZON)?,
             goal: task.goal().unwrap_or_default(),
             task,
-        }
+        })
     }
 
     /// The goal position of the current task.
@@ -52,6 +52,10 @@ impl AntGoalEnv {
 impl Environment for AntGoalEnv {
     fn family(&self) -> Family {
         Family::AntGoal
+    }
+
+    fn physics(&self) -> crate::Physics {
+        self.ant.physics()
     }
 
     fn control_dt(&self) -> f32 {

@@ -166,19 +166,19 @@ pub struct AntLinClassEnv {
 }
 
 impl AntLinClassEnv {
-    /// An ant-linclass environment reset to the first train task with seed 0.
-    pub fn new(config: EnvConfig) -> Self {
+    /// An ant-linclass environment on `config.physics` reset to the first train task with
+    /// seed 0.
+    pub fn new(config: EnvConfig) -> Result<Self, SimError> {
         let task = Family::AntLinClass.train_tasks()[0];
         let mut env = Self {
-            ant: AntEpisode::new(Family::AntLinClass, config.horizon.unwrap_or(HORIZON)),
+            ant: AntEpisode::new(Family::AntLinClass, config, HORIZON)?,
             task,
             correct: 0,
             decision: Decision::Undecided,
             obs: [0.0; OBS_DIM],
         };
-        // The first train task with seed 0 is valid by construction.
-        let _ = env.reset(&task, 0);
-        env
+        env.reset(&task, 0)?;
+        Ok(env)
     }
 
     /// Torso (x, y) position (m).
@@ -200,6 +200,10 @@ impl AntLinClassEnv {
 impl Environment for AntLinClassEnv {
     fn family(&self) -> Family {
         Family::AntLinClass
+    }
+
+    fn physics(&self) -> crate::Physics {
+        self.ant.physics()
     }
 
     fn control_dt(&self) -> f32 {

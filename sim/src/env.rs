@@ -1,15 +1,17 @@
 //! The environment interface shared by every family, and the per-episode metric.
 
 use crate::render::Frame;
-use crate::{Family, MetricKind, SimError, Task};
+use crate::{Family, MetricKind, Physics, SimError, Task};
 
-/// Options that change an environment's episode, not its physics.
+/// Options of an environment: its episode, and which physics backend simulates it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnvConfig {
     /// Episode length in control steps; `None` uses the family's default (100 or 1000).
     pub horizon: Option<usize>,
     /// walker-dyn only: end the episode when the walker falls (torso too low or tilted).
     pub healthy_termination: bool,
+    /// The physics backend (default Rapier). point-goal exists on Rapier only.
+    pub physics: Physics,
 }
 
 impl Default for EnvConfig {
@@ -17,6 +19,7 @@ impl Default for EnvConfig {
         Self {
             horizon: None,
             healthy_termination: true,
+            physics: Physics::Rapier,
         }
     }
 }
@@ -94,6 +97,10 @@ pub struct Transition<'a> {
 pub trait Environment: Send {
     /// The task family.
     fn family(&self) -> Family;
+    /// The physics backend simulating it.
+    fn physics(&self) -> Physics {
+        Physics::Rapier
+    }
     /// Learner-facing observation dimension.
     fn obs_dim(&self) -> usize {
         self.family().obs_dim()
@@ -135,14 +142,23 @@ pub trait Environment: Send {
     fn frame(&self) -> Frame;
 }
 
-/// Builds an environment of `family` with `config`, reset to the family's first train task.
+/// Builds an environment of `family` on `config.physics`, reset to the family's first train
+/// task. Errors if the backend is not in this build ([`SimError::PhysicsUnavailable`]) or the
+/// family has no robot on it (point-goal is Rapier's only).
 pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment>, SimError> {
     match family {
+        Family::PointGoal if config.physics != Physics::Rapier => {
+            Err(SimError::PhysicsUnavailable {
+                physics: config.physics,
+                how: "point-goal is a Rapier point mass with no MuJoCo model; use --physics rapier"
+                    .into(),
+            })
+        }
         Family::PointGoal => Ok(Box::new(crate::PointGoalEnv::new(config))),
-        Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config))),
-        Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config))),
-        Family::AntGoal => Ok(Box::new(crate::AntGoalEnv::new(config))),
-        Family::AntLinClass => Ok(Box::new(crate::AntLinClassEnv::new(config))),
+        Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config)?)),
+        Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config)?)),
+        Family::AntGoal => Ok(Box::new(crate::AntGoalEnv::new(config)?)),
+        Family::AntLinClass => Ok(Box::new(crate::AntLinClassEnv::new(config)?)),
     }
 }
 

@@ -83,6 +83,17 @@ pub enum SimError {
         /// Step at which the state became non-finite.
         step: usize,
     },
+    /// A physics backend name that is neither `rapier` nor `mujoco`.
+    #[error("unknown physics {0:?}; expected rapier or mujoco")]
+    UnknownPhysics(String),
+    /// The backend asked for is not in this build, or its library could not be used.
+    #[error("the {physics} physics is not available: {how}")]
+    PhysicsUnavailable {
+        /// The backend asked for.
+        physics: crate::Physics,
+        /// Why, and how to get it.
+        how: String,
+    },
 }
 
 fn no_task_near(family: Family, value: f64, tolerance: f64, available: &str) -> String {

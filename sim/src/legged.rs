@@ -1,9 +1,10 @@
 //! cheetah-vel and walker-dyn: the planar legged robots as [`Environment`]s.
 
 use crate::env::{EpisodeClock, check_family, clip_action};
-use crate::planar::{ACT_DIM, LIMBS, OBS_DIM, PlanarRobot, RobotSpec, Scaling};
+use crate::planar::{ACT_DIM, OBS_DIM};
+use crate::plant::{Plant, Robot, TorsoPose};
 use crate::render::{Frame, Role, Shape, View};
-use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, WalkerDynamics, robots};
+use crate::{EnvConfig, Environment, Family, Physics, SimError, StepInfo, Task};
 
 /// Default cheetah-vel episode length (control steps of 0.05 s).
 pub const CHEETAH_HORIZON: usize = 1000;
@@ -22,11 +23,12 @@ pub const WALKER_HEALTHY_ANGLE: f32 = 1.0;
 /// walker-dyn observed velocities are clipped to +-this (as in Gymnasium).
 pub const WALKER_VELOCITY_CLIP: f32 = 10.0;
 
-/// A planar legged robot with its task: the cheetah-vel or the walker-dyn environment.
+/// A planar legged robot with its task: the cheetah-vel or the walker-dyn environment, on
+/// either physics backend.
 pub struct PlanarLeggedEnv {
     family: Family,
-    spec: RobotSpec,
-    robot: PlanarRobot,
+    plant: Box<dyn Plant>,
+    physics: Physics,
     task: Task,
     config: EnvConfig,
     clock: EpisodeClock,
@@ -39,46 +41,37 @@ pub type CheetahVelEnv = PlanarLeggedEnv;
 /// The walker-dyn environment.
 pub type WalkerDynEnv = PlanarLeggedEnv;
 
-fn scaling_of(task: &Task) -> Scaling {
-    match task.walker_dynamics() {
-        Some(WalkerDynamics {
-            mass,
-            inertia,
-            damping,
-            friction,
-        }) => Scaling {
-            mass,
-            inertia,
-            friction,
-            damping,
-        },
-        None => Scaling::NOMINAL,
-    }
-}
-
 impl PlanarLeggedEnv {
-    /// A cheetah-vel environment, reset to the first train velocity with seed 0.
-    pub fn cheetah(config: EnvConfig) -> Self {
+    /// A cheetah-vel environment on `config.physics`, reset to the first train velocity with
+    /// seed 0.
+    pub fn cheetah(config: EnvConfig) -> Result<Self, SimError> {
         Self::build(
             Family::CheetahVel,
-            robots::half_cheetah(),
+            Robot::HalfCheetah,
             CHEETAH_HORIZON,
             config,
         )
     }
 
-    /// A walker-dyn environment, reset to the first train dynamics with seed 0.
-    pub fn walker(config: EnvConfig) -> Self {
-        Self::build(Family::WalkerDyn, robots::walker(), WALKER_HORIZON, config)
+    /// A walker-dyn environment on `config.physics`, reset to the first train dynamics with
+    /// seed 0.
+    pub fn walker(config: EnvConfig) -> Result<Self, SimError> {
+        Self::build(Family::WalkerDyn, Robot::Walker2d, WALKER_HORIZON, config)
     }
 
-    fn build(family: Family, spec: RobotSpec, horizon: usize, config: EnvConfig) -> Self {
+    fn build(
+        family: Family,
+        robot: Robot,
+        horizon: usize,
+        config: EnvConfig,
+    ) -> Result<Self, SimError> {
         let task = family.train_tasks()[0];
-        let robot = PlanarRobot::build(&spec, &scaling_of(&task), 0);
+        let mut plant = robot.plant(config.physics)?;
+        plant.reset(0, task.walker_dynamics().as_ref());
         let mut env = Self {
             family,
-            spec,
-            robot,
+            plant,
+            physics: config.physics,
             task,
             config,
             clock: EpisodeClock::new(config.horizon.unwrap_or(horizon)),
@@ -86,7 +79,7 @@ impl PlanarLeggedEnv {
             action: [0.0; ACT_DIM],
         };
         env.observe();
-        env
+        Ok(env)
     }
 
     fn velocity_clip(&self) -> f32 {
@@ -100,19 +93,22 @@ impl PlanarLeggedEnv {
 
     fn observe(&mut self) {
         let clip = self.velocity_clip();
-        self.robot.observe(&mut self.obs, clip);
+        self.plant.observe(&mut self.obs, clip);
     }
 
     /// Torso x position (m); not part of the observation.
     pub fn torso_x(&self) -> f32 {
-        self.robot.torso_pose().0
+        self.plant.torso().position[0]
     }
 
     fn walker_healthy(&self) -> bool {
-        let (_, z, angle) = self.robot.torso_pose();
+        let TorsoPose {
+            position: [_, _, z],
+            pitch,
+        } = self.plant.torso();
         z > WALKER_HEALTHY_HEIGHT[0]
             && z < WALKER_HEALTHY_HEIGHT[1]
-            && angle.abs() < WALKER_HEALTHY_ANGLE
+            && pitch.abs() < WALKER_HEALTHY_ANGLE
     }
 }
 
@@ -121,8 +117,12 @@ impl Environment for PlanarLeggedEnv {
         self.family
     }
 
+    fn physics(&self) -> Physics {
+        self.physics
+    }
+
     fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
+        self.plant.control_dt()
     }
 
     fn horizon(&self) -> usize {
@@ -143,7 +143,7 @@ impl Environment for PlanarLeggedEnv {
                 reason: "target velocity is not finite".into(),
             });
         }
-        self.robot = PlanarRobot::build(&self.spec, &scaling_of(task), seed);
+        self.plant.reset(seed, task.walker_dynamics().as_ref());
         self.task = *task;
         self.clock.restart();
         self.observe();
@@ -154,9 +154,8 @@ impl Environment for PlanarLeggedEnv {
         self.clock.ensure_running()?;
         clip_action(self.family, action, &mut self.action)?;
         let x_before = self.torso_x();
-        self.robot.set_torques(&self.action);
-        self.robot.advance();
-        if self.robot.diverged() {
+        self.plant.step(&self.action);
+        if self.plant.diverged() {
             self.clock.over = true;
             return Err(SimError::PhysicsDiverged {
                 family: self.family,
@@ -204,7 +203,7 @@ impl Environment for PlanarLeggedEnv {
             radius: 0.01,
             role: Role::Ground,
         }];
-        shapes.extend(self.robot.shapes());
+        shapes.extend(self.plant.shapes());
         Frame {
             view: View::Side,
             time: self.clock.step as f32 * self.control_dt(),
@@ -212,8 +211,6 @@ impl Environment for PlanarLeggedEnv {
         }
     }
 }
-
-const _: () = assert!(LIMBS == ACT_DIM);
 
 #[cfg(test)]
 mod tests {
@@ -223,7 +220,7 @@ mod tests {
     fn config(horizon: usize) -> EnvConfig {
         EnvConfig {
             horizon: Some(horizon),
-            healthy_termination: true,
+            ..EnvConfig::default()
         }
     }
 
@@ -236,7 +233,7 @@ mod tests {
 
     #[test]
     fn open_loop_gait_moves_the_cheetah_forward_upright() {
-        let mut env = PlanarLeggedEnv::cheetah(config(200));
+        let mut env = PlanarLeggedEnv::cheetah(config(200)).unwrap();
         let task = Task::cheetah_vel(1.0);
         env.reset(&task, 1).unwrap();
         let mut metric = EpisodeMetric::new(Family::CheetahVel);
@@ -281,7 +278,7 @@ mod tests {
     fn joint_pd_keeps_the_walker_up_and_without_it_it_falls() {
         // MuJoCo's walker2d.xml under the same PD (gains 1, 0.1; frame skip 5) stands 117-1000
         // steps over seeds 0-5 and falls within 76-162 steps without it.
-        let mut env = PlanarLeggedEnv::walker(config(1000));
+        let mut env = PlanarLeggedEnv::walker(config(1000)).unwrap();
         let (mut passive_total, mut held_total) = (0, 0);
         for task in Family::WalkerDyn.train_tasks().iter().take(6) {
             let passive = walker_steps_upright(&mut env, task, (0.0, 0.0));
@@ -305,7 +302,9 @@ mod tests {
         let mut env = PlanarLeggedEnv::walker(EnvConfig {
             horizon: Some(150),
             healthy_termination: false,
-        });
+            ..EnvConfig::default()
+        })
+        .unwrap();
         let task = Family::WalkerDyn.test_tasks()[0];
         assert_eq!(walker_steps_upright(&mut env, &task, (0.0, 0.0)), 150);
     }
@@ -347,19 +346,24 @@ mod tests {
 
     #[test]
     fn the_nominal_walker_task_builds_the_unmodified_robot() {
-        let s = scaling_of(&Task::walker_nominal());
+        use crate::planar::Scaling;
+        let s = Scaling::of(Task::walker_nominal().walker_dynamics().as_ref());
         let n = Scaling::NOMINAL;
         assert_eq!(
             (s.mass, s.inertia, s.friction, s.damping),
             (n.mass, n.inertia, n.friction, n.damping)
         );
-        let d = scaling_of(&Task::walker_dyn(crate::WALKER_TEST_SEED_BASE));
+        let d = Scaling::of(
+            Task::walker_dyn(crate::WALKER_TEST_SEED_BASE)
+                .walker_dynamics()
+                .as_ref(),
+        );
         assert_ne!(d.mass, n.mass);
     }
 
     #[test]
     fn observations_have_the_declared_shape_and_hide_the_torso_x() {
-        let mut env = PlanarLeggedEnv::cheetah(config(50));
+        let mut env = PlanarLeggedEnv::cheetah(config(50)).unwrap();
         let obs = env.reset(&Task::cheetah_vel(0.5), 0).unwrap();
         assert_eq!(obs.len(), OBS_DIM);
         assert!((obs[0] - 0.7).abs() < 0.15, "torso height {}", obs[0]);

@@ -30,7 +30,11 @@ mod error;
 pub mod fidelity;
 mod fsio;
 pub mod legged;
+#[cfg(feature = "mujoco")]
+pub mod mujoco;
+mod physics;
 pub mod planar;
+mod plant;
 pub mod point_goal;
 pub mod render;
 mod robots;
@@ -49,6 +53,8 @@ pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_
 pub use error::SimError;
 pub use fsio::{canonical_safetensors, sha256_hex, temp_sibling, write_atomic, write_atomic_with};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
+pub use physics::{MUJOCO_VERSION, Physics};
+pub use plant::{Robot, TorsoPose};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;

@@ -12,6 +12,8 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier2d::prelude::*;
 
+use crate::WalkerDynamics;
+use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};
 
 /// Both planar legged robots have six torque-controlled joints.
@@ -418,6 +420,72 @@ impl PlanarRobot {
             }
         }
         shapes
+    }
+}
+
+/// A planar robot on Rapier: its spec, rebuilt in a fresh world at every reset.
+pub(crate) struct RapierPlanar {
+    spec: RobotSpec,
+    robot: PlanarRobot,
+}
+
+impl RapierPlanar {
+    /// The robot of `spec`, reset with seed 0 and nominal dynamics.
+    pub fn new(spec: RobotSpec) -> Self {
+        let robot = PlanarRobot::build(&spec, &Scaling::NOMINAL, 0);
+        Self { spec, robot }
+    }
+}
+
+impl Scaling {
+    /// walker-dyn's factors as the builder takes them (`None`: nominal).
+    pub fn of(dynamics: Option<&WalkerDynamics>) -> Scaling {
+        match dynamics {
+            Some(d) => Scaling {
+                mass: d.mass,
+                inertia: d.inertia,
+                friction: d.friction,
+                damping: d.damping,
+            },
+            None => Scaling::NOMINAL,
+        }
+    }
+}
+
+impl Plant for RapierPlanar {
+    fn control_dt(&self) -> f32 {
+        self.spec.physics_dt * self.spec.substeps as f32
+    }
+
+    fn reset(&mut self, seed: u64, dynamics: Option<&WalkerDynamics>) {
+        self.robot = PlanarRobot::build(&self.spec, &Scaling::of(dynamics), seed);
+    }
+
+    fn step(&mut self, action: &[f32]) {
+        self.robot.set_torques(action);
+        self.robot.advance();
+    }
+
+    fn diverged(&self) -> bool {
+        self.robot.diverged()
+    }
+
+    fn observe(&self, out: &mut [f32], velocity_clip: f32) {
+        if let Ok(out) = <&mut [f32; OBS_DIM]>::try_from(out) {
+            self.robot.observe(out, velocity_clip);
+        }
+    }
+
+    fn torso(&self) -> TorsoPose {
+        let (x, z, pitch) = self.robot.torso_pose();
+        TorsoPose {
+            position: [x, 0.0, z],
+            pitch,
+        }
+    }
+
+    fn shapes(&self) -> Vec<Shape> {
+        self.robot.shapes()
     }
 }
 

@@ -181,6 +181,7 @@ mod tests {
         let mut env = make_env(
             family,
             EnvConfig {
+                physics: Default::default(),
                 horizon: Some(steps),
                 healthy_termination: false,
             },

@@ -90,6 +90,7 @@ fn run(a: &Args) -> trainer::Result<serde_json::Value> {
             horizon: None,
             action_noise: sigma,
             run_through_falls: false,
+            physics: Default::default(),
         };
         let m = eval::evaluate(
             &mut policy,

@@ -50,6 +50,7 @@ fn eval_report_and_blob_parity() {
         horizon: Some(30),
         action_noise: 0.0,
         run_through_falls: false,
+        physics: Default::default(),
     };
     let r = eval::evaluate(
         &mut mp,

@@ -27,6 +27,7 @@ fn test_metric(mp: &mut MetaPolicy, contexts: &DemoDataset) -> f32 {
         horizon: Some(HORIZON),
         action_noise: 0.0,
         run_through_falls: false,
+        physics: Default::default(),
     };
     eval::evaluate(
         mp,

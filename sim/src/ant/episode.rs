@@ -2,10 +2,11 @@
 //! action, the ant's 29 observed entries and the torso's path. A family adds its task (a goal,
 //! a pair of points), its reward and its metric around it.
 
-use super::{ACT_DIM, AntRobot, AntSpec, OBS_DIM, obs};
+use super::{ACT_DIM, OBS_DIM, obs};
 use crate::env::{EpisodeClock, clip_action};
+use crate::plant::{Plant, Robot};
 use crate::render::{Frame, Role, Shape, View};
-use crate::{Family, SimError};
+use crate::{EnvConfig, Family, Physics, SimError};
 
 /// Observed velocities are clipped to +-this (m/s, rad/s), as walker-dyn's: a rare violent
 /// contact must not feed a network a huge input.
@@ -14,8 +15,8 @@ pub const VELOCITY_CLIP: f32 = 10.0;
 /// One ant episode of `family` (named in errors).
 pub(crate) struct AntEpisode {
     family: Family,
-    spec: AntSpec,
-    robot: AntRobot,
+    physics: Physics,
+    robot: Box<dyn Plant>,
     /// Steps taken and whether the episode is over.
     pub clock: EpisodeClock,
     /// The ant's observation after the last reset or step.
@@ -26,13 +27,18 @@ pub(crate) struct AntEpisode {
 }
 
 impl AntEpisode {
-    /// The ant of `family` reset with seed 0, episodes of `horizon` steps.
-    pub fn new(family: Family, horizon: usize) -> Self {
-        let spec = super::ant();
-        let robot = AntRobot::build(&spec, 0);
+    /// The ant of `family` on `config.physics` reset with seed 0, episodes of
+    /// `config.horizon` steps (else `default_horizon`).
+    pub fn new(
+        family: Family,
+        config: EnvConfig,
+        default_horizon: usize,
+    ) -> Result<Self, SimError> {
+        let robot = Robot::Ant.plant(config.physics)?;
+        let horizon = config.horizon.unwrap_or(default_horizon);
         let mut episode = Self {
             family,
-            spec,
+            physics: config.physics,
             robot,
             clock: EpisodeClock::new(horizon),
             obs: [0.0; OBS_DIM],
@@ -40,12 +46,17 @@ impl AntEpisode {
             path: Vec::with_capacity(horizon + 1),
         };
         episode.reset(0);
-        episode
+        Ok(episode)
+    }
+
+    /// The physics backend of the ant.
+    pub fn physics(&self) -> Physics {
+        self.physics
     }
 
     /// A new episode: the rest pose with `seed`'s initial-state noise.
     pub fn reset(&mut self, seed: u64) {
-        self.robot = AntRobot::build(&self.spec, seed);
+        self.robot.reset(seed, None);
         self.clock.restart();
         self.robot.observe(&mut self.obs, VELOCITY_CLIP);
         self.path.clear();
@@ -54,7 +65,7 @@ impl AntEpisode {
 
     /// Seconds per control step.
     pub fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
+        self.robot.control_dt()
     }
 
     /// Torso (x, y) position (m).
@@ -75,9 +86,8 @@ impl AntEpisode {
     pub fn physics_step(&mut self, action: &[f32]) -> Result<f32, SimError> {
         self.clock.ensure_running()?;
         clip_action(self.family, action, &mut self.action)?;
-        let x_before = self.robot.torso_position()[0];
-        self.robot.set_torques(&self.action);
-        self.robot.advance();
+        let x_before = self.robot.torso().position[0];
+        self.robot.step(&self.action);
         if self.robot.diverged() {
             self.clock.over = true;
             return Err(SimError::PhysicsDiverged {
@@ -87,7 +97,7 @@ impl AntEpisode {
         }
         self.robot.observe(&mut self.obs, VELOCITY_CLIP);
         self.path.push(self.torso_xy());
-        Ok((self.robot.torso_position()[0] - x_before) / self.control_dt())
+        Ok((self.robot.torso().position[0] - x_before) / self.control_dt())
     }
 
     /// ||a||^2 of the last (clipped) action.
@@ -103,7 +113,7 @@ impl AntEpisode {
             radius: 0.01,
             role: Role::Guide,
         }));
-        scene.extend(self.robot.top_view_shapes());
+        scene.extend(self.robot.shapes());
         Frame {
             view: View::Top,
             time: self.clock.step as f32 * self.control_dt(),

@@ -12,7 +12,7 @@ fn gait(step: usize) -> [f32; ACT_DIM] {
 }
 
 fn trace(task: &Task, seed: u64, steps: usize) -> Vec<u32> {
-    let mut env = AntGoalEnv::new(EnvConfig::default());
+    let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     let mut out: Vec<f32> = env.reset(task, seed).unwrap().to_vec();
     for step in 0..steps {
         let t = env.step(&gait(step)).unwrap();
@@ -56,7 +56,7 @@ fn splits_are_point_goals_angles_32_train_16_test_disjoint() {
 #[test]
 fn zero_action_stands_and_a_gait_moves_the_torso() {
     let task = Family::AntGoal.train_tasks()[0];
-    let mut env = AntGoalEnv::new(EnvConfig::default());
+    let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     for seed in 0..3 {
         let start = env.reset(&task, seed).unwrap().to_vec();
         for step in 0..HORIZON {
@@ -122,7 +122,7 @@ fn reward_is_minus_distance_minus_action_cost_and_the_metric_is_the_minimum_dist
 #[test]
 fn observation_layout_and_oracle_parameter() {
     let task = Family::AntGoal.test_tasks()[0];
-    let mut env = AntGoalEnv::new(EnvConfig::default());
+    let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     env.reset(&task, 1).unwrap();
     for step in 0..20 {
         env.step(&gait(step)).unwrap();
@@ -148,7 +148,7 @@ fn observation_layout_and_oracle_parameter() {
 
 #[test]
 fn bad_actions_and_tasks_are_typed_errors() {
-    let mut env = AntGoalEnv::new(EnvConfig::default());
+    let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     let mut action = [0.0; ACT_DIM];
     action[4] = f32::NAN;
     assert!(matches!(
@@ -176,7 +176,7 @@ fn bad_actions_and_tasks_are_typed_errors() {
 
 #[test]
 fn frames_are_top_views_with_goal_path_torso_and_twelve_capsules() {
-    let mut env = AntGoalEnv::new(EnvConfig::default());
+    let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     let task = Family::AntGoal.test_tasks()[2];
     env.reset(&task, 0).unwrap();
     for step in 0..5 {

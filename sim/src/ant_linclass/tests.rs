@@ -43,7 +43,7 @@ fn splits_are_64_train_and_32_test_hyperplanes_disjoint_with_unit_normals() {
 fn each_episode_shows_one_point_per_side_in_random_order_constant_over_the_episode() {
     let task = Family::AntLinClass.test_tasks()[0];
     let w = task.linclass_normal().unwrap();
-    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     let mut first_positive = 0;
     for seed in 0..200 {
         let o = env.reset(&task, seed).unwrap().to_vec();
@@ -71,7 +71,7 @@ fn each_episode_shows_one_point_per_side_in_random_order_constant_over_the_episo
 #[test]
 fn same_task_and_seed_give_bit_identical_episodes() {
     let trace = |seed: u64| {
-        let mut env = AntLinClassEnv::new(EnvConfig::default());
+        let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
         let mut out = env
             .reset(&Family::AntLinClass.train_tasks()[3], seed)
             .unwrap()
@@ -89,7 +89,7 @@ fn same_task_and_seed_give_bit_identical_episodes() {
 
 #[test]
 fn the_scripted_target_is_the_episodes_correct_target_and_feeds_an_ant_goal_expert() {
-    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     let mut oracle = vec![0.0; env.oracle_obs_dim()];
     let mut goal_input = vec![0.0; Family::AntGoal.oracle_obs_dim()];
     for (i, task) in Family::AntLinClass.test_tasks().iter().enumerate() {
@@ -166,7 +166,7 @@ fn the_metric_reads_the_latched_decision() {
 
 #[test]
 fn bad_actions_and_tasks_are_typed_errors() {
-    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     assert!(matches!(
         env.step(&[0.0; 3]),
         Err(SimError::ActionLength { got: 3, .. })
@@ -183,7 +183,7 @@ fn bad_actions_and_tasks_are_typed_errors() {
 
 #[test]
 fn frames_show_both_targets_the_correct_one_filled() {
-    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     env.reset(&Family::AntLinClass.test_tasks()[0], 1).unwrap();
     for step in 0..3 {
         env.step(&gait(step)).unwrap();
@@ -209,7 +209,7 @@ fn frames_show_both_targets_the_correct_one_filled() {
 #[test]
 fn tasks_draw_their_own_points_for_the_same_reset_seed() {
     // Demos of different tasks recorded with the same reset seeds must not share their points.
-    let mut env = AntLinClassEnv::new(EnvConfig::default());
+    let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     let tasks = Family::AntLinClass.train_tasks();
     let mut firsts: Vec<Vec<u32>> = tasks
         .iter()

@@ -16,7 +16,7 @@ use candle_core::Tensor;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use sim::{EnvConfig, Environment, EpisodeMetric, Family, Task};
+use sim::{EnvConfig, Environment, EpisodeMetric, Family, Physics, Task};
 
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
@@ -41,6 +41,9 @@ pub struct ExpertConfig {
     /// Task family, written by its name (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`,
     /// `ant-linclass`). Default `point-goal`.
     pub env: Family,
+    /// Physics backend of the plant, `rapier` (default) or `mujoco` (the `mujoco` build).
+    /// A config written before the MuJoCo backend existed reads as Rapier.
+    pub physics: Physics,
     /// Train on this one meta-train task index only (per-task expert). Default: all tasks.
     pub task_index: Option<usize>,
     /// Train on this one task given by its parameter instead (goal angle in rad, target
@@ -92,6 +95,7 @@ impl Default for ExpertConfig {
     fn default() -> Self {
         Self {
             env: Family::PointGoal,
+            physics: Physics::Rapier,
             task_index: None,
             task_value: None,
             total_steps: 30_000,
@@ -115,6 +119,7 @@ impl ExpertConfig {
     fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
+            physics: self.physics,
             ..EnvConfig::default()
         }
     }

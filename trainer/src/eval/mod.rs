@@ -27,7 +27,7 @@ use rand::SeedableRng;
 use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
-use sim::{DemoDataset, EnvConfig, Family, MetricKind, Split, Task, Trajectory};
+use sim::{DemoDataset, EnvConfig, Family, MetricKind, Physics, Split, Task, Trajectory};
 
 use crate::data::{ActionNoise, run_episode};
 use crate::error::{Error, Result};
@@ -58,6 +58,10 @@ pub struct Protocol {
     /// reports of this project's protocol read as they did before it existed).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub run_through_falls: bool,
+    /// The plant the episodes run on: the physics the policy was trained on (`smile eval` takes
+    /// it from the checkpoint and refuses demos of another plant). Reports record it.
+    #[serde(default)]
+    pub physics: Physics,
 }
 
 impl Protocol {
@@ -66,6 +70,7 @@ impl Protocol {
         EnvConfig {
             horizon: self.horizon,
             healthy_termination: !self.run_through_falls,
+            physics: self.physics,
         }
     }
 
@@ -88,6 +93,7 @@ impl Protocol {
                 horizon: None,
                 action_noise: 0.0,
                 run_through_falls: false,
+                physics: Physics::Rapier,
             },
             Family::WalkerDyn => Self {
                 context_sizes: vec![1],
@@ -96,6 +102,7 @@ impl Protocol {
                 horizon: None,
                 action_noise: 0.0,
                 run_through_falls: false,
+                physics: Physics::Rapier,
             },
             // Aggregating demos is what this family tests: the success per context size.
             Family::AntLinClass => Self {
@@ -105,6 +112,7 @@ impl Protocol {
                 horizon: None,
                 action_noise: 0.0,
                 run_through_falls: false,
+                physics: Physics::Rapier,
             },
             // point-goal and ant-goal (the paper's Figure 2 protocol).
             Family::PointGoal | Family::AntGoal => Self {
@@ -114,6 +122,7 @@ impl Protocol {
                 horizon: None,
                 action_noise: 0.0,
                 run_through_falls: false,
+                physics: Physics::Rapier,
             },
         }
     }

@@ -142,6 +142,7 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
         horizon: Some(4),
         action_noise: 0.0,
         run_through_falls: false,
+        physics: Default::default(),
     };
     let family = Family::AntLinClass;
     let m = evaluate(
@@ -192,6 +193,7 @@ fn action_noise_perturbs_every_episode_reproducibly_and_zero_changes_nothing() {
             horizon: Some(20),
             action_noise: sigma,
             run_through_falls: false,
+            physics: Default::default(),
         };
         evaluate(
             &mut StandStill,
@@ -229,6 +231,7 @@ fn the_authors_walker_protocol_runs_through_falls() {
         let protocol = Protocol {
             horizon: Some(300),
             run_through_falls,
+            physics: Default::default(),
             ..Protocol::for_family(Family::WalkerDyn)
         };
         evaluate(

@@ -26,6 +26,10 @@ pub struct ExpertArgs {
     /// point-goal, or the --config file's `env`].
     #[arg(long)]
     env: Option<Family>,
+    /// Physics backend: rapier or mujoco (a `--features mujoco` build) [default: rapier, or
+    /// the --config file's `physics`].
+    #[arg(long)]
+    physics: Option<sim::Physics>,
     /// Expert kind.
     #[arg(long, value_enum, default_value_t = ExpertKind::Sac)]
     kind: ExpertKind,
@@ -42,7 +46,7 @@ pub struct ExpertArgs {
     #[arg(short, long)]
     out: Option<PathBuf>,
     /// Continue the run in this directory from its checkpoint (its saved config is used).
-    #[arg(long, conflicts_with_all = ["config", "env"])]
+    #[arg(long, conflicts_with_all = ["config", "env", "physics"])]
     resume: Option<PathBuf>,
     /// Total environment steps [default: 30000, or the --config file's].
     #[arg(long)]
@@ -110,6 +114,9 @@ fn flag_table(a: &ExpertArgs) -> Result<toml::Table> {
     let int = |v: u64| toml::Value::Integer(v as i64);
     if let Some(v) = a.env {
         set("env", v.name().into())?;
+    }
+    if let Some(v) = a.physics {
+        set("physics", v.name().into())?;
     }
     for (key, v) in [
         ("total_steps", a.total_steps),
@@ -222,7 +229,14 @@ pub fn run(a: ExpertArgs) -> Result<()> {
             let cfg = effective_config(&a)?;
             let nominal = if a.nominal { "-nominal" } else { "" };
             let dir = a.out.clone().unwrap_or_else(|| {
-                PathBuf::from(format!("runs/expert-{}{nominal}-s{}", cfg.env, cfg.seed))
+                let plant = match cfg.physics {
+                    sim::Physics::Rapier => String::new(),
+                    other => format!("-{other}"),
+                };
+                PathBuf::from(format!(
+                    "runs/expert-{}{plant}{nominal}-s{}",
+                    cfg.env, cfg.seed
+                ))
             });
             trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
             if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
