@@ -63,6 +63,11 @@ struct RunArgs {
     /// Task family of the plant: point-goal, cheetah-vel, walker-dyn or ant-goal.
     #[arg(long)]
     env: Family,
+    /// Physics of the plant, rapier or mujoco (a `--features mujoco` build) [default: the
+    /// blob's export report's (`<blob>.json`), else rapier]. Context demos of another plant
+    /// are refused.
+    #[arg(long)]
+    physics: Option<sim::Physics>,
     /// Test-split index, or `param=VALUE` for an explicit task parameter.
     #[arg(long)]
     task: String,
@@ -165,7 +170,7 @@ fn parse_task(family: Family, spec: &str) -> Result<TaskSpec> {
         .ok_or_else(bad)
 }
 
-fn session_config(args: &RunArgs) -> SessionConfig {
+fn session_config(args: &RunArgs, physics: sim::Physics) -> SessionConfig {
     SessionConfig {
         device: DeviceConfig {
             flash_bytes: args.flash_kib * 1024,
@@ -197,6 +202,7 @@ fn session_config(args: &RunArgs) -> SessionConfig {
         },
         plant: EnvConfig {
             horizon: args.horizon,
+            physics,
             ..EnvConfig::default()
         },
     }
@@ -226,8 +232,29 @@ fn demos_of<'d>(
     Ok(found)
 }
 
-/// Reads a demo file given with `flag`, checking it holds demos of `family`.
-fn read_demos(path: &std::path::Path, flag: &str, family: Family) -> Result<DemoDataset> {
+/// The plant an export report beside `blob` (`<blob>.json`) names, if there is one.
+fn report_physics(blob: &std::path::Path) -> Result<Option<sim::Physics>> {
+    let mut p = blob.as_os_str().to_owned();
+    p.push(".json");
+    let path = PathBuf::from(p);
+    let Ok(text) = std::fs::read_to_string(&path) else {
+        return Ok(None);
+    };
+    let report: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    sim::Physics::from_name_or_default(report["physics"].as_str())
+        .map(Some)
+        .with_context(|| format!("{}: physics", path.display()))
+}
+
+/// Reads a demo file given with `flag`, checking it holds demos of `family` recorded on
+/// `physics`.
+fn read_demos(
+    path: &std::path::Path,
+    flag: &str,
+    family: Family,
+    physics: sim::Physics,
+) -> Result<DemoDataset> {
     let demos = DemoDataset::read(path).map_err(|e| match e {
         // Its message names the path already.
         sim::DatasetError::Io { source, .. } => {
@@ -246,6 +273,7 @@ fn read_demos(path: &std::path::Path, flag: &str, family: Family) -> Result<Demo
     }
     demos
         .ensure_family(family)
+        .and_then(|()| demos.ensure_physics(physics))
         .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
     Ok(demos)
 }
@@ -258,7 +286,14 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     }
     let spec = parse_task(args.env, &args.task)?;
     let blob = read_blob(&args.blob)?;
-    let demos = read_demos(&args.context, "--context", args.env)?;
+    let physics = match (args.physics, report_physics(&args.blob)?) {
+        (Some(asked), Some(made)) if asked != made => bail!(
+            "--physics {asked}, but {}.json says the blob was trained on the {made} plant",
+            args.blob.display()
+        ),
+        (asked, made) => asked.or(made).unwrap_or_default(),
+    };
+    let demos = read_demos(&args.context, "--context", args.env, physics)?;
     let value = match spec {
         TaskSpec::Index(task) => task.value(),
         TaskSpec::Param(value) => value,
@@ -280,7 +315,7 @@ fn run_cmd(args: RunArgs) -> Result<()> {
         .iter()
         .take(args.trajectories as usize)
         .collect();
-    let config = session_config(&args);
+    let config = session_config(&args, physics);
     let session = run_session(&blob, &task, &context, &config)?;
     let report = &session.report;
 
@@ -411,8 +446,17 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
             args.blob.display()
         ),
     }
-    let demos = read_demos(&args.contexts, "--contexts", args.env)?;
-    let config = SessionConfig::default();
+    // The device runs the plant the policy was trained and verified on.
+    let physics = sim::Physics::from_name_or_default(reference["physics"].as_str())
+        .with_context(|| format!("{}: physics", reference_path.display()))?;
+    let demos = read_demos(&args.contexts, "--contexts", args.env, physics)?;
+    let config = SessionConfig {
+        plant: EnvConfig {
+            physics,
+            ..EnvConfig::default()
+        },
+        ..SessionConfig::default()
+    };
     let mut rows = Vec::new();
     for entry in host_tasks {
         let (Some(value), Some(host)) = (entry["value"].as_f64(), entry["metric"].as_f64()) else {

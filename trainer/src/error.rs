@@ -31,6 +31,21 @@ pub enum Error {
         /// The family it must be.
         expected: sim::Family,
     },
+    /// An input was made on another physics backend than the run's (demos recorded on
+    /// MuJoCo for a Rapier run, a checkpoint trained on Rapier evaluated on MuJoCo): its
+    /// observations mean other things there.
+    #[error(
+        "{what} was made on the {found} plant, this run simulates {expected}: give one made \
+         on {expected}, or run with --physics {found}"
+    )]
+    WrongPhysics {
+        /// The input, named for a person (a path, "the demos").
+        what: String,
+        /// Its plant.
+        found: sim::Physics,
+        /// The plant it must be.
+        expected: sim::Physics,
+    },
     /// Tensor shapes or dimensions disagree (e.g. a checkpoint for another network size).
     #[error("shape mismatch: {0}")]
     Shape(String),

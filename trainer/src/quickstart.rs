@@ -633,6 +633,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         quant: "w8a8".into(),
         algo: smile_policy.algo.clone(),
         env: args.env,
+        physics: smile_policy.physics,
         parity: parity.clone(),
         metric: eval::metric_name(args.env.metric_kind()).into(),
         split: Split::Test.to_string(),

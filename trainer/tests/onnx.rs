@@ -85,6 +85,7 @@ fn random_policy(fam: Family, algo: &str, norm: ObsNorm, seed: u64) -> MetaPolic
         TanhGaussianPolicy::new(od + encoder.z_dim(), ad, &hidden, (-20.0, 2.0), &mut rng).unwrap();
     MetaPolicy {
         family: fam,
+        physics: sim::Physics::Rapier,
         algo: algo.into(),
         norm,
         encoder,

@@ -1,6 +1,6 @@
 //! The one error type of the demo dataset format.
 
-use crate::{Family, SimError};
+use crate::{Family, Physics, SimError};
 
 use super::FORMAT_NAME;
 
@@ -82,6 +82,17 @@ pub enum DatasetError {
         expected: Family,
         /// Family in the file.
         found: Family,
+    },
+    /// The demos were recorded on another physics backend than the run's.
+    #[error(
+        "the demo file was recorded on the {found} plant, this run simulates {expected}: record \
+         demos on it (`smile demos --physics {expected}`) or run on {found} (`--physics {found}`)"
+    )]
+    PhysicsMismatch {
+        /// The run's plant.
+        expected: Physics,
+        /// The file's plant.
+        found: Physics,
     },
     /// A trajectory or transition does not match the dataset's dimensions.
     #[error("{what} has length {got}, expected {expected}")]

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
-use crate::{Environment, Family, Split, Task};
+use crate::{Environment, Family, Physics, Split, Task};
 
 pub use error::DatasetError;
 
@@ -184,6 +184,9 @@ impl TaskDemos {
 pub struct DemoDataset {
     /// Task family.
     pub family: Family,
+    /// The plant the demos were recorded on (metadata `physics`; a file without it is
+    /// Rapier's, as every file written before the MuJoCo backend).
+    pub physics: Physics,
     /// Split the tasks come from.
     pub split: Split,
     /// Name of the expert that produced the demos (e.g. `scripted-pd`, `sac-oracle`).
@@ -219,6 +222,7 @@ impl DemoDataset {
     pub fn new(family: Family, split: Split, expert: impl Into<String>) -> Self {
         Self {
             family,
+            physics: Physics::Rapier,
             split,
             expert: expert.into(),
             obs_dim: family.obs_dim(),
@@ -247,6 +251,20 @@ impl DemoDataset {
             });
         }
         self.check()
+    }
+
+    /// Errors unless the demos were recorded on `physics`: a demo of one plant is refused by
+    /// a run on the other (its observations mean other things: the cheetah's rootz is absolute
+    /// on Rapier, relative on MuJoCo, and the dynamics differ).
+    pub fn ensure_physics(&self, physics: Physics) -> Result<(), DatasetError> {
+        if self.physics == physics {
+            Ok(())
+        } else {
+            Err(DatasetError::PhysicsMismatch {
+                expected: physics,
+                found: self.physics,
+            })
+        }
     }
 
     /// Checks dimensions, task families, per-trajectory lengths and that every stored float
@@ -499,6 +517,7 @@ impl DemoDataset {
             ("format", FORMAT_NAME.to_string()),
             ("format_version", FORMAT_VERSION.to_string()),
             ("family", self.family.to_string()),
+            ("physics", self.physics.to_string()),
             ("split", self.split.to_string()),
             ("expert", self.expert.clone()),
             ("obs_dim", self.obs_dim.to_string()),

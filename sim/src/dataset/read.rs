@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use safetensors::tensor::{Dtype, SafeTensors};
 
 use super::{DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, names};
-use crate::{Family, Split};
+use crate::{Family, Physics, Split};
 
 /// Size of the little-endian header-length prefix of a safetensors file.
 const PREFIX: usize = 8;
@@ -197,6 +197,11 @@ impl DemoDataset {
             });
         }
         let family: Family = meta_parse(map, "family")?;
+        let physics = Physics::from_name_or_default(map.get("physics").map(String::as_str))
+            .map_err(|e| DatasetError::BadMetadata {
+                key: "physics",
+                reason: e.to_string(),
+            })?;
         let split: Split = meta_parse(map, "split")?;
         let obs_dim: usize = meta_parse(map, "obs_dim")?;
         let act_dim: usize = meta_parse(map, "act_dim")?;
@@ -315,6 +320,7 @@ impl DemoDataset {
         }
         let dataset = DemoDataset {
             family,
+            physics,
             split,
             expert: meta(map, "expert")?.to_string(),
             obs_dim,

@@ -403,6 +403,7 @@ impl ExpertTrainer {
             "kind": "expert-policy",
             "expert": "sac-oracle",
             "env": self.family.name(),
+            "physics": self.cfg.physics.name(),
             "widths": net.widths(),
             "log_std_bounds": [self.cfg.sac.log_std_min, self.cfg.sac.log_std_max],
             "env_steps": self.env_steps,
@@ -417,6 +418,7 @@ impl ExpertTrainer {
     pub fn expert(&self) -> Expert {
         Expert::Sac {
             family: self.family,
+            physics: self.cfg.physics,
             policy: self.sac.actor.clone(),
         }
     }

@@ -80,17 +80,21 @@ impl MetaBc {
     /// meta-train tasks: `Some(expert.into())` for one).
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
         let family = cfg.env;
-        if data.family != family {
-            return Err(Error::WrongFamily {
-                what: "the demos, for the config's `env`".into(),
-                found: data.family,
-                expected: family,
-            });
-        }
+        data.ensure_fits(family, cfg.physics)?;
         if cfg.dagger && expert.as_ref().is_none_or(|e| e.family() != family) {
             return Err(Error::Config(format!(
                 "meta-dagger needs an expert for {family}"
             )));
+        }
+        if let Some(set) = expert
+            .as_ref()
+            .filter(|e| cfg.dagger && e.physics() != cfg.physics)
+        {
+            return Err(Error::WrongPhysics {
+                what: "meta-dagger's relabelling expert".into(),
+                found: set.physics(),
+                expected: cfg.physics,
+            });
         }
         if let Some(set) = expert.as_ref().filter(|_| cfg.dagger) {
             // Every meta-train task needs its relabelling expert: fail now, not mid-run.
@@ -179,6 +183,7 @@ impl MetaBc {
     pub fn meta_policy(&self) -> MetaPolicy {
         MetaPolicy {
             family: self.data.family,
+            physics: self.cfg.physics,
             algo: self.cfg.algo_name().into(),
             norm: self.data.norm.clone(),
             encoder: self.encoder.clone(),

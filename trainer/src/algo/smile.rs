@@ -115,13 +115,7 @@ impl Smile {
     pub fn new(cfg: SmileConfig, data: MetaData) -> Result<Self> {
         cfg.validate()?;
         let family = cfg.env;
-        if data.family != family {
-            return Err(Error::WrongFamily {
-                what: "the demos, for the config's `env`".into(),
-                found: data.family,
-                expected: family,
-            });
-        }
+        data.ensure_fits(family, cfg.physics)?;
         let env = sim::make_env(family, cfg.rollout_env_config())?;
         let mut rng = ChaCha8Rng::seed_from_u64(cfg.seed);
         let (od, ad) = (family.obs_dim(), family.act_dim());
@@ -214,6 +208,7 @@ impl Smile {
     pub fn meta_policy(&self) -> MetaPolicy {
         MetaPolicy {
             family: self.data.family,
+            physics: self.cfg.physics,
             algo: self.cfg.algo_name().into(),
             norm: self.data.norm.clone(),
             encoder: self.encoder.clone(),

@@ -17,6 +17,8 @@ use crate::model::{ContextSpec, ObsNorm};
 pub struct MetaData {
     /// Task family.
     pub family: Family,
+    /// The plant the demos were recorded on.
+    pub physics: sim::Physics,
     /// Observation statistics of all meta-train demo states (training + held-out tasks).
     pub norm: ObsNorm,
     /// Demos of the tasks trained on.
@@ -26,6 +28,26 @@ pub struct MetaData {
 }
 
 impl MetaData {
+    /// Errors unless these demos are of `family` and were recorded on `physics`: what a
+    /// learner configured for that family and plant can train on.
+    pub fn ensure_fits(&self, family: Family, physics: sim::Physics) -> Result<()> {
+        if self.family != family {
+            return Err(Error::WrongFamily {
+                what: "the demos, for the config's `env`".into(),
+                found: self.family,
+                expected: family,
+            });
+        }
+        if self.physics != physics {
+            return Err(Error::WrongPhysics {
+                what: "the demos".into(),
+                found: self.physics,
+                expected: physics,
+            });
+        }
+        Ok(())
+    }
+
     /// Splits `ds`: every `holdout_every`-th task (indices `holdout_every-1, 2*holdout_every-1,
     /// ...`) is held out for validation; 0 holds none out.
     ///
@@ -71,6 +93,7 @@ impl MetaData {
         }
         Ok(Self {
             family,
+            physics: ds.physics,
             norm,
             train,
             val,

@@ -140,6 +140,10 @@ pub struct ExportReport {
     pub algo: String,
     /// The family, written by its name.
     pub env: sim::Family,
+    /// The plant the policy was trained and verified on (reports written before the MuJoCo
+    /// backend are Rapier's); the device runs it there.
+    #[serde(default)]
+    pub physics: sim::Physics,
     /// z / action differences on held-out contexts.
     pub parity: Parity,
     /// Metric name.
@@ -192,6 +196,7 @@ pub fn verify(
         quant: quant.into(),
         algo: mp.algo.clone(),
         env: family,
+        physics: mp.physics,
         parity,
         metric: super::metric_name(family.metric_kind()).into(),
         split: split.to_string(),

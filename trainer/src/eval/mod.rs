@@ -364,6 +364,13 @@ pub fn evaluate(
     on_task: &mut dyn FnMut(usize, usize),
 ) -> Result<MethodResult> {
     let tasks = family.tasks(split);
+    if contexts.physics != protocol.physics {
+        return Err(Error::WrongPhysics {
+            what: "the context demos".into(),
+            found: contexts.physics,
+            expected: protocol.physics,
+        });
+    }
     let demos = contexts_for(contexts, family, &tasks)?;
     let mut env = sim::make_env(family, protocol.env_config())?;
     let mut results = Vec::with_capacity(tasks.len());

@@ -30,6 +30,7 @@ impl MetaPolicy {
         let meta = serde_json::json!({
             "kind": "meta-policy",
             "env": self.family.name(),
+            "physics": self.physics.name(),
             "algo": self.algo,
             "context": self.encoder.config(),
             "norm": self.norm,
@@ -114,6 +115,13 @@ impl MetaPolicy {
             });
         }
         let family: Family = ck.meta_field("env")?;
+        // Files written before the MuJoCo backend have no `physics`: Rapier's.
+        let physics =
+            sim::Physics::from_name_or_default(ck.meta.get("physics").and_then(|p| p.as_str()))
+                .map_err(|e| Error::Checkpoint {
+                    path: file.clone(),
+                    reason: e.to_string(),
+                })?;
         let cfg: ContextConfig = ck.meta_field("context")?;
         let norm: ObsNorm = ck.meta_field("norm")?;
         let widths: Vec<usize> = ck.meta_field("policy_widths")?;
@@ -142,6 +150,7 @@ impl MetaPolicy {
         mlp_load("policy", policy.net(), &get)?;
         Ok(Self {
             family,
+            physics,
             algo: ck.meta_field("algo")?,
             norm,
             encoder,

@@ -34,6 +34,8 @@ pub struct TrainingMark {
 pub struct MetaPolicy {
     /// Task family.
     pub family: Family,
+    /// The plant it was trained on (evaluation and the device run it there).
+    pub physics: sim::Physics,
     /// Which algorithm produced it (`smile`, `smile-state-only`, `meta-bc`, `meta-dagger`).
     pub algo: String,
     /// Observation normalisation (from the meta-train demos).
@@ -178,6 +180,7 @@ mod tests {
             let policy = TanhGaussianPolicy::new(8, 2, &[16, 16], (-20.0, 2.0), &mut rng).unwrap();
             let mp = MetaPolicy {
                 family: Family::PointGoal,
+                physics: sim::Physics::Rapier,
                 algo: "test".into(),
                 norm,
                 encoder: enc,
@@ -240,6 +243,7 @@ mod tests {
         let policy = TanhGaussianPolicy::new(8, 2, &[16], (-20.0, 2.0), &mut rng).unwrap();
         let mp = MetaPolicy {
             family: Family::PointGoal,
+            physics: sim::Physics::Rapier,
             algo: "meta-bc".into(),
             norm,
             encoder: enc,

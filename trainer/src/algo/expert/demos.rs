@@ -5,7 +5,7 @@
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
 use super::{Expert, ExpertSet};
-use crate::error::Result;
+use crate::error::{Error, Result};
 
 /// What to record.
 #[derive(Debug, Clone)]
@@ -33,8 +33,16 @@ pub fn record(expert: &Expert, spec: &DemoSpec) -> Result<DemoDataset> {
 /// As [`record`], each task acted by its expert in `experts` (per-task experts).
 pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> {
     let family: Family = experts.family();
+    if experts.physics() != spec.env.physics {
+        return Err(Error::WrongPhysics {
+            what: "the expert".into(),
+            found: experts.physics(),
+            expected: spec.env.physics,
+        });
+    }
     let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
+    ds.physics = spec.env.physics;
     for task in &spec.tasks {
         let expert = experts.for_task(task)?;
         let mut trajectories = Vec::with_capacity(spec.per_task);

@@ -7,7 +7,7 @@ use std::path::Path;
 use candle_core::Tensor;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use sim::{Family, PointGoalPdExpert};
+use sim::{Family, Physics, PointGoalPdExpert};
 
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
@@ -74,6 +74,7 @@ pub fn export_scripted_linclass(goal_expert: &Path, dir: &Path) -> Result<()> {
     let meta = serde_json::json!({
         "kind": "expert-policy", "expert": "scripted-linclass",
         "env": Family::AntLinClass.name(), "widths": widths, "log_std_bounds": bounds,
+        "physics": policy_physics(&ck, &file)?.name(),
         "goal_expert": file.display().to_string(),
     });
     write_policy(dir, POLICY_FILE, &tensors, &meta)
@@ -109,6 +110,8 @@ pub enum Expert {
     Sac {
         /// The family it was trained for.
         family: Family,
+        /// The plant it was trained on.
+        physics: Physics,
         /// The policy.
         policy: TanhGaussianPolicy,
     },
@@ -119,7 +122,31 @@ pub enum Expert {
     ScriptedLinClass {
         /// The ant-goal expert's actor.
         policy: TanhGaussianPolicy,
+        /// The plant the ant-goal expert was trained on.
+        physics: Physics,
     },
+}
+
+/// The plant a policy file's expert was trained on: its `physics` entry; for files written
+/// before the MuJoCo backend, the `physics` of the run's `config.toml` beside it (a run
+/// directory or an `assets/experts/` folder), else Rapier.
+fn policy_physics(ck: &checkpoint::Loaded, file: &Path) -> Result<Physics> {
+    let bad = |reason: String| Error::Checkpoint {
+        path: file.to_path_buf(),
+        reason,
+    };
+    if let Some(name) = ck.meta.get("physics").and_then(|p| p.as_str()) {
+        return name.parse().map_err(|e: sim::SimError| bad(e.to_string()));
+    }
+    let config = file.with_file_name("config.toml");
+    let Ok(text) = std::fs::read_to_string(&config) else {
+        return Ok(Physics::Rapier);
+    };
+    let table: toml::Table = text
+        .parse()
+        .map_err(|e| bad(format!("{}: {e}", config.display())))?;
+    Physics::from_name_or_default(table.get("physics").and_then(|p| p.as_str()))
+        .map_err(|e| bad(format!("{}: {e}", config.display())))
 }
 
 impl Expert {
@@ -156,12 +183,18 @@ impl Expert {
             })),
             "sac-oracle" => {
                 let policy = load_actor(&ck, family.oracle_obs_dim(), family.act_dim(), &bad)?;
-                Ok(Expert::Sac { family, policy })
+                let physics = policy_physics(&ck, &file)?;
+                Ok(Expert::Sac {
+                    family,
+                    physics,
+                    policy,
+                })
             }
             "scripted-linclass" if family == Family::AntLinClass => {
                 let goal = Family::AntGoal;
                 let policy = load_actor(&ck, goal.oracle_obs_dim(), goal.act_dim(), &bad)?;
-                Ok(Expert::ScriptedLinClass { policy })
+                let physics = policy_physics(&ck, &file)?;
+                Ok(Expert::ScriptedLinClass { policy, physics })
             }
             other => Err(bad(&format!("unknown expert kind {other:?}"))),
         }
@@ -185,6 +218,14 @@ impl Expert {
         }
     }
 
+    /// The plant this expert acts on.
+    pub fn physics(&self) -> Physics {
+        match self {
+            Expert::Sac { physics, .. } | Expert::ScriptedLinClass { physics, .. } => *physics,
+            Expert::ScriptedPd(_) => Physics::Rapier,
+        }
+    }
+
     /// Deterministic action for an oracle observation.
     pub fn act(&self, oracle_obs: &[f32], action: &mut [f32]) -> Result<()> {
         match self {
@@ -194,7 +235,7 @@ impl Expert {
                 Ok(())
             }
             Expert::ScriptedPd(pd) => Ok(pd.act(oracle_obs, action)?),
-            Expert::ScriptedLinClass { policy } => {
+            Expert::ScriptedLinClass { policy, .. } => {
                 let mut goal_input = [0.0f32; sim::ant::OBS_DIM + 2];
                 sim::ant_linclass::goal_expert_input(oracle_obs, &mut goal_input)?;
                 let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic action

@@ -31,6 +31,7 @@ pub fn trained_task_value(path: &Path) -> Result<Option<f64>> {
 #[derive(Debug, Clone)]
 pub struct ExpertSet {
     family: Family,
+    physics: sim::Physics,
     general: Option<(Expert, String)>,
     per_task: Vec<(Task, Expert, String)>,
 }
@@ -39,6 +40,7 @@ impl From<Expert> for ExpertSet {
     fn from(e: Expert) -> Self {
         Self {
             family: e.family(),
+            physics: e.physics(),
             general: Some((e, "the given expert".into())),
             per_task: Vec::new(),
         }
@@ -62,6 +64,7 @@ impl ExpertSet {
             let task_value = trained_task_value(p)?;
             let s = set.get_or_insert_with(|| Self {
                 family: ex.family(),
+                physics: ex.physics(),
                 general: None,
                 per_task: Vec::new(),
             });
@@ -70,6 +73,13 @@ impl ExpertSet {
                     what: format!("the expert {}, beside the others", p.display()),
                     found: ex.family(),
                     expected: s.family,
+                });
+            }
+            if ex.physics() != s.physics {
+                return Err(Error::WrongPhysics {
+                    what: format!("the expert {}, beside the others", p.display()),
+                    found: ex.physics(),
+                    expected: s.physics,
                 });
             }
             let source = p.display().to_string();
@@ -92,6 +102,11 @@ impl ExpertSet {
     /// The family of every expert in the set.
     pub fn family(&self) -> Family {
         self.family
+    }
+
+    /// The plant every expert in the set was trained on.
+    pub fn physics(&self) -> sim::Physics {
+        self.physics
     }
 
     /// Dataset label: the single expert's name, or `<name>-per-task`.

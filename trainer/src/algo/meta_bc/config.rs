@@ -26,6 +26,9 @@ pub enum Selection {
 pub struct MetaBcConfig {
     /// Task family, written by its name (`cheetah-vel`). Default `point-goal`.
     pub env: Family,
+    /// Physics backend of the plant, `rapier` (default) or `mujoco`; the demos must have been
+    /// recorded on it. A config written before the MuJoCo backend existed reads as Rapier.
+    pub physics: sim::Physics,
     /// Encoder and latent (as SMILe's).
     pub context: ContextConfig,
     /// Policy hidden widths. Default [128, 128] (as SMILe's SAC actor).
@@ -84,6 +87,7 @@ impl Default for MetaBcConfig {
     fn default() -> Self {
         Self {
             env: Family::PointGoal,
+            physics: sim::Physics::Rapier,
             context: ContextConfig::default(),
             policy_hidden: vec![128, 128],
             lr: 3e-4,
@@ -132,6 +136,7 @@ impl MetaBcConfig {
     pub fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
+            physics: self.physics,
             ..EnvConfig::default()
         }
     }

@@ -17,6 +17,9 @@ use crate::model::ContextConfig;
 pub struct SmileConfig {
     /// Task family, written by its name (`cheetah-vel`). Default `point-goal`.
     pub env: Family,
+    /// Physics backend of the plant, `rapier` (default) or `mujoco`; the demos must have been
+    /// recorded on it. A config written before the MuJoCo backend existed reads as Rapier.
+    pub physics: sim::Physics,
     /// Encoder and latent (its `state_only` selects the state-only variant everywhere).
     pub context: ContextConfig,
     /// SAC on `[norm(s), z]`. Default: hidden [128, 128], reward scale 8, learned alpha.
@@ -132,6 +135,7 @@ impl Default for SmileConfig {
     fn default() -> Self {
         Self {
             env: Family::PointGoal,
+            physics: sim::Physics::Rapier,
             context: ContextConfig::default(),
             sac: SacConfig {
                 hidden: vec![128, 128],
@@ -182,6 +186,7 @@ impl SmileConfig {
     pub fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
+            physics: self.physics,
             ..EnvConfig::default()
         }
     }

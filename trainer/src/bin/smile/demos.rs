@@ -36,6 +36,10 @@ pub struct DemosArgs {
     /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Physics backend to record on [default: the expert's, from its policy file]; an
+    /// expert trained on another plant is refused.
+    #[arg(long)]
+    physics: Option<sim::Physics>,
     /// Episode length override (at least 1).
     #[arg(long, value_parser = crate::positive)]
     horizon: Option<usize>,
@@ -92,6 +96,7 @@ pub fn run(a: DemosArgs) -> Result<()> {
         seed: a.seed,
         env: EnvConfig {
             horizon: a.horizon,
+            physics: a.physics.unwrap_or(ex.physics()),
             ..EnvConfig::default()
         },
     };
@@ -103,12 +108,13 @@ pub fn run(a: DemosArgs) -> Result<()> {
     // Atomic: a kill or a full disk leaves the previous file whole.
     ds.write(&a.out)?;
     println!(
-        "wrote {}: {} tasks x {} trajectories, {} transitions (subsample {}), expert {}",
+        "wrote {}: {} tasks x {} trajectories, {} transitions (subsample {}), {} plant, expert {}",
         a.out.display(),
         ds.tasks.len(),
         a.per_task,
         ds.transition_count(),
         ds.subsample_factor,
+        ds.physics,
         ds.expert
     );
     Ok(())

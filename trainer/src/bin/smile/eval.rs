@@ -128,6 +128,21 @@ pub fn run(a: EvalArgs) -> Result<()> {
         }
         policies.push((p, mp));
     }
+    // The episodes run on the plant the policies were trained on; all of them the same one.
+    if let Some((first, mp)) = policies.first() {
+        protocol.physics = mp.physics;
+        if let Some((p, other)) = policies.iter().find(|(_, m)| m.physics != mp.physics) {
+            bail!(
+                "{} was trained on the {} plant, {} on {}: evaluate each plant's policies apart",
+                first.display(),
+                mp.physics,
+                p.display(),
+                other.physics
+            );
+        }
+    }
+    ctx.ensure_physics(protocol.physics)
+        .with_context(|| format!("--contexts {}", a.contexts.display()))?;
     eval::contexts_for(&ctx, family, &family.tasks(a.split))
         .with_context(|| format!("--contexts {}", a.contexts.display()))?;
     let references = match &a.base {

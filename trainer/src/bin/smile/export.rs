@@ -149,6 +149,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         protocol.rollouts = r;
     }
     protocol.horizon = a.horizon;
+    protocol.physics = mp.physics;
     let report = export::verify(&mp, &blob, &a.quant, &ctx, &protocol)?;
     let p = &report.parity;
     eprintln!(

@@ -50,6 +50,10 @@ pub struct TrainArgs {
     /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default: the demo file's].
     #[arg(long)]
     env: Option<Family>,
+    /// Physics backend, rapier or mujoco (a `--features mujoco` build) [default: the
+    /// config's `physics`, else the demo file's plant]. Demos of another plant are refused.
+    #[arg(long)]
+    physics: Option<sim::Physics>,
     /// Meta-train demos (`smile demos --split train`); a meta-test file is refused.
     #[arg(long)]
     demos: PathBuf,
@@ -110,7 +114,11 @@ pub struct TrainArgs {
 
 /// The configuration: the flags given here, over the run's saved `config.toml` when resuming
 /// (else over `--config`), over the algorithm's defaults.
-fn read_config<L: MetaLearner>(a: &TrainArgs, algo: Algo) -> Result<L::Config> {
+fn read_config<L: MetaLearner>(
+    a: &TrainArgs,
+    algo: Algo,
+    demos_physics: sim::Physics,
+) -> Result<L::Config> {
     let file = if a.resume {
         Some(a.out.join("config.toml"))
     } else {
@@ -130,7 +138,16 @@ fn read_config<L: MetaLearner>(a: &TrainArgs, algo: Algo) -> Result<L::Config> {
         (Some(p), false) => format!("parsing {}", p.display()),
         (None, _) => "reading the flags".into(),
     };
-    trainer::from_toml_with_flags(&text, flag_table(a, algo, L::TOTAL_KEY)?).context(what)
+    let mut flags = flag_table(a, algo, L::TOTAL_KEY)?;
+    // The plant: --physics, else the file's `physics`, else the demos' (a new run on MuJoCo
+    // demos runs on MuJoCo without being told twice).
+    let in_file = text
+        .parse::<toml::Table>()
+        .is_ok_and(|t| t.contains_key("physics"));
+    if let Some(p) = a.physics.or((!in_file).then_some(demos_physics)) {
+        flags.insert("physics".into(), p.name().into());
+    }
+    trainer::from_toml_with_flags(&text, flags).context(what)
 }
 
 /// The flags that set configuration keys, as a table in the configuration's own shape.
@@ -394,7 +411,7 @@ fn train_with<L: MetaLearner>(
     ds: &DemoDataset,
     demos_sha: String,
 ) -> Result<()> {
-    let mut cfg: L::Config = read_config::<L>(&a, algo)?;
+    let mut cfg: L::Config = read_config::<L>(&a, algo, ds.physics)?;
     L::configure(&mut cfg, algo, family);
     let (expert, expert_path) = relabelling_expert(&a, algo, family)?;
     let data = MetaData::from_dataset(ds, family, L::holdout_every(&cfg))
