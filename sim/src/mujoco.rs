@@ -17,7 +17,9 @@
 //! bit (`sim/tests/mujoco_golden.rs`).
 
 use mujoco_rs::mujoco_c::{mj_version, mjVERSION_HEADER, mjtWarning};
-use mujoco_rs::prelude::{MjData, MjLogMessage, MjModel, MjtGeomBase, set_log_handler};
+use mujoco_rs::prelude::{
+    MjData, MjLogMessage, MjModel, MjtGeomBase, MjtLogLevel, set_log_handler,
+};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
@@ -128,12 +130,15 @@ fn check_library() -> Result<(), SimError> {
     }
 }
 
-/// MuJoCo's messages to stderr, prefixed, instead of its default handler's stdout and a
-/// `MUJOCO_LOG.TXT` in the working directory. The one message every cheetah load gives
-/// (`settotalmass is deprecated`, about the vendored XML as Gymnasium ships it) is dropped.
+/// MuJoCo's warnings and errors to stderr, prefixed, instead of its default handler's stdout
+/// and a `MUJOCO_LOG.TXT` in the working directory; its debug and info messages (compile
+/// timings) are dropped, and so is the one warning every cheetah load gives (`settotalmass is
+/// deprecated`, about the vendored XML as Gymnasium ships it).
 fn mujoco_log(message: &MjLogMessage) {
     let subject = message.subject();
-    if !subject.contains("settotalmass") {
+    let level = message.level();
+    let quiet = matches!(level, MjtLogLevel::mjLOG_DEBUG | MjtLogLevel::mjLOG_INFO);
+    if !quiet && !subject.contains("settotalmass") {
         eprintln!("MuJoCo: {subject} {}", message.body().unwrap_or_default());
     }
 }

@@ -212,6 +212,13 @@ pub fn evaluate_under_noise(
     action_noise: f32,
 ) -> Result<EvalReport> {
     let family = expert.family();
+    if env_cfg.physics != expert.physics() {
+        return Err(Error::WrongPhysics {
+            what: format!("the {} expert", expert.name()),
+            found: expert.physics(),
+            expected: env_cfg.physics,
+        });
+    }
     let mut env = sim::make_env(family, env_cfg)?;
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
     let mut action = vec![0.0f32; family.act_dim()];

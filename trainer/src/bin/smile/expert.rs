@@ -309,6 +309,11 @@ fn finish(
 ) -> Result<()> {
     let ex = Expert::load(dir)?;
     let family = ex.family();
+    // The expert is evaluated on the plant it was trained on.
+    let env_cfg = EnvConfig {
+        physics: ex.physics(),
+        ..env_cfg
+    };
     let (tasks, label) = match own_tasks {
         Some(t) => (t, "its own task"),
         None => (family.test_tasks(), "meta-test tasks"),
@@ -325,7 +330,8 @@ fn finish(
         tasks.len()
     );
     let json = serde_json::json!({
-        "expert": ex.name(), "env": family.name(), "metric": kind, "report": rep,
+        "expert": ex.name(), "env": family.name(), "physics": ex.physics().name(),
+        "metric": kind, "report": rep,
         "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(),
         "episodes_per_task": episodes, "horizon": env_cfg.horizon,
     });
