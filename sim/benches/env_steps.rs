@@ -1,27 +1,39 @@
-//! Environment steps per second per family, one core. Episodes of the default horizon with a
-//! fixed open-loop action pattern; the reset at each episode end is included in the cost.
+//! Environment steps per second per family and physics backend, one core. Episodes of the
+//! default horizon with a fixed open-loop action pattern; the reset at each episode end is
+//! included in the cost. Rapier's ids are the family names (as before the MuJoCo backend);
+//! MuJoCo's (with `--features mujoco`) end in `-mujoco`.
 
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
-use sim::{EnvConfig, Family, make_env};
+use sim::{EnvConfig, Family, Physics, make_env};
 
 fn env_steps(c: &mut Criterion) {
     let mut group = c.benchmark_group("env_step");
     group.throughput(Throughput::Elements(1));
     group.measurement_time(Duration::from_secs(4));
     group.warm_up_time(Duration::from_secs(1));
-    for family in Family::ALL {
+    let plants = Physics::ALL.into_iter().filter(|p| p.is_available());
+    let cases = plants.flat_map(|p| Family::ALL.into_iter().map(move |f| (p, f)));
+    for (physics, family) in cases {
+        if physics == Physics::Mujoco && family == Family::PointGoal {
+            continue;
+        }
         let config = EnvConfig {
             healthy_termination: false,
+            physics,
             ..EnvConfig::default()
         };
         let mut env = make_env(family, config).expect("every family builds");
+        let id = match physics {
+            Physics::Rapier => family.name().to_string(),
+            other => format!("{family}-{other}"),
+        };
         let task = family.train_tasks()[1];
         env.reset(&task, 0).expect("reset");
         let mut step = 0usize;
         let mut episode = 0u64;
-        group.bench_function(family.name(), |b| {
+        group.bench_function(id, |b| {
             b.iter(|| {
                 step += 1;
                 let phase = step as f32 * 0.3;

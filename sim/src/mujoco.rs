@@ -145,19 +145,42 @@ fn mujoco_log(message: &MjLogMessage) {
 
 static LOG_HANDLER: std::sync::Once = std::sync::Once::new();
 
+/// The vendored XML of `robot`, as Gymnasium ships it.
+pub fn xml(robot: Robot) -> &'static str {
+    spec(robot).xml
+}
+
 impl MjPlant {
     /// Loads `robot`'s XML, reset with seed 0 and nominal dynamics.
     pub fn new(robot: Robot) -> Result<Self, SimError> {
+        Self::load(robot, spec(robot).xml, true)
+    }
+
+    /// `robot` from another XML (an edited copy of its own, e.g. with the root joints removed
+    /// for the fidelity probe's welded torso): the sizes are not checked, the state starts at
+    /// `qpos0` with zero velocity, and only [`Self::set_state`], [`Self::step_f32`] and the
+    /// accessors may be used.
+    pub fn from_xml(robot: Robot, xml: &str) -> Result<Self, SimError> {
+        let mut plant = Self::load(robot, xml, false)?;
+        let qpos = plant.data.model().qpos0().to_vec();
+        let qvel = vec![0.0; plant.qvel().len()];
+        plant.set_state(&qpos, &qvel)?;
+        Ok(plant)
+    }
+
+    fn load(robot: Robot, xml: &str, check_sizes: bool) -> Result<Self, SimError> {
         check_library()?;
         // Every use of MuJoCo in this crate starts here, so the first call runs before any
         // other thread touches MuJoCo; later calls wait for it.
         // SAFETY: see above; the handler is thread-safe (eprintln) and never logs an error.
         LOG_HANDLER.call_once(|| unsafe { set_log_handler(mujoco_log) });
-        let spec = spec(robot);
-        let model = MjModel::from_xml_string(spec.xml)
+        let mut spec = spec(robot);
+        let model = MjModel::from_xml_string(xml)
             .map_err(|e| unavailable(format!("{} did not load: {e}", robot.name())))?;
         let sizes = (model.ffi().nq, model.ffi().nv, model.ffi().nu);
-        if sizes != (spec.nq as i64, spec.nv as i64, spec.nu as i64) {
+        if !check_sizes {
+            (spec.nq, spec.nv, spec.nu) = (sizes.0 as usize, sizes.1 as usize, sizes.2 as usize);
+        } else if sizes != (spec.nq as i64, spec.nv as i64, spec.nu as i64) {
             return Err(unavailable(format!(
                 "{} compiled with (nq, nv, nu) = {sizes:?}, expected ({}, {}, {})",
                 robot.name(),
@@ -173,8 +196,10 @@ impl MjPlant {
             geom_friction: model.geom_friction().to_vec(),
         };
         let planar_z_offset = match robot {
-            Robot::Ant => 0.0,
-            Robot::HalfCheetah | Robot::Walker2d => model.body_pos()[1][2] - model.qpos0()[1],
+            Robot::HalfCheetah | Robot::Walker2d if check_sizes => {
+                model.body_pos()[1][2] - model.qpos0()[1]
+            }
+            _ => 0.0,
         };
         let data = MjData::try_new(Box::new(model))
             .map_err(|e| unavailable(format!("no memory for MuJoCo's data: {e}")))?;
@@ -186,8 +211,32 @@ impl MjPlant {
             dynamics: None,
             planar_z_offset,
         };
-        plant.reset(0, None);
+        if check_sizes {
+            plant.reset(0, None);
+        }
         Ok(plant)
+    }
+
+    /// `mj_forward`: the derived quantities (body poses, contacts) for the state reached, which
+    /// `mj_step` leaves one physics step behind (it computes them before integrating).
+    pub fn forward(&mut self) {
+        self.data.forward();
+    }
+
+    /// The compiled model (joint ranges, actuator transmissions, custom numerics).
+    pub fn model(&self) -> &MjModel {
+        self.data.model()
+    }
+
+    /// The deepest penetration (m) of any contact with the floor (geom 0) now, 0 if none:
+    /// `max(0, -dist)` over the contacts, as the fidelity probe's MuJoCo script measures it.
+    pub fn ground_penetration(&self) -> f64 {
+        self.data
+            .contact()
+            .iter()
+            .filter(|c| c.geom[0] == 0 || c.geom[1] == 0)
+            .map(|c| -c.dist)
+            .fold(0.0, f64::max)
     }
 
     /// The robot.

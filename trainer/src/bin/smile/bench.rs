@@ -247,6 +247,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         label(&cfg.disc_hidden),
                         trainer::smile::SmileConfig {
                             env: demos.family,
+                            physics: demos.physics,
                             learner_threads: a.learner_threads.into(),
                             ..cfg
                         },
@@ -256,6 +257,7 @@ pub fn run(a: BenchArgs) -> Result<()> {
                         .map(|h| {
                             let mut cfg = trainer::smile::SmileConfig {
                                 env: demos.family,
+                                physics: demos.physics,
                                 rollouts_per_iter: 4,
                                 updates_per_iter: 100,
                                 sac_per_task: 32,
@@ -270,10 +272,11 @@ pub fn run(a: BenchArgs) -> Result<()> {
                 };
                 for (name, cfg) in configs {
                     println!(
-                        "SMILe iterations on {} ({}): {} rollouts + {} pairs, disc {} on {} + {} rows x {} tasks, \
+                        "SMILe iterations on {} ({}, {} plant): {} rollouts + {} pairs, disc {} on {} + {} rows x {} tasks, \
                          SAC {} on {} x {} rows, candle threads {threads}, learner threads {}",
                         demos.family,
                         a.demos.display(),
+                        demos.physics,
                         cfg.rollouts_per_iter,
                         cfg.updates_per_iter,
                         label(&cfg.disc_hidden),
