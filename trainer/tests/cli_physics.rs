@@ -159,6 +159,8 @@ fn the_pipeline_runs_on_mujoco_and_each_plant_refuses_the_others_files() {
     ]));
     let config = std::fs::read_to_string(run.join("config.toml")).unwrap();
     assert!(config.contains("physics = \"mujoco\""), "{config}");
+    let record = std::fs::read_to_string(run.join("run.json")).unwrap();
+    assert!(record.contains("\"physics\": \"mujoco\""), "{record}");
     let mp = trainer::MetaPolicy::load(&run).unwrap();
     assert_eq!(mp.physics, sim::Physics::Mujoco);
 

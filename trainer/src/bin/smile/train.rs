@@ -39,6 +39,10 @@ struct RunInfo {
     /// normalisation and tasks would silently replace the run's). Absent in older runs.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     demos_sha256: Option<String>,
+    /// The plant the run simulates (the config's `physics`, which the demos must match).
+    /// Absent in runs made before the MuJoCo backend: Rapier's.
+    #[serde(default)]
+    physics: sim::Physics,
 }
 
 /// Arguments of `smile train`.
@@ -243,6 +247,7 @@ fn recorded_run(dir: &std::path::Path) -> Result<RunInfo> {
         expert: None,
         expert_os: None,
         demos_sha256: None,
+        physics: sim::Physics::Rapier,
     })
 }
 
@@ -352,6 +357,7 @@ fn start_run_dir(
     algo: Algo,
     expert: Option<&std::path::Path>,
     demos_sha256: String,
+    physics: sim::Physics,
 ) -> Result<trainer::DirLock> {
     let lock = trainer::DirLock::acquire(&a.out)?;
     let info = RunInfo {
@@ -361,6 +367,7 @@ fn start_run_dir(
             .filter(|p| p.to_str().is_none())
             .map(|p| p.as_os_str().to_owned()),
         demos_sha256: Some(demos_sha256),
+        physics,
     };
     trainer::checkpoint::write_atomic(
         &a.out.join(RUN_FILE),
@@ -425,7 +432,7 @@ fn train_with<L: MetaLearner>(
         L::start(cfg, data, expert)?
     };
     let cfg = run.settings().clone();
-    let _lock = start_run_dir(&a, algo, expert_path.as_deref(), demos_sha)?;
+    let _lock = start_run_dir(&a, algo, expert_path.as_deref(), demos_sha, ds.physics)?;
     trainer::checkpoint::write_atomic(
         &a.out.join("config.toml"),
         toml::to_string(&cfg)?.as_bytes(),
