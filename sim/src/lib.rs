@@ -1,6 +1,12 @@
-//! Planar and 3-D Rapier task families for meta-imitation learning, their paper splits,
-//! scripted experts where honest, and the demo dataset format.
+//! Planar and 3-D task families for meta-imitation learning, their paper splits, scripted
+//! experts where honest, and the demo dataset format, on two physics backends.
 //!
+//! - [`Physics`] picks the plant per run: **Rapier** (default; robots built in code, the
+//!   device's plant, nothing to install) or **MuJoCo** (feature `mujoco`; Gymnasium's XMLs in
+//!   `sim/mujoco/` stepped by MuJoCo 3.17.0, bit-identical to Python MuJoCo on the same state
+//!   and actions; `scripts/fetch-mujoco.sh` fetches the library). A family is written once; a
+//!   [`Robot`] has one implementation per backend behind the crate's `Plant` trait
+//!   (`plant.rs`), chosen by [`EnvConfig::physics`]. Demo files record their plant.
 //! - [`Family`] names a task family (`point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`,
 //!   `ant-linclass`) and
 //!   gives its meta-train / meta-test [`Task`] lists exactly as in the SMILe reference.

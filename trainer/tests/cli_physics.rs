@@ -4,7 +4,9 @@
 //! to get it.
 
 mod common;
-use common::{ok, s, smile};
+#[cfg(feature = "mujoco")]
+use common::ok;
+use common::{s, smile};
 
 use std::path::PathBuf;
 
