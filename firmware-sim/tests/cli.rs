@@ -318,3 +318,43 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
+    let dir = tmp("physics");
+    let (blob, demos) = blob_and_demos(&dir, 1);
+    let run = |extra: &[&str]| {
+        let out = dir.join("out");
+        let mut args = vec![
+            "run",
+            "--blob",
+            s(&blob),
+            "--env",
+            "point-goal",
+            "--task",
+            "0",
+            "--context",
+            s(&demos),
+            "--ticks",
+            "5",
+            "-o",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        firmware_sim(&args)
+    };
+    // A report beside the blob that names another plant than --physics: refused.
+    std::fs::write(dir.join("pd.blob.json"), r#"{"physics": "mujoco"}"#).unwrap();
+    let err = fails(&run(&["--physics", "rapier"]));
+    assert!(err.contains("trained on the mujoco plant"), "{err}");
+    std::fs::remove_file(dir.join("pd.blob.json")).unwrap();
+    // Demos of another plant: refused with the plant named.
+    let mut ds = DemoDataset::read(&demos).unwrap();
+    ds.physics = sim::Physics::Mujoco;
+    ds.write(&demos).unwrap();
+    let err = fails(&run(&[]));
+    assert!(err.contains("recorded on the mujoco plant"), "{err}");
+    // point-goal is Rapier's alone, with or without the MuJoCo backend built in.
+    let err = fails(&run(&["--physics", "mujoco"]));
+    assert!(err.contains("no MuJoCo model"), "{err}");
+}
