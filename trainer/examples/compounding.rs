@@ -82,7 +82,12 @@ fn run(a: &Args) -> trainer::Result<serde_json::Value> {
     let mut rows = Vec::new();
     println!("| sigma | expert | meta-policy |\n|---|---|---|");
     for &sigma in &a.sigmas {
-        let e = evaluate_under_noise(&expert, &tasks, a.rollouts, EnvConfig::default(), sigma)?;
+        // Each on its own plant: the expert's and the policy's (the same one, or an error).
+        let plant = EnvConfig {
+            physics: expert.physics(),
+            ..EnvConfig::default()
+        };
+        let e = evaluate_under_noise(&expert, &tasks, a.rollouts, plant, sigma)?;
         let protocol = Protocol {
             context_sizes: vec![1],
             draws: 1,
@@ -90,7 +95,7 @@ fn run(a: &Args) -> trainer::Result<serde_json::Value> {
             horizon: None,
             action_noise: sigma,
             run_through_falls: false,
-            physics: Default::default(),
+            physics: policy.physics,
         };
         let m = eval::evaluate(
             &mut policy,

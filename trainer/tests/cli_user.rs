@@ -132,7 +132,7 @@ fn resume_reads_the_algorithm_and_truncates_the_metrics_log() {
     log.push_str("{\"step\":150,\"stale\":1.0}\n{\"step\":16");
     std::fs::write(&metrics, log).unwrap();
 
-    // The README's resume line, without --algo: continues the Meta-BC run.
+    // The guide's resume line, without --algo: continues the Meta-BC run.
     let err = ok(&smile(&[
         "train",
         "--resume",

@@ -1,13 +1,20 @@
-//! The README and `smile --help` agree: every flag a README `smile` command uses is one its
-//! subcommand's `--help` lists, the help's expert examples include the README's expert
-//! command, and `--help` shows the defaults of `--env` and `-o`.
+//! The README (with the guide it links, `docs/GUIDE.md`) and `smile --help` agree: every flag a
+//! `smile` command there uses is one its subcommand's `--help` lists, the help's expert examples
+//! include the guide's expert command, and `--help` shows the defaults of `--env` and `-o`.
 
 mod common;
 use common::{ok, smile};
 
+/// The README and the guide, one after the other.
 fn readme() -> String {
-    let path = format!("{}/../README.md", env!("CARGO_MANIFEST_DIR"));
-    std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+    ["README.md", "docs/GUIDE.md"]
+        .iter()
+        .map(|file| {
+            let path = format!("{}/../{file}", env!("CARGO_MANIFEST_DIR"));
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))
+        })
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 fn help(args: &[&str]) -> String {

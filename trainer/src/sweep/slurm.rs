@@ -4,7 +4,7 @@
 //! (`--dependency=afterok`).
 //!
 //! The same `run-cell` serves a Kubernetes Indexed Job: it reads `JOB_COMPLETION_INDEX` when
-//! no `--index` is given (README, "Sweeps").
+//! no `--index` is given (docs/GUIDE.md, "Sweeps").
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
