@@ -9,7 +9,7 @@
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
 # release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
-# ../shared/bench/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
+# docs/bench/pytorch/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:?usage: bench-authors.sh OUT_DIR}
@@ -36,10 +36,10 @@ for round in $(seq 1 "${ROUNDS:-2}"); do
       --json "$out/ours-steps-t$t-r$round.json" | grep -v '^ *hidden'
   done
   echo "== PyTorch sac, authors' shapes, threads 1 2 (round $round)"
-  $py ../shared/bench/torch_reference.py --workloads sac --hidden 256 --layers 3 --batch 1024 \
+  $py docs/bench/pytorch/torch_reference.py --workloads sac --hidden 256 --layers 3 --batch 1024 \
     --z-dim 64 --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-sac-r$round.json"
   echo "== PyTorch disc, authors' shapes, threads 1 2 (round $round)"
-  $py ../shared/bench/torch_reference.py --workloads disc --hidden 512 --layers 3 --enc-hidden 256 \
+  $py docs/bench/pytorch/torch_reference.py --workloads disc --hidden 512 --layers 3 --enc-hidden 256 \
     --r-dim 64 --z-dim 64 --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-disc-r$round.json"
 done
 for t in 1 2 1 2; do
@@ -59,6 +59,6 @@ for t in 1 2; do
     --json "$out/ours-pair-h128-t$t.json" | tail -1
 done
 echo "== PyTorch prototype H=128, 1 thread"
-$py ../shared/bench/smile_proto.py --method smile --updates 2000 --eval_every 2000 --gp 1 \
+$py docs/bench/pytorch/smile_proto.py --method smile --updates 2000 --eval_every 2000 --gp 1 \
   --rscale 8 --sac_bs 32 --out "$out/proto-h128.json" | tail -1
 echo "done $(date -u +%T)"

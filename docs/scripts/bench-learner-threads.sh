@@ -11,6 +11,6 @@ for H in 128 256; do
   done
 done
 echo "== PyTorch H=128"
-.venv-torch/bin/python ../shared/bench/smile_proto.py --method smile --updates 2000 --eval_every 2000 --gp 1 --rscale 8 --sac_bs 32 | tail -1
+.venv-torch/bin/python docs/bench/pytorch/smile_proto.py --method smile --updates 2000 --eval_every 2000 --gp 1 --rscale 8 --sac_bs 32 | tail -1
 echo "== PyTorch H=256"
-.venv-torch/bin/python ../shared/bench/smile_proto.py --method smile --updates 1000 --eval_every 1000 --gp 1 --rscale 8 --sac_bs 32 --h 256 --disc_h 256 | tail -1
+.venv-torch/bin/python docs/bench/pytorch/smile_proto.py --method smile --updates 1000 --eval_every 1000 --gp 1 --rscale 8 --sac_bs 32 --h 256 --disc_h 256 | tail -1

@@ -8,7 +8,7 @@
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
 # release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
-# ../shared/bench/torch_reference.py). Takes about 12 minutes on a 2-vCPU machine.
+# docs/bench/pytorch/torch_reference.py). Takes about 12 minutes on a 2-vCPU machine.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 out=${1:?usage: bench-pair.sh OUT_DIR}

@@ -1,6 +1,6 @@
 """A whole SMILe update pair in PyTorch, doing the work `smile bench --workload pair` does.
 
-`../shared/bench/torch_reference.py` times a SAC step and a discriminator step on their own.
+`docs/bench/pytorch/torch_reference.py` times a SAC step and a discriminator step on their own.
 A SMILe update pair (trainer/src/algo/smile.rs, `Smile::update_pair`) does more than those two
 steps: the SAC batch's reward comes from the discriminator (a forward pass of the 3 x 512 net
 over the SAC batch's 1024 rows, about 1.2 GFLOP), both halves encode contexts of whole demos

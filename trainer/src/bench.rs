@@ -1,4 +1,4 @@
-//! Learner micro-benchmarks, matching `../shared/bench/torch_reference.py`'s workloads, each
+//! Learner micro-benchmarks, matching `docs/bench/pytorch/torch_reference.py`'s workloads, each
 //! update timed on its own and the median reported:
 //! - `sac`: one SAC-v2 update (critic, actor, temperature, targets) on a fixed random batch,
 //!   obs 20 + z 16, act 6, two hidden layers of width H, batch 256 (any widths, depth, batch

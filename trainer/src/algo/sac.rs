@@ -24,7 +24,7 @@ use crate::model::{FrozenMlp, Input, Mlp, SharedCols, TanhGaussianPolicy, scalar
 use crate::optim::{Adam, AdamConfig};
 
 /// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
-/// "SAC-v2"), the SMILe reference implementation (`../shared/reference/smile-reference.md` §2,
+/// "SAC-v2"), the SMILe reference implementation (`docs/reference/smile-reference.md` §2,
 /// "ref"), and this project's PyTorch prototypes (reference §7, "proto").
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
