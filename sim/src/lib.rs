@@ -29,6 +29,7 @@
 pub mod ant;
 pub mod ant_goal;
 pub mod ant_linclass;
+mod backends;
 mod dataset;
 mod dynamics;
 mod env;

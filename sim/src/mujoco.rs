@@ -376,19 +376,20 @@ impl Plant for MjPlant {
     }
 
     fn observe(&self, out: &mut [f32], velocity_clip: f32) {
+        // Written in place: this runs at every step of every rollout.
         let clip = velocity_clip as f64;
-        let qpos = self.qpos();
-        let qvel = self.qvel().iter().map(|v| v.clamp(-clip, clip));
-        let values: Vec<f64> = match self.robot {
-            Robot::HalfCheetah | Robot::Walker2d => qpos[1..].iter().copied().chain(qvel).collect(),
-            Robot::Ant => qpos[2..]
-                .iter()
-                .copied()
-                .chain(qvel)
-                .chain(qpos[..2].iter().copied())
-                .collect(),
+        let (qpos, qvel) = (self.qpos(), self.qvel());
+        let skip = match self.robot {
+            Robot::HalfCheetah | Robot::Walker2d => 1,
+            Robot::Ant => 2,
         };
-        for (o, v) in out.iter_mut().zip(values) {
+        let positions = qpos[skip..].iter().copied();
+        let velocities = qvel.iter().map(|v| v.clamp(-clip, clip));
+        let xy = qpos[..skip]
+            .iter()
+            .copied()
+            .filter(|_| self.robot == Robot::Ant);
+        for (o, v) in out.iter_mut().zip(positions.chain(velocities).chain(xy)) {
             *o = v as f32;
         }
     }

@@ -2,11 +2,12 @@
 //! simulates it. A family ([`crate::legged`], [`crate::ant_goal`], ...) owns the task, reward,
 //! metric and episode; a [`Plant`] owns the bodies, joints and contacts. Each robot has one
 //! implementation per backend: Rapier's built in code ([`crate::planar`], [`crate::ant`]),
-//! MuJoCo's loaded from Gymnasium's XML (`mujoco` feature). Adding a robot is one arm of
-//! [`Robot::plant`] per backend; adding a backend is one arm of its `match`.
+//! MuJoCo's loaded from Gymnasium's XML (`mujoco` feature). This module names the interface
+//! only; `backends.rs` builds a robot on a backend (one arm per backend and robot), so the
+//! backends import this module and nothing here imports them.
 
+use crate::WalkerDynamics;
 use crate::render::Shape;
-use crate::{Physics, SimError, WalkerDynamics};
 
 /// The robots of the task families.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -50,57 +51,4 @@ pub(crate) trait Plant: Send {
     /// The robot's capsules for drawing: side view (x, z) for the planar robots, top view
     /// (x, y) for the ant.
     fn shapes(&self) -> Vec<Shape>;
-}
-
-impl Robot {
-    /// The robot's name in MuJoCo's and Gymnasium's terms.
-    pub fn name(self) -> &'static str {
-        match self {
-            Robot::HalfCheetah => "half_cheetah",
-            Robot::Walker2d => "walker2d",
-            Robot::Ant => "ant",
-        }
-    }
-
-    /// Observation dimension (the same on every backend).
-    pub fn obs_dim(self) -> usize {
-        match self {
-            Robot::HalfCheetah | Robot::Walker2d => crate::planar::OBS_DIM,
-            Robot::Ant => crate::ant::OBS_DIM,
-        }
-    }
-
-    /// Action dimension.
-    pub fn act_dim(self) -> usize {
-        match self {
-            Robot::HalfCheetah | Robot::Walker2d => crate::planar::ACT_DIM,
-            Robot::Ant => crate::ant::ACT_DIM,
-        }
-    }
-
-    /// Builds the robot on `physics`, reset with seed 0 and nominal dynamics.
-    pub(crate) fn plant(self, physics: Physics) -> Result<Box<dyn Plant>, SimError> {
-        match physics {
-            Physics::Rapier => Ok(match self {
-                Robot::HalfCheetah => Box::new(crate::planar::RapierPlanar::new(
-                    crate::robots::half_cheetah(),
-                )),
-                Robot::Walker2d => {
-                    Box::new(crate::planar::RapierPlanar::new(crate::robots::walker()))
-                }
-                Robot::Ant => Box::new(crate::ant::RapierAnt::new()),
-            }),
-            Physics::Mujoco => mujoco_plant(self),
-        }
-    }
-}
-
-#[cfg(feature = "mujoco")]
-fn mujoco_plant(robot: Robot) -> Result<Box<dyn Plant>, SimError> {
-    Ok(Box::new(crate::mujoco::MjPlant::new(robot)?))
-}
-
-#[cfg(not(feature = "mujoco"))]
-fn mujoco_plant(_: Robot) -> Result<Box<dyn Plant>, SimError> {
-    Err(Physics::Mujoco.unavailable())
 }
