@@ -62,7 +62,7 @@ PLAN
 "$bin" sweep "$out/plan.toml" --jobs 1 --quiet > /dev/null
 for c in meta-bc-s0 smile-s0; do
   digest "$out/sweep/$c/train"
-  echo "$c eval.json $(grep -v '"wall_s\|"date\|"seconds\|_s"' "$out/sweep/$c/eval/eval.json" | sha256sum | cut -c1-16)"
+  echo "$c eval.json $(grep -o '"metric": [-0-9.e]*' "$out/sweep/$c/eval/eval.json" | sha256sum | cut -c1-16)"
 done
 "$bin" export --policy "$out/meta-bc" --quant w8a8 --demos $demos --contexts $cv/demos-test-4x-sub20.safetensors \
   --rollouts 1 --horizon 100 -o "$out/meta-bc.blob" > /dev/null
