@@ -8,7 +8,7 @@
 #   [ROUNDS=2] docs/scripts/bench-authors.sh OUT_DIR   (ROUNDS: rounds of the steps and of PyTorch's pair)
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
-# release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
+# release build (cargo build --release -p smile-app) and the PyTorch venv (.venv-torch, see
 # docs/bench/pytorch/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

@@ -7,7 +7,7 @@
 #   docs/scripts/bench-pair.sh OUT_DIR
 #
 # Run on quiet cores (pause other work first: kill -STOP PID ... kill -CONT PID). Needs a
-# release build (cargo build --release -p trainer) and the PyTorch venv (.venv-torch, see
+# release build (cargo build --release -p smile-app) and the PyTorch venv (.venv-torch, see
 # docs/bench/pytorch/torch_reference.py). Takes about 12 minutes on a 2-vCPU machine.
 set -euo pipefail
 cd "$(dirname "$0")/../.."

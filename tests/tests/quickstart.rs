@@ -2,9 +2,9 @@
 //! user is promised exists, parses, and agrees with the others.
 
 use sim::{DemoDataset, Family, Split};
+use smile_app::quickstart::{Budget, QuickstartConfig, Summary, run};
 use trainer::MetaPolicy;
 use trainer::expert::Expert;
-use trainer::quickstart::{Budget, QuickstartConfig, Summary, run};
 
 #[test]
 fn a_tiny_quickstart_leaves_consistent_artefacts() {
@@ -224,7 +224,7 @@ fn the_device_stage_can_sense_positions_only() {
         out: out.clone(),
         budget: Budget::Tiny,
         quiet: true,
-        sensing: trainer::quickstart::DeviceSensing::Positions,
+        sensing: smile_app::quickstart::DeviceSensing::Positions,
         ..QuickstartConfig::default()
     };
     let summary = run(&cfg).unwrap();

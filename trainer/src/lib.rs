@@ -22,13 +22,11 @@
 //!   walker-dyn normalised metric, expert evaluation.
 //! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export,
 //!   progress bars.
-//! * [`sweep`]: grids of runs (`smile sweep`), locally or as a Slurm array;
-//!   [`eval::report`] aggregates them (`smile report`).
-//! * [`quickstart`]: the whole pipeline in one call (`smile quickstart`); [`bench`](mod@bench):
-//!   timing of the learner's update steps (`smile bench`); [`threads`]: the compute thread
-//!   layout.
+//! * [`threads`]: the compute thread layout.
 //!
-//! The `smile` binary (`src/bin/smile/`) has one file per subcommand.
+//! This crate is the library: what learns and what it writes. The application over it (the
+//! `smile` command line, the quickstart, sweeps, reports, benchmarks) is the `smile-app` crate
+//! (`app/`), which uses only this public API.
 #![warn(missing_docs)]
 
 mod algo;
@@ -38,10 +36,7 @@ mod io;
 mod model;
 mod optim;
 
-pub mod bench;
 pub mod eval;
-pub mod quickstart;
-pub mod sweep;
 pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type and `train`; the
@@ -79,6 +74,9 @@ pub mod export {
     pub use crate::eval::blob::*;
     pub use crate::io::export::*;
 }
+
+/// Serde for paths whose names need not be UTF-8 (`#[serde(with = "trainer::os_path")]`).
+pub use io::os_path;
 
 /// One writer per output directory.
 pub use io::{DirLock, lock};

@@ -53,7 +53,8 @@ mod persist;
 mod rollouts;
 
 pub use config::SmileConfig;
-pub(crate) use disc::{DiscBatch, DiscLearner, disc_grads, disc_update};
+pub(crate) use disc::disc_grads;
+pub use disc::{DiscBatch, DiscLearner, disc_update};
 
 use crate::algo::Progress;
 use crate::algo::sac::{BcTerm, Sac, SacStats};

@@ -297,7 +297,8 @@ pub fn display_name(label: &str, path: &Path) -> String {
     format!("{label} ({dir})")
 }
 
-pub(crate) fn mean_std(xs: &[f32]) -> (f32, f32) {
+/// Mean and (population) standard deviation of `xs`; NaN for none.
+pub fn mean_std(xs: &[f32]) -> (f32, f32) {
     if xs.is_empty() {
         return (f32::NAN, f32::NAN);
     }
@@ -547,8 +548,6 @@ pub fn render_episode(
 pub mod blob;
 pub mod latents;
 pub mod norm;
-pub mod report;
-mod report_files;
 mod show;
 
 #[cfg(test)]

@@ -161,7 +161,7 @@ impl EvalReport {
         let mut svg = String::new();
         let root = SVGBackend::with_string(&mut svg, (760, 480)).into_drawing_area();
         root.fill(&WHITE).map_err(|e| err(&e))?;
-        let x_desc = task_axis(self.env);
+        let x_desc = self.env.value_name();
         let mut chart = ChartBuilder::on(&root)
             .caption(
                 format!("{} {} tasks: {}", self.env, self.split, self.metric),
@@ -203,14 +203,5 @@ impl EvalReport {
         drop(chart);
         drop(root);
         crate::io::checkpoint::write_atomic(path, svg.as_bytes())
-    }
-}
-
-/// What a family's task value is, for a plot's x axis ("task" for a name no family has).
-pub(super) fn task_axis(env: sim::Family) -> &'static str {
-    match env {
-        sim::Family::PointGoal | sim::Family::AntGoal => "goal angle (rad)",
-        sim::Family::CheetahVel => "target velocity (m/s)",
-        sim::Family::WalkerDyn | sim::Family::AntLinClass => "task seed",
     }
 }

@@ -8,7 +8,7 @@ pub mod export;
 pub mod lock;
 mod metrics;
 pub mod onnx;
-pub(crate) mod os_path;
+pub mod os_path;
 mod policy_file;
 pub mod progress;
 

@@ -15,7 +15,7 @@ use crate::optim::Adam;
 
 /// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
 /// `per_task` policy rows of `x` (row `r` belongs to task `r / per_task`).
-pub(crate) struct DiscBatch {
+pub struct DiscBatch {
     pub(super) context: ContextBatch,
     x_expert: Tensor,
     x_policy: Tensor,
@@ -25,7 +25,7 @@ pub(crate) struct DiscBatch {
 
 impl DiscBatch {
     /// A batch from encoder inputs and row-major `x` rows (`tasks * per_task` each).
-    pub(crate) fn new(
+    pub fn new(
         context: ContextBatch,
         x_expert: Vec<f32>,
         x_policy: Vec<f32>,
@@ -56,17 +56,22 @@ impl DiscBatch {
 }
 
 /// What one discriminator + encoder update changes: the networks and their optimisers.
-pub(crate) struct DiscLearner<'a> {
+pub struct DiscLearner<'a> {
+    /// The context encoder (trained only through this loss).
     pub encoder: &'a ContextEncoder,
+    /// The discriminator.
     pub disc: &'a Discriminator,
+    /// The discriminator's optimiser (betas (0, 0.999) in the authors' recipe).
     pub disc_opt: &'a mut Adam,
+    /// The encoder's optimiser.
     pub enc_opt: &'a mut Adam,
+    /// The gradient penalty's weight (`gp_weight`).
     pub gp_weight: f32,
 }
 
 /// One discriminator + encoder update on `batch` (shared by [`Smile::disc_step`] and
 /// `smile bench --workload disc`); `update` only names the step in a non-finite-loss error.
-pub(crate) fn disc_update(
+pub fn disc_update(
     l: DiscLearner<'_>,
     batch: &DiscBatch,
     update: u64,

@@ -24,7 +24,7 @@
 //! is written from, so the two exports cannot drift apart. The trajectory, step and batch axes
 //! are symbolic (`dim_param`). [`reference`](fn@reference) computes the trainer's z and actions on held-out
 //! contexts (padded and masked the way a runtime would get them), which `smile export` stores
-//! as [`REFERENCE_FILE`] for `docs/scripts/onnx_parity.py`; `trainer/tests/onnx.rs` runs the
+//! as [`REFERENCE_FILE`] for `docs/scripts/onnx_parity.py`; `app/tests/onnx.rs` runs the
 //! graphs with tract against the same values.
 
 use std::path::{Path, PathBuf};

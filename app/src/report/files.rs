@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
-use super::report::Report;
-use crate::error::{Error, Result};
+use super::Report;
+use trainer::{Error, Result};
 
 impl Report {
     /// Writes `report.md`, `report.json`, `tasks.svg` and (with several context sizes)
@@ -19,13 +19,13 @@ impl Report {
             source: e,
         })?;
         let md = dir.join("report.md");
-        crate::io::checkpoint::write_atomic(&md, self.markdown().as_bytes())?;
+        trainer::checkpoint::write_atomic(&md, self.markdown().as_bytes())?;
         let json = dir.join("report.json");
         let text = serde_json::to_string_pretty(self).map_err(|e| Error::Serialise {
             what: "report.json",
             reason: e.to_string(),
         })?;
-        crate::io::checkpoint::write_atomic(&json, text.as_bytes())?;
+        trainer::checkpoint::write_atomic(&json, text.as_bytes())?;
         let tasks = dir.join("tasks.svg");
         per_task(self, &tasks)?;
         let mut written = vec![md, json, tasks];
@@ -45,7 +45,7 @@ fn err(path: &Path) -> impl Fn(&dyn std::fmt::Display) -> Error + '_ {
     }
 }
 
-fn label(r: &super::report::Row) -> String {
+fn label(r: &super::Row) -> String {
     if r.setting == "-" {
         format!("{} ({} seeds, mean {:.3})", r.method, r.seeds.len(), r.mean)
     } else {
@@ -98,7 +98,7 @@ pub fn per_task(report: &Report, path: &Path) -> Result<()> {
     let mut svg = String::new();
     let root = SVGBackend::with_string(&mut svg, (800, 500)).into_drawing_area();
     root.fill(&WHITE).map_err(|x| e(&x))?;
-    let x_desc = super::show::task_axis(report.env);
+    let x_desc = report.env.value_name();
     let mut chart = ChartBuilder::on(&root)
         .caption(
             format!(
@@ -162,7 +162,7 @@ pub fn per_task(report: &Report, path: &Path) -> Result<()> {
     root.present().map_err(|x| e(&x))?;
     drop(chart);
     drop(root);
-    crate::io::checkpoint::write_atomic(path, svg.as_bytes())
+    trainer::checkpoint::write_atomic(path, svg.as_bytes())
 }
 
 /// Metric (mean over tasks and seeds) against the number of context demos.
@@ -220,5 +220,5 @@ pub fn by_context_size(report: &Report, path: &Path) -> Result<()> {
     root.present().map_err(|x| e(&x))?;
     drop(chart);
     drop(root);
-    crate::io::checkpoint::write_atomic(path, svg.as_bytes())
+    trainer::checkpoint::write_atomic(path, svg.as_bytes())
 }

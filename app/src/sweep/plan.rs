@@ -34,8 +34,8 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sim::Family;
 
-use crate::algo::Algo;
-use crate::error::{Error, Result};
+use trainer::Algo;
+use trainer::{Error, Result};
 
 /// A sweep plan as written.
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -114,7 +114,7 @@ pub struct Cell {
     /// `smile train --algo`.
     pub algo: String,
     /// The demo file.
-    #[serde(with = "crate::io::os_path")]
+    #[serde(with = "trainer::os_path")]
     pub demos: PathBuf,
     /// The seed.
     pub seed: u64,
@@ -123,7 +123,7 @@ pub struct Cell {
     /// The full config given to `smile train --config` (base file + set + params + seed).
     pub config: String,
     /// Meta-DAgger's expert.
-    #[serde(with = "crate::io::os_path::option", default)]
+    #[serde(with = "trainer::os_path::option", default)]
     pub expert: Option<PathBuf>,
     /// What the training depends on (algorithm, full config, demo and expert paths), hashed:
     /// a cell directory trained for another key is stale, and two cells with one key are one
@@ -142,7 +142,7 @@ impl Cell {
             self.expert,
             self.config
         );
-        crate::io::checkpoint::sha256_hex(text.as_bytes())[..16].to_string()
+        trainer::checkpoint::sha256_hex(text.as_bytes())[..16].to_string()
     }
 
     /// The setting this cell belongs to, without the seed: what the report averages over.
@@ -162,7 +162,7 @@ impl Cell {
             .ok()
             .and_then(|t| t.get("learner_threads")?.as_integer())
             .map_or(1, |n| {
-                n.clamp(1, crate::threads::MAX_LEARNER_THREADS as i64) as usize
+                n.clamp(1, trainer::threads::MAX_LEARNER_THREADS as i64) as usize
             })
     }
 
@@ -363,14 +363,14 @@ impl Sweep {
                 None => toml::Table::new(),
             };
             for (k, v) in &m.set {
-                crate::io::set_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
+                trainer::set_config_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
             }
             for demos in &plan.demos {
                 for point in product(&m.axes) {
                     for &seed in &plan.seeds {
                         let mut t = table.clone();
                         for (k, v) in &point {
-                            crate::io::set_key(&mut t, k, v.clone())
+                            trainer::set_config_key(&mut t, k, v.clone())
                                 .map_err(|e| err(Some(k), e))?;
                         }
                         t.insert("seed".into(), toml::Value::Integer(seed as i64));

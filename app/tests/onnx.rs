@@ -410,7 +410,7 @@ fn the_export_is_deterministic() {
 
 /// tract on directories written by `smile export --format onnx` (trained policies), against
 /// the reference each one holds: the figures of the guide's "Deploy with ONNX" (docs/GUIDE.md).
-/// `SMILE_ONNX_DIRS=dir1:dir2 cargo test --release -p trainer --test onnx -- --ignored --nocapture`
+/// `SMILE_ONNX_DIRS=dir1:dir2 cargo test --release -p smile-app --test onnx -- --ignored --nocapture`
 #[test]
 #[ignore = "needs SMILE_ONNX_DIRS: export directories of trained policies"]
 fn tract_on_exported_directories() {

@@ -122,11 +122,11 @@ fn bad_plans_are_refused_before_anything_runs() {
     let p = dir.join("bad.toml");
     let no_data = good.replace("\"test.safetensors\"", "\"missing.safetensors\"");
     std::fs::write(&p, no_data).unwrap();
-    assert!(trainer::sweep::Sweep::load(&p).is_err());
-    assert!(trainer::sweep::Sweep::load_unchecked(&p).is_ok());
+    assert!(smile_app::sweep::Sweep::load(&p).is_err());
+    assert!(smile_app::sweep::Sweep::load_unchecked(&p).is_ok());
     let no_config = good.replace("[algo.smile]", "[algo.smile]\nconfig = \"nope.toml\"");
     std::fs::write(&p, no_config).unwrap();
-    let e = trainer::sweep::Sweep::load_unchecked(&p).unwrap_err();
+    let e = smile_app::sweep::Sweep::load_unchecked(&p).unwrap_err();
     assert!(e.to_string().contains("config file"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -340,7 +340,7 @@ rollouts = 1
         plan(100, r#""train.safetensors", "other/train.safetensors""#),
     )
     .unwrap();
-    let sweep = trainer::sweep::Sweep::load(&p).unwrap();
+    let sweep = smile_app::sweep::Sweep::load(&p).unwrap();
     let dirs: Vec<_> = sweep.cells.iter().map(|c| sweep.cell_dir(c)).collect();
     assert_eq!(dirs.len(), 2);
     assert_ne!(dirs[0], dirs[1], "{dirs:?}");
@@ -431,10 +431,10 @@ fn the_docs_plans_load() {
     for entry in std::fs::read_dir(&dir).unwrap() {
         let path = entry.unwrap().path();
         if path.extension().is_some_and(|e| e == "toml") {
-            let sweep = trainer::sweep::Sweep::load_unchecked(&path)
+            let sweep = smile_app::sweep::Sweep::load_unchecked(&path)
                 .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
             assert!(!sweep.cells.is_empty(), "{}", path.display());
-            if let Err(e) = trainer::sweep::Sweep::load(&path) {
+            if let Err(e) = smile_app::sweep::Sweep::load(&path) {
                 let (msg, text) = (e.to_string(), std::fs::read_to_string(&path).unwrap());
                 let missing = msg
                     .split_whitespace()
@@ -465,7 +465,7 @@ fn two_learner_thread_cells_count_two_cores() {
         "learner_threads = 2, total_updates = 600,",
     ) + "\n[algo.meta-bc]\nset = { total_steps = 100 }\n";
     let path = setup(&dir, &plan);
-    let sweep = trainer::sweep::Sweep::load(&path).unwrap();
+    let sweep = smile_app::sweep::Sweep::load(&path).unwrap();
     let cpus: Vec<(String, usize)> = sweep
         .cells
         .iter()
@@ -489,7 +489,7 @@ fn two_learner_thread_cells_count_two_cores() {
     let script = std::fs::read_to_string(out.join("slurm/cells.sbatch")).unwrap();
     assert!(script.contains("--cpus-per-task=2"), "{script}");
     // Without two-thread cells, one per core, as before.
-    let single = trainer::sweep::Sweep::load(&setup(&dir, &plan_with_out(&out))).unwrap();
+    let single = smile_app::sweep::Sweep::load(&setup(&dir, &plan_with_out(&out))).unwrap();
     assert_eq!((single.cpus_per_cell(), single.default_jobs(2)), (1, 2));
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -503,7 +503,7 @@ fn a_set_table_merges_into_the_base_configs_table() {
     std::fs::write(dir.join("base.toml"), "[sac]\nreward_scale = 3.0\n").unwrap();
     let plan =
         plan_with_out(&out).replace("[algo.smile]\n", "[algo.smile]\nconfig = \"base.toml\"\n");
-    let sweep = trainer::sweep::Sweep::load(&setup(&dir, &plan)).unwrap();
+    let sweep = smile_app::sweep::Sweep::load(&setup(&dir, &plan)).unwrap();
     let cfg: toml::Table = sweep.cells[0].config.parse().unwrap();
     let sac = cfg["sac"].as_table().unwrap();
     assert_eq!(sac["reward_scale"].as_float(), Some(3.0), "{cfg}");

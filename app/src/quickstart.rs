@@ -11,19 +11,18 @@ use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
-use crate::algo::expert::{self, Expert};
-use crate::algo::expert::{DemoSpec, record};
-use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
-use crate::algo::smile::{Smile, SmileConfig};
-use crate::algo::{MetaLearner, Progress};
-use crate::data::MetaData;
-use crate::error::{Error, Result};
-use crate::eval::blob::{self, BlobActor};
-use crate::eval::{self, EvalReport, MethodResult, Protocol};
-use crate::io::bar;
-use crate::io::export;
-use crate::model::MetaPolicy;
 use indicatif::MultiProgress;
+use trainer::MetaData;
+use trainer::MetaPolicy;
+use trainer::eval::{self, EvalReport, MethodResult, Protocol};
+use trainer::expert::{self, Expert};
+use trainer::expert::{DemoSpec, record};
+use trainer::export::{self, BlobActor};
+use trainer::meta_bc::{MetaBc, MetaBcConfig};
+use trainer::progress_bar as bar;
+use trainer::smile::{Smile, SmileConfig};
+use trainer::{Error, Result};
+use trainer::{MetaLearner, Progress};
 
 mod device;
 mod report;
@@ -171,7 +170,7 @@ impl<'a> Quickstart<'a> {
             })
             .filter(|dir| {
                 let (train, test) = shipped_demos(args.env);
-                [crate::io::checkpoint::POLICY_FILE, train, test]
+                [trainer::checkpoint::POLICY_FILE, train, test]
                     .iter()
                     .all(|f| dir.join(f).exists())
             });
@@ -241,11 +240,7 @@ fn train_expert(args: &Quickstart<'_>, dir: &Path) -> Result<(Expert, String)> {
     }
     if let Some(assets) = &args.shipped {
         std::fs::create_dir_all(dir).map_err(io(dir))?;
-        for f in [
-            crate::io::checkpoint::POLICY_FILE,
-            "config.toml",
-            "eval.json",
-        ] {
+        for f in [trainer::checkpoint::POLICY_FILE, "config.toml", "eval.json"] {
             if assets.join(f).exists() {
                 std::fs::copy(assets.join(f), dir.join(f)).map_err(io(dir))?;
             }
@@ -376,9 +371,9 @@ fn preset<L: MetaLearner>(
         ("seed", toml::Value::Integer(args.seed as i64)),
     ];
     for (key, v) in settings.iter().chain(extra) {
-        crate::io::set_key(&mut flags, key, v.clone()).map_err(Error::Config)?;
+        trainer::set_config_key(&mut flags, key, v.clone()).map_err(Error::Config)?;
     }
-    crate::io::from_toml_with_flags(text, flags)
+    trainer::from_toml_with_flags(text, flags)
         .map_err(|e| Error::Config(format!("the quickstart's preset {name}: {}", e.message())))
 }
 
@@ -523,7 +518,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     check_budget(args)?;
     let out = &args.out;
     // One quickstart per directory at a time: a second is refused with this one's pid.
-    let _lock = crate::io::DirLock::acquire(out)?;
+    let _lock = trainer::DirLock::acquire(out)?;
     write(
         &out.join("quickstart.toml"),
         toml::to_string(args.args).map_err(|e| Error::Serialise {
@@ -586,7 +581,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     for d in [&smile_dir, &bc_dir] {
         std::fs::create_dir_all(d).map_err(io(d))?;
     }
-    // Two learners at once, candle single-threaded in each (crate::threads); SMILe's update
+    // Two learners at once, candle single-threaded in each (trainer::threads); SMILe's update
     // pairs on two threads (`learner_threads = 2`): deterministic either way.
     let bars = if args.quiet {
         MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
@@ -616,7 +611,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     write(&out.join("policy.blob"), &blob)?;
     let model = export::load_blob(&blob)?;
     let mut actor = BlobActor::new(&model)?;
-    let parity = blob::parity(&smile_policy, &mut actor, &test)?;
+    let parity = export::parity(&smile_policy, &mut actor, &test)?;
     eprintln!(
         "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
         blob.len(),
@@ -627,9 +622,9 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let blob_result = evaluate(args, &mut actor, "SMILe w8a8 blob", &test)?;
     // The same report `smile export` writes next to a blob, so that
     // `firmware-sim compare --blob policy.blob` works on the quickstart's blob as it is.
-    let export_report = blob::ExportReport {
+    let export_report = export::ExportReport {
         bytes: blob.len(),
-        blob_sha256: crate::io::checkpoint::sha256_hex(&blob),
+        blob_sha256: trainer::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),
         algo: smile_policy.algo.clone(),
         env: args.env,

@@ -7,14 +7,16 @@
 //! seed) or evaluation directories / `eval.json` files (each method in them is one seed of the
 //! algorithm named before " (" in its name, in the setting "-").
 
+mod files;
+
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use super::{EvalReport, MethodResult, mean_std};
-use crate::error::{Error, Result};
 use crate::sweep::{MANIFEST_FILE, Manifest};
+use trainer::eval::{EvalReport, MethodResult, mean_std};
+use trainer::{Error, Result};
 
 /// One seed of one method in one setting.
 #[derive(Debug, Clone)]

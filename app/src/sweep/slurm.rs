@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use super::plan::Sweep;
-use crate::error::{Error, Result};
+use trainer::{Error, Result};
 
 /// The scripts written for a sweep.
 #[derive(Debug, Clone)]
@@ -119,8 +119,8 @@ exec {exe} report {out} -o {report_dir}
         cells: dir.join("cells.sbatch"),
         report: dir.join("report.sbatch"),
     };
-    crate::io::checkpoint::write_atomic(&scripts.cells, cells.as_bytes())?;
-    crate::io::checkpoint::write_atomic(&scripts.report, report.as_bytes())?;
+    trainer::checkpoint::write_atomic(&scripts.cells, cells.as_bytes())?;
+    trainer::checkpoint::write_atomic(&scripts.report, report.as_bytes())?;
     Ok(scripts)
 }
 

@@ -25,7 +25,7 @@ use std::process::Command;
 use serde::{Deserialize, Serialize};
 
 use super::plan::{Cell, Sweep};
-use crate::error::{Error, Result};
+use trainer::{Error, Result};
 
 /// File name of the manifest in a sweep directory.
 pub const MANIFEST_FILE: &str = "manifest.json";
@@ -75,7 +75,7 @@ fn is_stale(dir: &Path, cell: &Cell) -> bool {
 /// configs differ only in `total_updates` and `cpu_budget_s`, neither lower now (a budget of 0,
 /// none, counts as unlimited) and at least one higher.
 fn extends(dir: &Path, cell: &Cell) -> bool {
-    use crate::algo::smile::SmileConfig;
+    use trainer::smile::SmileConfig;
     if !cell.algo.starts_with("smile") {
         return false;
     }
@@ -150,7 +150,7 @@ pub struct ManifestCell {
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct Manifest {
     /// The plan file.
-    #[serde(with = "crate::io::os_path")]
+    #[serde(with = "trainer::os_path")]
     pub plan: PathBuf,
     /// The family.
     pub env: sim::Family,
@@ -173,13 +173,13 @@ pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
         Status::Failed
     } else if dir
         .join("train/last")
-        .join(crate::model::META_POLICY_FILE)
+        .join(trainer::META_POLICY_FILE)
         .exists()
     {
         Status::Trained
     } else if dir
         .join("train")
-        .join(crate::io::checkpoint::CHECKPOINT_FILE)
+        .join(trainer::checkpoint::CHECKPOINT_FILE)
         .exists()
     {
         Status::Training
@@ -210,7 +210,7 @@ pub fn write_manifest(sweep: &Sweep) -> Result<Manifest> {
         what: "manifest",
         reason: e.to_string(),
     })?;
-    crate::io::checkpoint::write_atomic(&sweep.out.join(MANIFEST_FILE), json.as_bytes())?;
+    trainer::checkpoint::write_atomic(&sweep.out.join(MANIFEST_FILE), json.as_bytes())?;
     Ok(manifest)
 }
 
@@ -290,7 +290,7 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
     let _ = std::fs::remove_file(dir.join("failed"));
     let result = train_and_eval(sweep, cell, &dir, exe, extend);
     if let Err(e) = &result {
-        let _ = crate::io::checkpoint::write_atomic(&dir.join("failed"), e.to_string().as_bytes());
+        let _ = trainer::checkpoint::write_atomic(&dir.join("failed"), e.to_string().as_bytes());
     }
     result.map(|()| CellOutcome::Ran)
 }
@@ -303,8 +303,8 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
     })
     .unwrap_or_default();
     let write_record = || -> Result<()> {
-        crate::io::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
-        crate::io::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())
+        trainer::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
+        trainer::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())
     };
     let log_path = dir.join("log.txt");
     let train_dir = dir.join("train");
@@ -321,12 +321,12 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
     let s = |p: &Path| -> OsString { p.as_os_str().to_owned() };
     let trained = train_dir
         .join("last")
-        .join(crate::model::META_POLICY_FILE)
+        .join(trainer::META_POLICY_FILE)
         .exists();
     if extend || !trained {
         let mut args: Vec<OsString> = vec!["train".into()];
         if extend {
-            let new: crate::algo::smile::SmileConfig = toml::from_str(&cell.config)
+            let new: trainer::smile::SmileConfig = toml::from_str(&cell.config)
                 .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
             args.extend([
                 "--resume".into(),
@@ -336,7 +336,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
                 new.cpu_budget_s.to_string().into(),
             ]);
         } else if train_dir
-            .join(crate::io::checkpoint::CHECKPOINT_FILE)
+            .join(trainer::checkpoint::CHECKPOINT_FILE)
             .exists()
         {
             args.push("--resume".into());
@@ -403,7 +403,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
     let eval_dir = dir.join("eval");
     let _ = std::fs::remove_file(eval_dir.join("eval.json"));
     child(exe, &args, &log_path)?;
-    crate::io::checkpoint::write_atomic(&eval_dir.join("plan.json"), eval_record(sweep).as_bytes())
+    trainer::checkpoint::write_atomic(&eval_dir.join("plan.json"), eval_record(sweep).as_bytes())
 }
 
 /// Runs `exe args` single-threaded with stdout and stderr appended to `log`.

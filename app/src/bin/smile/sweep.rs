@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
-use trainer::sweep::{self, BUSY_EXIT, CellOutcome, Event, Sweep};
+use smile_app::sweep::{self, BUSY_EXIT, CellOutcome, Event, Sweep};
 
 /// Arguments of `smile sweep`.
 #[derive(Args, Debug)]
@@ -176,7 +176,7 @@ pub fn run(a: SweepArgs) -> Result<()> {
     })?;
     pb.finish();
     let report_dir = sweep.out.join("report");
-    match trainer::eval::report::Report::from_inputs(std::slice::from_ref(&sweep.out)) {
+    match smile_app::report::Report::from_inputs(std::slice::from_ref(&sweep.out)) {
         Ok(rep) => {
             rep.write(&report_dir)?;
             println!("{}", rep.markdown());

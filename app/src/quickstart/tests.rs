@@ -114,11 +114,11 @@ fn its_configs_are_the_documented_files() {
             ..QuickstartConfig::default()
         };
         let q = Quickstart::resolve(&args);
-        let mut want: SmileConfig = crate::io::from_toml_over_defaults(&read(smile_file)).unwrap();
+        let mut want: SmileConfig = trainer::from_toml_over_defaults(&read(smile_file)).unwrap();
         (want.env, want.seed, want.learner_threads) = (family, 5, 2);
         assert_eq!(smile_config(&q).unwrap(), want, "{family} vs {smile_file}");
         let mut want: MetaBcConfig = match bc_file {
-            Some(f) => crate::io::from_toml_over_defaults(&read(f)).unwrap(),
+            Some(f) => trainer::from_toml_over_defaults(&read(f)).unwrap(),
             None => MetaBcConfig::default(),
         };
         (want.env, want.seed) = (family, 5);

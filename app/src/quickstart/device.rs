@@ -8,8 +8,8 @@ use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_neede
 use sim::DemoDataset;
 
 use super::{DeviceSensing, Quickstart, device_err, io, write};
-use crate::error::Result;
-use crate::eval;
+use trainer::Result;
+use trainer::eval;
 
 /// Runs the blob on the simulated device, taught the first demo of test task `index`.
 pub(super) fn device_run(

@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use trainer::bench::{
+use smile_app::bench::{
     DiscBenchShape, SacBenchShape, Timing, bench_disc_step, bench_sac_update, bench_smile_pairs,
 };
 

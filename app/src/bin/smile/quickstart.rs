@@ -1,11 +1,11 @@
-//! `smile quickstart`: flags for [`trainer::quickstart`].
+//! `smile quickstart`: flags for [`smile_app::quickstart`].
 
 use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
 use sim::Family;
-use trainer::quickstart::{Budget, DeviceSensing, QuickstartConfig};
+use smile_app::quickstart::{Budget, DeviceSensing, QuickstartConfig};
 
 /// Arguments of `smile quickstart`.
 #[derive(Args, Debug)]
@@ -65,6 +65,6 @@ pub fn run(a: QuickstartArgs) -> Result<()> {
         assets: a.assets,
         sensing: a.sensing,
     };
-    trainer::quickstart::run(&config)?;
+    smile_app::quickstart::run(&config)?;
     Ok(())
 }

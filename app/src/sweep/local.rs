@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 
 use super::plan::Sweep;
 use super::run::{BUSY_EXIT, Status, status, write_manifest};
-use crate::error::Result;
+use trainer::Result;
 
 /// What the local runner reports.
 #[derive(Debug, Clone, PartialEq, Eq)]

@@ -4,8 +4,8 @@ use std::fmt::Write as _;
 
 use serde::{Deserialize, Serialize};
 
-use crate::eval::EvalReport;
-use crate::eval::blob::Parity;
+use trainer::eval::EvalReport;
+use trainer::export::Parity;
 
 /// What a quickstart run measured; written as `summary.json`, rendered as `report.md`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

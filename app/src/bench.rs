@@ -4,7 +4,7 @@
 //!   obs 20 + z 16, act 6, two hidden layers of width H, batch 256 (any widths, depth, batch
 //!   and z: [`SacBenchShape`]; the SMILe authors': 3 x 256 at batch 1024, z 64).
 //! - `disc`: one context-encoder + discriminator update, SMILe's own code
-//!   ([`crate::algo::smile`]): 8 tasks, each a context of 4 trajectories x 16 transitions
+//!   ([`trainer::smile`]): 8 tasks, each a context of 4 trajectories x 16 transitions
 //!   `[s, a, s']` through the encoder MLP (H, H) -> r 32, mean over time, sum over
 //!   trajectories, linear head -> z 16 (deterministic); discriminator MLP (H, H) on `[s, a, z]`
 //!   for 128 expert + 128 policy rows per task; BCE with logits + 10 x gradient penalty on
@@ -24,12 +24,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use serde::Serialize;
 
-use crate::algo::sac::{Sac, SacConfig};
-use crate::algo::smile::{DiscBatch, DiscLearner, disc_update};
-use crate::data::BatchVecs;
-use crate::error::Result;
-use crate::model::{ContextConfig, ContextEncoder, ContextSpec, DiscInput, Discriminator, ObsNorm};
-use crate::optim::{Adam, AdamConfig};
+use trainer::BatchVecs;
+use trainer::Result;
+use trainer::sac::{Sac, SacConfig};
+use trainer::smile::{DiscBatch, DiscLearner, disc_update};
+use trainer::{Adam, AdamConfig};
+use trainer::{ContextConfig, ContextEncoder, ContextSpec, DiscInput, Discriminator, ObsNorm};
 
 /// Shape of the benchmarked SAC update.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize)]
@@ -159,10 +159,7 @@ pub fn time_it(warmup: usize, iters: usize, mut f: impl FnMut() -> Result<()>) -
 }
 
 /// A SAC agent and a fixed random batch of the given shape.
-pub fn sac_fixture(
-    shape: SacBenchShape,
-    seed: u64,
-) -> Result<(Sac, crate::data::Batch, ChaCha8Rng)> {
+pub fn sac_fixture(shape: SacBenchShape, seed: u64) -> Result<(Sac, trainer::Batch, ChaCha8Rng)> {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let d_in = shape.obs_dim + shape.z_dim;
     let cfg = SacConfig {
@@ -390,24 +387,24 @@ pub struct PairTiming {
 /// iterations: `cfg.rollouts_per_iter` rollouts in random training tasks, then
 /// `cfg.updates_per_iter` update pairs (one discriminator + encoder step, one SAC step).
 pub fn bench_smile_pairs(
-    cfg: crate::algo::smile::SmileConfig,
+    cfg: trainer::smile::SmileConfig,
     demos: &sim::DemoDataset,
     warmup: usize,
     iters: usize,
 ) -> Result<PairTiming> {
     let family = cfg.env;
-    let data = crate::data::MetaData::from_dataset(demos, family, cfg.holdout_every)?;
+    let data = trainer::MetaData::from_dataset(demos, family, cfg.holdout_every)?;
     let pairs = cfg.updates_per_iter.max(1);
     // Every timed iteration runs all its pairs, whatever the config's training length.
-    let cfg = crate::algo::smile::SmileConfig {
+    let cfg = trainer::smile::SmileConfig {
         total_updates: u64::MAX,
         ..cfg
     };
-    let mut run = crate::algo::smile::Smile::new(cfg, data)?;
+    let mut run = trainer::smile::Smile::new(cfg, data)?;
     run.warm_start()?;
     // The training loop's own iteration (`Smile::iteration`): with two or more learner
     // threads its rollouts run beside the pairs.
-    let iteration = |run: &mut crate::algo::smile::Smile| -> Result<(f64, f64)> {
+    let iteration = |run: &mut trainer::smile::Smile| -> Result<(f64, f64)> {
         let t0 = Instant::now();
         let report = run.iteration(&mut |_| {})?;
         let all = t0.elapsed().as_secs_f64();

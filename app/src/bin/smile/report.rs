@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 use clap::Args;
-use trainer::eval::report::Report;
+use smile_app::report::Report;
 
 /// Arguments of `smile report`.
 #[derive(Args, Debug)]

@@ -1,0 +1,5 @@
+include!("../build-support/mujoco_rpath.rs");
+
+fn main() {
+    mujoco_rpath();
+}

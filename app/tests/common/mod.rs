@@ -1,0 +1,79 @@
+//! Shared by the app's integration tests: the `smile` binary, run directories, demo files.
+#![allow(dead_code)]
+
+use std::process::{Command, Output};
+
+use sim::{Family, Split};
+
+// The demo fixtures are the trainer's (one definition for both crates' tests).
+#[path = "../../../trainer/tests/common/demos.rs"]
+mod demos;
+
+pub use demos::*;
+
+/// A new, empty directory `<temp>/<prefix>-<name>-<pid>` (removed first if a previous run left
+/// it behind).
+pub fn fresh_dir(prefix: &str, name: &str) -> std::path::PathBuf {
+    let d = std::env::temp_dir().join(format!("{prefix}-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A path as a `&str` argument.
+pub fn s(p: &std::path::Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs the `smile` binary built for these tests.
+pub fn smile(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(args)
+        .output()
+        .expect("run smile")
+}
+
+/// Asserts that a `smile` run succeeded (printing its output if not); returns its stderr.
+pub fn ok(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "stdout: {}\nstderr: {err}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    err
+}
+
+/// Point-goal PD demo files in `dir`: `train.safetensors` (8 meta-train tasks x 2 demos of 20
+/// steps) and `test.safetensors` (every meta-test task x 1); returns (train, test).
+pub fn point_goal_demo_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
+    let fam = Family::PointGoal;
+    let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
+    pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
+        .write(&train)
+        .unwrap();
+    pd_demos(Split::Test, fam.test_tasks(), 1, 20)
+        .write(&test)
+        .unwrap();
+    (train, test)
+}
+
+/// A finished 20-step Meta-BC run in `run`.
+pub fn tiny_bc(train: &std::path::Path, run: &std::path::Path) {
+    ok(&smile(&[
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(train),
+        "-o",
+        s(run),
+        "--updates",
+        "20",
+        "--eval-every",
+        "10",
+        "--hidden",
+        "8,8",
+        "--quiet",
+    ]));
+}
