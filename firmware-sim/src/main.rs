@@ -7,7 +7,7 @@ use clap::{Args, Parser, Subcommand};
 use firmware_sim::link::LinkConfig;
 use firmware_sim::{DeviceConfig, LoopConfig, SessionConfig, ram_needed, run_session, trace};
 use serde::Serialize;
-use sim::{DemoDataset, EnvConfig, Family, Task, TaskDemos};
+use sim::{DemoDataset, EnvConfig, ExportReport, Family, Task, TaskDemos};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -232,19 +232,13 @@ fn demos_of<'d>(
     Ok(found)
 }
 
-/// The plant an export report beside `blob` (`<blob>.json`) names, if there is one.
+/// The plant the export report beside `blob` (`<blob>.json`) names, if there is one.
 fn report_physics(blob: &std::path::Path) -> Result<Option<sim::Physics>> {
-    let mut p = blob.as_os_str().to_owned();
-    p.push(".json");
-    let path = PathBuf::from(p);
-    let Ok(text) = std::fs::read_to_string(&path) else {
+    let path = ExportReport::path_beside(blob);
+    if !path.exists() {
         return Ok(None);
-    };
-    let report: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    sim::Physics::from_name_or_default(report["physics"].as_str())
-        .map(Some)
-        .with_context(|| format!("{}: physics", path.display()))
+    }
+    Ok(Some(ExportReport::read(&path)?.physics))
 }
 
 /// Reads a demo file given with `flag`, checking it holds demos of `family` recorded on
@@ -406,26 +400,15 @@ struct CompareReport {
 }
 
 fn compare_cmd(args: CompareArgs) -> Result<()> {
-    let reference_path = args.reference.clone().unwrap_or_else(|| {
-        let mut p = args.blob.clone().into_os_string();
-        p.push(".json");
-        PathBuf::from(p)
-    });
-    let reference: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(&reference_path)
-            .with_context(|| format!("reading {}", reference_path.display()))?,
-    )
-    .with_context(|| format!("parsing {}", reference_path.display()))?;
-    let host_tasks = reference["per_task_candle"].as_array().with_context(|| {
-        format!(
-            "{} has no per_task_candle list (not a `smile export` report?)",
-            reference_path.display()
-        )
-    })?;
+    let reference_path = args
+        .reference
+        .clone()
+        .unwrap_or_else(|| ExportReport::path_beside(&args.blob));
+    let reference = ExportReport::read(&reference_path)?;
     let blob = read_blob(&args.blob)?;
     // The report must describe this blob: an interrupted re-export can leave a new blob
     // beside the previous export's report.
-    match reference["blob_sha256"].as_str().filter(|s| !s.is_empty()) {
+    match Some(reference.blob_sha256.as_str()).filter(|s| !s.is_empty()) {
         Some(sha) => {
             let here = sim::sha256_hex(&blob);
             if sha != here {
@@ -447,8 +430,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
         ),
     }
     // The device runs the plant the policy was trained and verified on.
-    let physics = sim::Physics::from_name_or_default(reference["physics"].as_str())
-        .with_context(|| format!("{}: physics", reference_path.display()))?;
+    let physics = reference.physics;
     let demos = read_demos(&args.contexts, "--contexts", args.env, physics)?;
     let config = SessionConfig {
         plant: EnvConfig {
@@ -458,13 +440,8 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
         ..SessionConfig::default()
     };
     let mut rows = Vec::new();
-    for entry in host_tasks {
-        let (Some(value), Some(host)) = (entry["value"].as_f64(), entry["metric"].as_f64()) else {
-            bail!(
-                "{}: a per_task_candle entry lacks value or metric",
-                reference_path.display()
-            );
-        };
+    for entry in &reference.per_task_candle {
+        let (value, host) = (entry.value, f64::from(entry.metric));
         let found = demos_of(&demos, &args.contexts, "--contexts", value)?;
         let (task, trajectories) = (found.task, &found.trajectories);
         let episodes = args.episodes as usize;
@@ -500,7 +477,7 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     let device_mean = rows.iter().map(|r| r.device_blob).sum::<f32>() / n;
     let report = CompareReport {
         env: args.env,
-        metric: reference["metric"].as_str().unwrap_or("metric").to_string(),
+        metric: reference.metric.clone(),
         episodes_per_task: args.episodes as usize,
         host_mean,
         device_mean,

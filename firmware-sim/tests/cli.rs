@@ -20,6 +20,45 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// What `smile export` writes beside a blob (the typed report firmware-sim reads), with the
+/// host's per-task metric `(task value, metric)` and the blob's checksum.
+fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
+    let rows: Vec<sim::TaskResult> = tasks
+        .iter()
+        .map(|&(value, metric)| sim::TaskResult {
+            task: format!("value={value}"),
+            value,
+            metric,
+            by_context_size: vec![metric],
+            no_op_rate: None,
+        })
+        .collect();
+    let report = sim::ExportReport {
+        bytes: 0,
+        blob_sha256: blob_sha256.into(),
+        quant: "w8a8".into(),
+        algo: "scripted-pd".into(),
+        env: Family::PointGoal,
+        physics: sim::Physics::Rapier,
+        parity: sim::Parity {
+            contexts: 0,
+            actions: 0,
+            z_max_abs_diff: 0.0,
+            action_max_abs_diff: 0.0,
+            action_mean_abs_diff: 0.0,
+            action_mean_abs_diff_same_z: 0.0,
+        },
+        metric: "min distance to goal".into(),
+        split: "test".into(),
+        metric_blob: 0.0,
+        metric_candle: 0.0,
+        metric_relative_difference: 0.0,
+        per_task_blob: rows.clone(),
+        per_task_candle: rows,
+    };
+    serde_json::to_string_pretty(&report).unwrap()
+}
+
 fn firmware_sim(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
         .args(args)
@@ -136,17 +175,10 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     let dir = tmp("compare");
     let (blob, demos) = blob_and_demos(&dir, 3);
     let tasks = Family::PointGoal.test_tasks();
-    // What `smile export` writes beside a blob (only the fields compare reads).
-    let report = serde_json::json!({
-        "metric": "min distance to goal",
-        "per_task_candle": [
-            {"value": tasks[0].value(), "metric": 0.5},
-            {"value": tasks[2].value(), "metric": 0.25},
-        ],
-    });
+    let report = export_report(&[(tasks[0].value(), 0.5), (tasks[2].value(), 0.25)], "");
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
-    std::fs::write(&reference, report.to_string()).unwrap();
+    std::fs::write(&reference, report).unwrap();
     let out_dir = dir.join("cmp");
     let stdout = ok(&firmware_sim(&[
         "compare",
@@ -187,12 +219,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
 
     // A report whose task has no demo in --contexts (the message names the file), a file that
     // is not an export report, an entry without a metric, and no report at all.
-    std::fs::write(
-        &reference,
-        serde_json::json!({"per_task_candle": [{"value": tasks[7].value(), "metric": 0.1}]})
-            .to_string(),
-    )
-    .unwrap();
+    std::fs::write(&reference, export_report(&[(tasks[7].value(), 0.1)], "")).unwrap();
     let args = [
         "compare",
         "--blob",
@@ -209,13 +236,14 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     std::fs::write(&reference, "{\"bytes\": 3}").unwrap();
     let err = fails(&firmware_sim(&args));
     assert!(
-        err.contains("has no per_task_candle list (not a `smile export` report?)"),
+        err.contains("is not a `smile export` report: missing field"),
         "{err}"
     );
-    std::fs::write(&reference, "{\"per_task_candle\": [{\"value\": 0.1}]}").unwrap();
+    let without_metric = export_report(&[(0.1, 0.5)], "").replace("\"metric\": 0.5,", "");
+    std::fs::write(&reference, without_metric).unwrap();
     let err = fails(&firmware_sim(&args));
     assert!(
-        err.contains("a per_task_candle entry lacks value or metric"),
+        err.contains("is not a `smile export` report: missing field `metric`"),
         "{err}"
     );
     let missing = dir.join("none.json");
@@ -223,7 +251,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     with_missing.extend(["--reference", s(&missing)]);
     let err = fails(&firmware_sim(&with_missing));
     assert!(
-        err.contains(&format!("reading {}", missing.display())),
+        err.contains(&missing.display().to_string()) && err.contains("No such file"),
         "{err}"
     );
     std::fs::remove_dir_all(&dir).ok();
@@ -239,14 +267,7 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
     let task = Family::PointGoal.test_tasks()[0];
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
-    let report = |sha: &str| {
-        serde_json::json!({
-            "blob_sha256": sha,
-            "metric": "min distance to goal",
-            "per_task_candle": [{"value": task.value(), "metric": 0.5}],
-        })
-        .to_string()
-    };
+    let report = |sha: &str| export_report(&[(task.value(), 0.5)], sha);
     std::fs::write(&reference, report(&"0".repeat(64))).unwrap();
     let compare = |episodes: &str| {
         firmware_sim(&[
@@ -344,7 +365,9 @@ fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
         firmware_sim(&args)
     };
     // A report beside the blob that names another plant than --physics: refused.
-    std::fs::write(dir.join("pd.blob.json"), r#"{"physics": "mujoco"}"#).unwrap();
+    let on_mujoco =
+        export_report(&[], "").replace(r#""physics": "rapier""#, r#""physics": "mujoco""#);
+    std::fs::write(dir.join("pd.blob.json"), on_mujoco).unwrap();
     let err = fails(&run(&["--physics", "rapier"]));
     assert!(err.contains("trained on the mujoco plant"), "{err}");
     std::fs::remove_file(dir.join("pd.blob.json")).unwrap();

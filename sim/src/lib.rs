@@ -34,6 +34,7 @@ mod dataset;
 mod dynamics;
 mod env;
 mod error;
+mod export_report;
 pub mod fidelity;
 mod fsio;
 pub mod legged;
@@ -58,6 +59,7 @@ pub use dataset::{
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::SimError;
+pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
 pub use fsio::{canonical_safetensors, sha256_hex, temp_sibling, write_atomic, write_atomic_with};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use physics::{MUJOCO_VERSION, Physics};

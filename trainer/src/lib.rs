@@ -22,6 +22,8 @@
 //!   walker-dyn normalised metric, expert evaluation.
 //! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export,
 //!   progress bars.
+//! * [`run`]: a run directory started or resumed ([`run::train`]): configuration, demos,
+//!   expert, records and lock around a [`MetaLearner`]; what `smile train` and sweep cells call.
 //! * [`threads`]: the compute thread layout.
 //!
 //! This crate is the library: what learns and what it writes. The application over it (the
@@ -37,6 +39,7 @@ mod model;
 mod optim;
 
 pub mod eval;
+pub mod run;
 pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type and `train`; the

@@ -1,5 +1,6 @@
-//! Running cells: one cell = `smile train` then `smile eval`, each a child process of the
-//! `smile` binary, single-threaded, output appended to the cell's `log.txt`.
+//! Running cells: one cell = a training run then its evaluation, both through the library
+//! ([`trainer::run::train`], [`trainer::eval::evaluate_to_dir`]) in the process running the
+//! cell (`smile sweep run-cell`, single-threaded), messages appended to the cell's `log.txt`.
 //!
 //! A cell is resumable and exclusive: a finished cell (its `eval/eval.json` exists) is skipped,
 //! a cell whose training left a checkpoint continues with `smile train --resume`, and a cell
@@ -18,11 +19,13 @@
 //! finished evaluation is one whose `eval.json` parses, written last (atomically) by
 //! `smile eval`.
 
-use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde::{Deserialize, Serialize};
+use sim::Split;
+use trainer::eval::{EvalEvent, EvalRequest};
+use trainer::run::TrainRequest;
+use trainer::smile::SmileConfig;
 
 use super::plan::{Cell, Sweep};
 use trainer::{Error, Result};
@@ -75,7 +78,6 @@ fn is_stale(dir: &Path, cell: &Cell) -> bool {
 /// configs differ only in `total_updates` and `cpu_budget_s`, neither lower now (a budget of 0,
 /// none, counts as unlimited) and at least one higher.
 fn extends(dir: &Path, cell: &Cell) -> bool {
-    use trainer::smile::SmileConfig;
     if !cell.algo.starts_with("smile") {
         return false;
     }
@@ -232,9 +234,9 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> Error + '_ {
     }
 }
 
-/// Runs cell `index` of `sweep` with the `smile` binary `exe`: train (or resume) and evaluate,
-/// holding the cell's lock. A failure leaves a `failed` file with the reason.
-pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> {
+/// Runs cell `index` of `sweep` in this process: train (or resume) and evaluate, holding the
+/// cell's lock. A failure leaves a `failed` file with the reason.
+pub fn run_cell(sweep: &Sweep, index: usize) -> Result<CellOutcome> {
     let cell = sweep.cells.get(index).ok_or_else(|| {
         Error::Config(format!(
             "cell index {index} out of range: the plan has cells 0..={}",
@@ -268,7 +270,7 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
                 cell.name,
                 aside.display()
             );
-            return run_cell(sweep, index, exe);
+            return run_cell(sweep, index);
         }
         Status::Extend => {
             // The evaluation at the smaller budget is someone's result too: kept beside.
@@ -288,15 +290,17 @@ pub fn run_cell(sweep: &Sweep, index: usize, exe: &Path) -> Result<CellOutcome> 
         _ => false,
     };
     let _ = std::fs::remove_file(dir.join("failed"));
-    let result = train_and_eval(sweep, cell, &dir, exe, extend);
+    let result = train_and_eval(sweep, cell, &dir, extend);
     if let Err(e) = &result {
         let _ = trainer::checkpoint::write_atomic(&dir.join("failed"), e.to_string().as_bytes());
     }
     result.map(|()| CellOutcome::Ran)
 }
 
-/// Trains the cell (or continues it: `extend`, see [`Status::Extend`]), then evaluates it.
-fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bool) -> Result<()> {
+/// Trains the cell (or continues it: `extend`, see [`Status::Extend`]), then evaluates it,
+/// both in this process through the library ([`trainer::run::train`],
+/// [`trainer::eval::evaluate_to_dir`]), every message appended to the cell's `log.txt`.
+fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, extend: bool) -> Result<()> {
     let cfg_path = dir.join("cell.toml");
     let record = serde_json::to_string(&CellRecord {
         key: cell.key.clone(),
@@ -306,141 +310,111 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, exe: &Path, extend: bo
         trainer::checkpoint::write_atomic(&cfg_path, cell.config.as_bytes())?;
         trainer::checkpoint::write_atomic(&dir.join("cell.json"), record.as_bytes())
     };
-    let log_path = dir.join("log.txt");
-    let train_dir = dir.join("train");
-    let env = sweep.family.name();
-    // An extension keeps the old record until the longer training is done, so an interrupted
-    // one is found as one again and resumes from its latest checkpoint; any other training
-    // records its settings first.
-    if !extend {
-        write_record()?;
-    }
-    // Arguments as OS strings: a plan under a folder whose name is not UTF-8 passes its paths
-    // through unchanged (a lossy conversion would name files that do not exist).
-    let demos: OsString = cell.demos.clone().into_os_string();
-    let s = |p: &Path| -> OsString { p.as_os_str().to_owned() };
-    let trained = train_dir
-        .join("last")
-        .join(trainer::META_POLICY_FILE)
-        .exists();
-    if extend || !trained {
-        let mut args: Vec<OsString> = vec!["train".into()];
+    let mut log = CellLog::open(&dir.join("log.txt"))?;
+    let result = (|| {
+        let train_dir = dir.join("train");
+        // An extension keeps the old record until the longer training is done, so an
+        // interrupted one is found as one again and resumes from its latest checkpoint; any
+        // other training records its settings first.
+        if !extend {
+            write_record()?;
+        }
+        let trained = train_dir
+            .join("last")
+            .join(trainer::META_POLICY_FILE)
+            .exists();
+        if extend || !trained {
+            let mut req = TrainRequest {
+                demos: cell.demos.clone(),
+                out: train_dir.clone(),
+                family: Some(sweep.family),
+                ..TrainRequest::default()
+            };
+            if extend {
+                let new: SmileConfig = toml::from_str(&cell.config)
+                    .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
+                req.resume = true;
+                req.set
+                    .insert("total_updates".into(), (new.total_updates as i64).into());
+                // As `--cpu-budget` gave it (an f32 flag) before cells trained in-process.
+                req.set.insert(
+                    "cpu_budget_s".into(),
+                    f64::from(new.cpu_budget_s as f32).into(),
+                );
+                log.line("train: extending the cell's run to the plan's larger budget");
+            } else if train_dir
+                .join(trainer::checkpoint::CHECKPOINT_FILE)
+                .exists()
+            {
+                req.resume = true;
+                log.line("train: resuming from the cell's checkpoint");
+            } else {
+                req.algo = Some(cell.algo.parse()?);
+                req.config_file = Some(cfg_path.clone());
+                req.expert = cell.expert.clone();
+                log.line(&format!("train: {} on {}", cell.algo, cell.demos.display()));
+            }
+            trainer::run::train(&req, &mut |e| {
+                if let Some(line) = e.log_line() {
+                    log.line(&line);
+                }
+            })?;
+        }
         if extend {
-            let new: trainer::smile::SmileConfig = toml::from_str(&cell.config)
-                .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
-            args.extend([
-                "--resume".into(),
-                "--updates".into(),
-                new.total_updates.to_string().into(),
-                "--cpu-budget".into(),
-                new.cpu_budget_s.to_string().into(),
-            ]);
-        } else if train_dir
-            .join(trainer::checkpoint::CHECKPOINT_FILE)
-            .exists()
-        {
-            args.push("--resume".into());
-        } else {
-            args.extend([
-                "--algo".into(),
-                cell.algo.clone().into(),
-                "--config".into(),
-                s(&cfg_path),
-            ]);
-            if let Some(e) = &cell.expert {
-                args.extend(["--expert".into(), s(e)]);
-            }
+            write_record()?;
         }
-        args.extend([
-            "--env".into(),
-            env.into(),
-            "--demos".into(),
-            demos,
-            "-o".into(),
-            s(&train_dir),
-            "--quiet".into(),
-        ]);
-        child(exe, &args, &log_path)?;
-    }
-    if extend {
-        write_record()?;
-    }
-    let e = &sweep.plan.eval;
-    let mut args: Vec<OsString> = vec![
-        "eval".into(),
-        "--policy".into(),
-        s(&train_dir),
-        "--env".into(),
-        env.into(),
-        "--split".into(),
-        "test".into(),
-        "--contexts".into(),
-        s(&e.contexts),
-        "-o".into(),
-        s(&dir.join("eval")),
-    ];
-    if let Some(h) = e.horizon {
-        args.extend(["--horizon".into(), h.to_string().into()]);
-    }
-    if let Some(r) = e.rollouts {
-        args.extend(["--rollouts".into(), r.to_string().into()]);
-    }
-    if !e.context_sizes.is_empty() {
-        let k: Vec<String> = e.context_sizes.iter().map(usize::to_string).collect();
-        args.extend(["--context-sizes".into(), k.join(",").into()]);
-    }
-    if let Some(base) = &e.base {
-        let mut experts = OsString::new();
-        for (i, p) in e.experts.iter().enumerate() {
-            if i > 0 {
-                experts.push(",");
-            }
-            experts.push(p);
+        let e = &sweep.plan.eval;
+        let eval_dir = dir.join("eval");
+        let mut req = EvalRequest::new(
+            vec![train_dir],
+            sweep.family,
+            Split::Test,
+            e.contexts.clone(),
+            eval_dir.clone(),
+        );
+        req.horizon = e.horizon;
+        req.rollouts = e.rollouts;
+        req.context_sizes = e.context_sizes.clone();
+        if let Some(base) = &e.base {
+            req.base = Some(base.clone());
+            req.experts = e.experts.clone();
         }
-        args.extend(["--base".into(), s(base), "--expert".into(), experts]);
+        // An evaluation for other settings is made again; plan.json says which settings made it.
+        let _ = std::fs::remove_file(eval_dir.join("eval.json"));
+        log.line(&format!("eval: on {}", e.contexts.display()));
+        let report = trainer::eval::evaluate_to_dir(&req, &mut |ev| {
+            if let EvalEvent::Note(text) = ev {
+                log.line(&text);
+            }
+        })?;
+        log.line(&report.markdown());
+        trainer::checkpoint::write_atomic(
+            &eval_dir.join("plan.json"),
+            eval_record(sweep).as_bytes(),
+        )
+    })();
+    if let Err(e) = &result {
+        log.line(&format!("error: {e}"));
     }
-    // An evaluation for other settings is made again; plan.json says which settings made it.
-    let eval_dir = dir.join("eval");
-    let _ = std::fs::remove_file(eval_dir.join("eval.json"));
-    child(exe, &args, &log_path)?;
-    trainer::checkpoint::write_atomic(&eval_dir.join("plan.json"), eval_record(sweep).as_bytes())
+    result
 }
 
-/// Runs `exe args` single-threaded with stdout and stderr appended to `log`.
-fn child(exe: &Path, args: &[OsString], log: &Path) -> Result<()> {
-    let open = || {
+/// A cell's `log.txt`, appended to line by line (a failed write is not worth failing the cell
+/// for: the run's own files are what count).
+struct CellLog(std::fs::File);
+
+impl CellLog {
+    fn open(path: &Path) -> Result<Self> {
         std::fs::OpenOptions::new()
             .create(true)
             .append(true)
-            .open(log)
-            .map_err(io_err(log))
-    };
-    let out = open()?;
-    let err = out.try_clone().map_err(io_err(log))?;
-    {
-        use std::io::Write;
-        let mut f = open()?;
-        let shown: Vec<_> = args.iter().map(|a| a.to_string_lossy()).collect();
-        let _ = writeln!(f, "$ smile {}", shown.join(" "));
+            .open(path)
+            .map(CellLog)
+            .map_err(io_err(path))
     }
-    let status = Command::new(exe)
-        .args(args)
-        .env("RAYON_NUM_THREADS", "1")
-        .stdin(std::process::Stdio::null())
-        .stdout(out)
-        .stderr(err)
-        .status()
-        .map_err(io_err(exe))?;
-    if status.success() {
-        Ok(())
-    } else {
-        Err(Error::Child {
-            command: format!(
-                "smile {}",
-                args.first().map_or("".into(), |a| a.to_string_lossy())
-            ),
-            status: status.to_string(),
-            log: log.to_path_buf(),
-        })
+
+    fn line(&mut self, text: &str) {
+        use std::io::Write;
+        let _ = writeln!(self.0, "{text}");
     }
 }

@@ -60,6 +60,14 @@ impl Algo {
         }
     }
 
+    /// The config key holding this algorithm's training budget ([`MetaLearner::TOTAL_KEY`]).
+    pub fn budget_key(self) -> &'static str {
+        match self {
+            Algo::Smile | Algo::SmileStateOnly => Smile::TOTAL_KEY,
+            Algo::MetaBc | Algo::MetaDagger => MetaBc::TOTAL_KEY,
+        }
+    }
+
     /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
     /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.

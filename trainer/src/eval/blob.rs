@@ -2,7 +2,6 @@
 //! are compared with the candle policy on held-out contexts (max / mean absolute difference),
 //! and the family's metric is run with the blob policy beside the float one.
 
-use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Trajectory};
 
 use crate::error::{Error, Result};
@@ -56,24 +55,8 @@ impl ConditionedActor for BlobActor<'_, '_> {
     }
 }
 
-/// Blob-vs-candle differences on held-out contexts.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Parity {
-    /// Contexts compared (one per task of the contexts file, its first trajectory).
-    pub contexts: usize,
-    /// Actions compared.
-    pub actions: usize,
-    /// Max abs difference of z.
-    pub z_max_abs_diff: f32,
-    /// Max abs difference of actions (each side with its own z: end to end).
-    pub action_max_abs_diff: f32,
-    /// Mean abs difference of actions.
-    pub action_mean_abs_diff: f32,
-    /// Mean abs difference of actions when the blob's policy is given the candle z: the
-    /// policy's own share of the error (the rest comes from the blob's z).
-    #[serde(default)]
-    pub action_mean_abs_diff_same_z: f32,
-}
+/// Blob-vs-candle differences on held-out contexts (the export report's field).
+pub use sim::Parity;
 
 /// Compares the blob with the candle policy on every task of `contexts` (context = the
 /// task's first trajectory; observations = the states of all its trajectories).
@@ -123,44 +106,9 @@ pub fn parity(
     })
 }
 
-/// What [`verify`] measured: blob size, parity with the candle policy and the family's metric
-/// with both (serialised next to the blob by `smile export`).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct ExportReport {
-    /// Blob size in bytes.
-    pub bytes: usize,
-    /// SHA-256 of the blob this report describes (lower-case hex): `firmware-sim compare`
-    /// refuses a report beside another blob (an interrupted re-export). Empty in reports
-    /// written before the field.
-    #[serde(default)]
-    pub blob_sha256: String,
-    /// `f32`, `w8a32` or `w8a8`.
-    pub quant: String,
-    /// Algorithm of the exported policy.
-    pub algo: String,
-    /// The family, written by its name.
-    pub env: sim::Family,
-    /// The plant the policy was trained and verified on (reports written before the MuJoCo
-    /// backend are Rapier's); the device runs it there.
-    #[serde(default)]
-    pub physics: sim::Physics,
-    /// z / action differences on held-out contexts.
-    pub parity: Parity,
-    /// Metric name.
-    pub metric: String,
-    /// Split of the contexts the metric ran on.
-    pub split: String,
-    /// The metric with the blob policy (mean over tasks).
-    pub metric_blob: f32,
-    /// The metric with the candle policy (mean over tasks).
-    pub metric_candle: f32,
-    /// `(blob - candle) / |candle|`.
-    pub metric_relative_difference: f32,
-    /// Per-task blob results.
-    pub per_task_blob: Vec<super::TaskResult>,
-    /// Per-task candle results.
-    pub per_task_candle: Vec<super::TaskResult>,
-}
+/// What [`verify`] measured (serialised next to the blob by `smile export`, read by
+/// `firmware-sim`): one definition, in `sim`.
+pub use sim::ExportReport;
 
 /// Loads `blob` with infer-core, measures [`parity`] on `contexts` and runs the family's
 /// metric (`protocol`) on the contexts' split with the blob and with the candle policy.

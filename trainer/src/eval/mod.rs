@@ -128,21 +128,8 @@ impl Protocol {
     }
 }
 
-/// One task's result for one method.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct TaskResult {
-    /// Task label, e.g. `goal_angle=0.0982`.
-    pub task: String,
-    /// The task parameter (goal angle, target velocity, dynamics seed).
-    pub value: f64,
-    /// Mean metric over all sizes, draws and rollouts.
-    pub metric: f32,
-    /// Mean metric per context size (same order as the protocol's sizes).
-    pub by_context_size: Vec<f32>,
-    /// Classification families: the fraction of episodes that made no decision.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub no_op_rate: Option<f32>,
-}
+/// One task's result for one method: the export report's rows are the same type.
+pub use sim::TaskResult;
 
 /// One method's results.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -548,7 +535,10 @@ pub fn render_episode(
 pub mod blob;
 pub mod latents;
 pub mod norm;
+mod request;
 mod show;
+
+pub use request::{EvalEvent, EvalRequest, evaluate_to_dir, write_report};
 
 #[cfg(test)]
 mod tests;

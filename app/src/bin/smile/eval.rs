@@ -2,13 +2,11 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::Result;
 use clap::Args;
 use indicatif::ProgressBar;
 use sim::{Family, Split};
-use trainer::MetaPolicy;
-use trainer::eval::norm::References;
-use trainer::eval::{self, EvalReport, Protocol};
+use trainer::eval::{self, EvalEvent, EvalRequest};
 
 /// Arguments of `smile eval`.
 #[derive(Args, Debug)]
@@ -76,154 +74,44 @@ enum WalkerProtocol {
     Authors,
 }
 
-fn bar(tasks: usize, quiet: bool, message: String) -> ProgressBar {
-    let pb = trainer::progress_bar(tasks as u64, quiet, "tasks");
-    pb.set_message(message);
-    pb
-}
-
 /// Run `smile eval`.
 pub fn run(a: EvalArgs) -> Result<()> {
-    let family = a.env;
-    let ctx = crate::read_demos(&a.contexts, "--contexts", family)?;
-    if ctx.split != a.split {
-        bail!(
-            "--contexts {} holds {} demos but --split is {}; pass --split {} or the {} demos",
-            a.contexts.display(),
-            ctx.split,
-            a.split,
-            ctx.split,
-            a.split
-        );
-    }
-    let mut protocol = Protocol::for_family(family);
-    if let Some(r) = a.rollouts {
-        protocol.rollouts = r;
-    }
-    if !a.context_sizes.is_empty() {
-        protocol.context_sizes = a.context_sizes.iter().map(|&k| k as usize).collect();
-    }
-    protocol.horizon = a.horizon;
-    protocol.action_noise = a.action_noise;
-    if a.walker_protocol == WalkerProtocol::Authors {
-        if family != Family::WalkerDyn {
-            bail!("--walker-protocol authors is walker-dyn's evaluation, not {family}'s");
+    let mut req = EvalRequest::new(
+        a.policy.clone(),
+        a.env,
+        a.split,
+        a.contexts.clone(),
+        a.out.clone(),
+    );
+    req.rollouts = a.rollouts;
+    req.context_sizes = a.context_sizes.iter().map(|&k| k as usize).collect();
+    req.horizon = a.horizon;
+    req.action_noise = a.action_noise;
+    req.run_through_falls = a.walker_protocol == WalkerProtocol::Authors;
+    req.render = a.render;
+    req.base = a.base.clone();
+    req.experts = a.expert.clone();
+    req.allow_unfinished = a.allow_unfinished;
+    let mut pb: Option<ProgressBar> = None;
+    let report = eval::evaluate_to_dir(&req, &mut |e| match e {
+        EvalEvent::Note(text) => eprintln!("{text}"),
+        EvalEvent::Method { name, tasks } => {
+            let bar = trainer::progress_bar(tasks as u64, a.quiet, "tasks");
+            bar.set_message(name);
+            pb = Some(bar);
         }
-        protocol.run_through_falls = true;
-        eprintln!("walker protocol: {}", protocol.label());
-    }
-    // Everything is loaded and checked before any rollout, so a wrong policy, context file,
-    // base or expert fails fast.
-    let mut policies = Vec::with_capacity(a.policy.len());
-    for p in &a.policy {
-        let mp = MetaPolicy::load(p).with_context(|| format!("loading {}", p.display()))?;
-        MetaPolicy::ensure_finished(p, a.allow_unfinished)?;
-        if mp.family != family {
-            bail!(
-                "{} was trained on {}, not {family} (--env); pass --env {}",
-                p.display(),
-                mp.family,
-                mp.family
-            );
-        }
-        policies.push((p, mp));
-    }
-    // The episodes run on the plant the policies were trained on; all of them the same one.
-    if let Some((first, mp)) = policies.first() {
-        protocol.physics = mp.physics;
-        if let Some((p, other)) = policies.iter().find(|(_, m)| m.physics != mp.physics) {
-            bail!(
-                "{} was trained on the {} plant, {} on {}: evaluate each plant's policies apart",
-                first.display(),
-                mp.physics,
-                p.display(),
-                other.physics
-            );
-        }
-    }
-    ctx.ensure_physics(protocol.physics)
-        .with_context(|| format!("--contexts {}", a.contexts.display()))?;
-    eval::contexts_for(&ctx, family, &family.tasks(a.split))
-        .with_context(|| format!("--contexts {}", a.contexts.display()))?;
-    let references = match &a.base {
-        Some(base) => Some(References::load(family, base, &a.expert)?),
-        None => None,
-    };
-    std::fs::create_dir_all(&a.out)
-        .with_context(|| format!("creating the output directory {}", a.out.display()))?;
-    let reference = match &references {
-        Some(refs) => {
-            let pb = bar(family.tasks(a.split).len(), a.quiet, "base + expert".into());
-            let r = refs.returns(a.split, &protocol, &mut |i, _| pb.set_position(i as u64))?;
-            pb.finish_and_clear();
-            eprintln!(
-                "base {}: mean return {:.4}; expert {}: mean return {:.4}",
-                r.base,
-                r.base_mean(),
-                r.expert,
-                r.expert_mean()
-            );
-            Some(r)
-        }
-        None => None,
-    };
-    let mut methods = Vec::new();
-    for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
-        let name = eval::display_name(&mp.algo, p);
-        let pb = bar(family.tasks(a.split).len(), a.quiet, name.clone());
-        let r = eval::evaluate(
-            &mut mp,
-            &name,
-            family,
-            a.split,
-            &ctx,
-            &protocol,
-            &mut |i, _| pb.set_position(i as u64),
-        )?;
-        pb.finish_and_clear();
-        eprintln!(
-            "{name}: mean {:.4} +- {:.4} over tasks",
-            r.mean, r.std_over_tasks
-        );
-        if a.render {
-            let task = family.tasks(a.split)[0];
-            let tds = eval::contexts_for(&ctx, family, &[task])?;
-            let path = a.out.join(format!("episode-{idx}-{}.svg", mp.algo));
-            let m = eval::render_episode(
-                &mut mp,
-                family,
-                &task,
-                &[&tds[0].trajectories[0]],
-                protocol.env_config(),
-                &path,
-            )?;
-            eprintln!("rendered {} (metric {m:.3})", path.display());
-        }
-        methods.push(r);
-    }
-    let mut report = EvalReport::new(family, a.split, protocol, methods);
-    if let Some(r) = reference {
-        report = report.with_reference(r)?;
-        for m in &report.methods {
-            if let Some(n) = &m.normalised {
-                let score = n.score.map_or("none".into(), |x| format!("{x:.4}"));
-                eprintln!(
-                    "{}: normalised score {score} over {} tasks ({} skipped: expert not better \
-                     than base)",
-                    m.name, n.tasks_used, n.tasks_skipped
-                );
+        EvalEvent::Task(i) => {
+            if let Some(bar) = &pb {
+                bar.set_position(i as u64);
             }
         }
-    }
-    // eval.json last: a sweep counts a cell done by it, so it must mean the rest was written.
-    let md = report.markdown();
-    trainer::checkpoint::write_atomic(&a.out.join("eval.md"), md.as_bytes())?;
-    report.plot_svg(&a.out.join("eval.svg"))?;
-    trainer::checkpoint::write_atomic(
-        &a.out.join("eval.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
-    )?;
-    println!("{md}");
+        EvalEvent::MethodDone => {
+            if let Some(bar) = pb.take() {
+                bar.finish_and_clear();
+            }
+        }
+    })?;
+    println!("{}", report.markdown());
     eprintln!("wrote {}/eval.json, eval.md, eval.svg", a.out.display());
     Ok(())
 }

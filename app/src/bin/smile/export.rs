@@ -126,10 +126,9 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    let json = a.out.with_extension(format!(
-        "{}.json",
-        a.out.extension().and_then(|e| e.to_str()).unwrap_or("blob")
-    ));
+    // `<blob>.json`, where firmware-sim looks (one definition: a blob named without an
+    // extension once got its report at `<blob>.blob.json`, which the device never found).
+    let json = export::ExportReport::path_beside(&a.out);
     // A previous export's report must not outlive its blob: removed before the new blob lands,
     // and the new report (written after verification) names the blob by its SHA-256.
     match std::fs::remove_file(&json) {
@@ -170,7 +169,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
         report.metric_candle,
         100.0 * report.metric_relative_difference
     );
-    trainer::checkpoint::write_atomic(&json, serde_json::to_string_pretty(&report)?.as_bytes())?;
+    report.write(&json)?;
     eprintln!("wrote {}", json.display());
     Ok(())
 }

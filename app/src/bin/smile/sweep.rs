@@ -79,7 +79,7 @@ fn run_cell(a: RunCellArgs) -> Result<()> {
         .cells
         .get(index)
         .map_or_else(String::new, |c| c.name.clone());
-    let outcome = sweep::run_cell(&sweep, index, &exe()?)?;
+    let outcome = sweep::run_cell(&sweep, index)?;
     if outcome != CellOutcome::Busy {
         // Every cell's status, so `smile report` reads a sweep whose cells ran one by one.
         sweep::write_manifest(&sweep)?;

@@ -1,0 +1,262 @@
+//! An evaluation of trained runs into a directory, as `smile eval` and a sweep's cells make
+//! it: the policies, contexts, plant and references checked before any rollout, every method
+//! evaluated with the family's protocol (overrides applied), then `eval.md`, `eval.svg` and,
+//! last, `eval.json` written (a sweep counts a cell done by that file).
+
+use std::path::{Path, PathBuf};
+
+use sim::{Family, Split};
+
+use super::norm::References;
+use super::{EvalReport, Protocol};
+use crate::error::{Error, Result};
+use crate::model::MetaPolicy;
+
+/// What to evaluate, where, and the protocol's overrides.
+#[derive(Debug, Clone)]
+pub struct EvalRequest {
+    /// Trained run directories (or `meta_policy.safetensors` files); one method each.
+    pub policies: Vec<PathBuf>,
+    /// The family.
+    pub family: Family,
+    /// Which tasks to evaluate on.
+    pub split: Split,
+    /// Demos of those tasks, the contexts (`smile demos --split test`).
+    pub contexts: PathBuf,
+    /// Output directory for `eval.json`, `eval.md` and `eval.svg`.
+    pub out: PathBuf,
+    /// The protocol's rollouts per context draw; `None`: the family's.
+    pub rollouts: Option<usize>,
+    /// The protocol's context sizes; empty: the family's.
+    pub context_sizes: Vec<usize>,
+    /// Episode length override.
+    pub horizon: Option<usize>,
+    /// Gaussian action noise (0: the paper's protocol).
+    pub action_noise: f32,
+    /// walker-dyn: the authors' evaluation (episodes run through falls).
+    pub run_through_falls: bool,
+    /// Also save one animated SVG episode per method (first task, first context trajectory).
+    pub render: bool,
+    /// walker-dyn's normalised metric: the base policy (needs `experts`).
+    pub base: Option<PathBuf>,
+    /// walker-dyn's normalised metric: per-task experts and/or one general expert.
+    pub experts: Vec<PathBuf>,
+    /// Evaluate a policy whose training did not finish (with a note) instead of refusing it.
+    pub allow_unfinished: bool,
+}
+
+impl EvalRequest {
+    /// A request with the family's protocol and no references: `policies` on `split`'s
+    /// tasks with `contexts`, into `out`.
+    pub fn new(
+        policies: Vec<PathBuf>,
+        family: Family,
+        split: Split,
+        contexts: PathBuf,
+        out: PathBuf,
+    ) -> Self {
+        Self {
+            policies,
+            family,
+            split,
+            contexts,
+            out,
+            rollouts: None,
+            context_sizes: Vec::new(),
+            horizon: None,
+            action_noise: 0.0,
+            run_through_falls: false,
+            render: false,
+            base: None,
+            experts: Vec::new(),
+            allow_unfinished: false,
+        }
+    }
+}
+
+/// What [`evaluate_to_dir`] reports.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EvalEvent {
+    /// A line for the person watching.
+    Note(String),
+    /// A method (or the base + expert references) starts: `name`, over `tasks` tasks.
+    Method {
+        /// Its display name.
+        name: String,
+        /// Tasks to evaluate.
+        tasks: usize,
+    },
+    /// Tasks done of the current method.
+    Task(usize),
+    /// The current method is done.
+    MethodDone,
+}
+
+/// Evaluates `req` and writes its report files; returns the report.
+pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<EvalReport> {
+    let family = req.family;
+    let ctx = crate::run::read_demos_of(&req.contexts, "--contexts", family)?;
+    if ctx.split != req.split {
+        return Err(Error::Usage(format!(
+            "--contexts {} holds {} demos but --split is {}; pass --split {} or the {} demos",
+            req.contexts.display(),
+            ctx.split,
+            req.split,
+            ctx.split,
+            req.split
+        )));
+    }
+    let mut protocol = Protocol::for_family(family);
+    if let Some(r) = req.rollouts {
+        protocol.rollouts = r;
+    }
+    if !req.context_sizes.is_empty() {
+        protocol.context_sizes = req.context_sizes.clone();
+    }
+    protocol.horizon = req.horizon;
+    protocol.action_noise = req.action_noise;
+    if req.run_through_falls {
+        if family != Family::WalkerDyn {
+            return Err(Error::Usage(format!(
+                "--walker-protocol authors is walker-dyn's evaluation, not {family}'s"
+            )));
+        }
+        protocol.run_through_falls = true;
+        on(EvalEvent::Note(format!(
+            "walker protocol: {}",
+            protocol.label()
+        )));
+    }
+    // Everything is loaded and checked before any rollout, so a wrong policy, context file,
+    // base or expert fails fast.
+    let mut policies = Vec::with_capacity(req.policies.len());
+    for p in &req.policies {
+        let mp = MetaPolicy::load(p)
+            .map_err(|e| Error::Usage(format!("loading {}: {e}", p.display())))?;
+        MetaPolicy::ensure_finished(p, req.allow_unfinished)?;
+        if mp.family != family {
+            return Err(Error::Usage(format!(
+                "{} was trained on {}, not {family} (--env); pass --env {}",
+                p.display(),
+                mp.family,
+                mp.family
+            )));
+        }
+        policies.push((p, mp));
+    }
+    // The episodes run on the plant the policies were trained on; all of them the same one.
+    if let Some((first, mp)) = policies.first() {
+        protocol.physics = mp.physics;
+        if let Some((p, other)) = policies.iter().find(|(_, m)| m.physics != mp.physics) {
+            return Err(Error::Usage(format!(
+                "{} was trained on the {} plant, {} on {}: evaluate each plant's policies apart",
+                first.display(),
+                mp.physics,
+                p.display(),
+                other.physics
+            )));
+        }
+    }
+    let in_contexts =
+        |e: Error| Error::Usage(format!("--contexts {}: {e}", req.contexts.display()));
+    ctx.ensure_physics(protocol.physics)
+        .map_err(|e| Error::Usage(format!("--contexts {}: {e}", req.contexts.display())))?;
+    let tasks = family.tasks(req.split);
+    super::contexts_for(&ctx, family, &tasks).map_err(in_contexts)?;
+    let references = match &req.base {
+        Some(base) => Some(References::load(family, base, &req.experts)?),
+        None => None,
+    };
+    std::fs::create_dir_all(&req.out).map_err(|e| Error::Io {
+        path: req.out.clone(),
+        source: e,
+    })?;
+    let reference = match &references {
+        Some(refs) => {
+            on(EvalEvent::Method {
+                name: "base + expert".into(),
+                tasks: tasks.len(),
+            });
+            let r = refs.returns(req.split, &protocol, &mut |i, _| on(EvalEvent::Task(i)))?;
+            on(EvalEvent::MethodDone);
+            on(EvalEvent::Note(format!(
+                "base {}: mean return {:.4}; expert {}: mean return {:.4}",
+                r.base,
+                r.base_mean(),
+                r.expert,
+                r.expert_mean()
+            )));
+            Some(r)
+        }
+        None => None,
+    };
+    let mut methods = Vec::new();
+    for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
+        let name = super::display_name(&mp.algo, p);
+        on(EvalEvent::Method {
+            name: name.clone(),
+            tasks: tasks.len(),
+        });
+        let r = super::evaluate(
+            &mut mp,
+            &name,
+            family,
+            req.split,
+            &ctx,
+            &protocol,
+            &mut |i, _| on(EvalEvent::Task(i)),
+        )?;
+        on(EvalEvent::MethodDone);
+        on(EvalEvent::Note(format!(
+            "{name}: mean {:.4} +- {:.4} over tasks",
+            r.mean, r.std_over_tasks
+        )));
+        if req.render {
+            let task = tasks[0];
+            let tds = super::contexts_for(&ctx, family, &[task])?;
+            let path = req.out.join(format!("episode-{idx}-{}.svg", mp.algo));
+            let m = super::render_episode(
+                &mut mp,
+                family,
+                &task,
+                &[&tds[0].trajectories[0]],
+                protocol.env_config(),
+                &path,
+            )?;
+            on(EvalEvent::Note(format!(
+                "rendered {} (metric {m:.3})",
+                path.display()
+            )));
+        }
+        methods.push(r);
+    }
+    let mut report = EvalReport::new(family, req.split, protocol, methods);
+    if let Some(r) = reference {
+        report = report.with_reference(r)?;
+        for m in &report.methods {
+            if let Some(n) = &m.normalised {
+                let score = n.score.map_or("none".into(), |x| format!("{x:.4}"));
+                on(EvalEvent::Note(format!(
+                    "{}: normalised score {score} over {} tasks ({} skipped: expert not better \
+                     than base)",
+                    m.name, n.tasks_used, n.tasks_skipped
+                )));
+            }
+        }
+    }
+    write_report(&report, &req.out)?;
+    Ok(report)
+}
+
+/// `eval.md`, `eval.svg`, then `eval.json` (last: a sweep counts a cell done by it, so it
+/// must mean the rest was written), each atomically.
+pub fn write_report(report: &EvalReport, out: &Path) -> Result<()> {
+    let write = crate::io::checkpoint::write_atomic;
+    write(&out.join("eval.md"), report.markdown().as_bytes())?;
+    report.plot_svg(&out.join("eval.svg"))?;
+    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Serialise {
+        what: "eval.json",
+        reason: e.to_string(),
+    })?;
+    write(&out.join("eval.json"), json.as_bytes())
+}

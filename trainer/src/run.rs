@@ -1,0 +1,521 @@
+//! A meta-learner's run directory, started or resumed: what `smile train` and a sweep's cells
+//! both call.
+//!
+//! [`train`] reads the demos, builds the configuration (a TOML file over the algorithm's
+//! defaults, the caller's keys over both), loads Meta-DAgger's relabelling expert, starts the
+//! learner or resumes it from the directory's checkpoint, records how the run was started
+//! ([`RUN_FILE`], `config.toml`), holds the directory's lock, and trains through
+//! [`MetaLearner`], reporting [`RunEvent`]s. A resumed run keeps the configuration it started
+//! with: only the budget keys ([`MetaLearner::RESUMABLE`]) may change, and other demos than
+//! the run's are refused.
+
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, Family, Physics};
+
+use crate::algo::expert::{Expert, ExpertSet};
+use crate::algo::meta_bc::MetaBc;
+use crate::algo::smile::Smile;
+use crate::algo::{Algo, MetaLearner, Progress};
+use crate::data::MetaData;
+use crate::error::{Error, Result};
+use crate::io::checkpoint;
+
+/// File in a run directory recording how the run was started, so that a resume continues it
+/// with the same algorithm, expert and demos.
+pub const RUN_FILE: &str = "run.json";
+
+/// The expert name recorded for point-goal's scripted PD controller.
+pub const SCRIPTED_PD: &str = "scripted-pd";
+
+/// What a run directory records in [`RUN_FILE`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunInfo {
+    /// The algorithm's name ([`Algo::name`]).
+    pub algo: String,
+    /// Meta-DAgger's relabelling expert: a `smile expert` run, or [`SCRIPTED_PD`].
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub expert: Option<String>,
+    /// The expert's path as the OS gave it, when it is not UTF-8 (`expert` then holds a lossy
+    /// copy for people to read): a resume must find the very same file.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub expert_os: Option<std::ffi::OsString>,
+    /// SHA-256 of the demo file the run started on: a resume refuses other demos (their
+    /// normalisation and tasks would silently replace the run's). Absent in older runs.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub demos_sha256: Option<String>,
+    /// The plant the run simulates (the config's `physics`, which the demos must match).
+    /// Absent in runs made before the MuJoCo backend: Rapier's.
+    #[serde(default)]
+    pub physics: Physics,
+}
+
+impl RunInfo {
+    /// The record of the run in `dir`: its [`RUN_FILE`], or for runs older than that file,
+    /// what its `config.toml` says (the algorithm; no expert, no demo checksum).
+    pub fn read(dir: &Path) -> Result<RunInfo> {
+        let info = dir.join(RUN_FILE);
+        if let Ok(text) = std::fs::read_to_string(&info) {
+            return serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
+                path: info.clone(),
+                reason: format!("not a run record: {e}"),
+            });
+        }
+        let cfg = dir.join("config.toml");
+        let text = std::fs::read_to_string(&cfg).map_err(|_| {
+            Error::Usage(format!(
+                "{} holds no run to resume (no {RUN_FILE} or config.toml)",
+                dir.display()
+            ))
+        })?;
+        let table: toml::Table = toml::from_str(&text)
+            .map_err(|e| Error::Config(format!("parsing {}: {}", cfg.display(), e.message())))?;
+        let algo = match table.get("dagger").and_then(toml::Value::as_bool) {
+            Some(true) => Algo::MetaDagger,
+            Some(false) => Algo::MetaBc,
+            None => {
+                let state_only = table
+                    .get("context")
+                    .and_then(|c| c.get("state_only"))
+                    .and_then(toml::Value::as_bool);
+                if state_only == Some(true) {
+                    Algo::SmileStateOnly
+                } else {
+                    Algo::Smile
+                }
+            }
+        };
+        Ok(RunInfo {
+            algo: algo.name().into(),
+            expert: None,
+            expert_os: None,
+            demos_sha256: None,
+            physics: Physics::Rapier,
+        })
+    }
+
+    /// The recorded algorithm.
+    pub fn algo(&self, dir: &Path) -> Result<Algo> {
+        self.algo
+            .parse()
+            .map_err(|e: Error| Error::Usage(format!("{}: {e}", dir.join(RUN_FILE).display())))
+    }
+
+    /// The recorded relabelling expert's path, exactly as it was given.
+    pub fn expert_path(&self) -> Option<PathBuf> {
+        self.expert_os
+            .clone()
+            .map(PathBuf::from)
+            .or(self.expert.clone().map(PathBuf::from))
+    }
+}
+
+/// A run to start or resume.
+#[derive(Debug, Clone, Default)]
+pub struct TrainRequest {
+    /// Meta-train demos (`smile demos --split train`); a meta-test file is refused.
+    pub demos: PathBuf,
+    /// The run directory.
+    pub out: PathBuf,
+    /// The family; `None`: the demo file's (given, the file must hold it).
+    pub family: Option<Family>,
+    /// The algorithm; `None`: SMILe for a new run, the recorded one for a resume (given, it
+    /// must be the recorded one).
+    pub algo: Option<Algo>,
+    /// A configuration file (TOML over the algorithm's defaults); a resume reads the run's
+    /// `config.toml` instead.
+    pub config_file: Option<PathBuf>,
+    /// Keys set over the file, in the configuration's shape (`seed`, `sac.hidden`, ...).
+    pub set: toml::Table,
+    /// The plant; `None`: the file's `physics`, else the demos' plant.
+    pub physics: Option<Physics>,
+    /// Meta-DAgger's relabelling expert: a `smile expert` run directory or policy file, a
+    /// folder of per-task experts, or [`SCRIPTED_PD`] (point-goal's default). `None` on a
+    /// resume: the recorded one.
+    pub expert: Option<PathBuf>,
+    /// Continue the run in `out` from its checkpoint.
+    pub resume: bool,
+}
+
+/// What [`train`] reports.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunEvent {
+    /// A line for the person watching (the expert used, a warning about an old run).
+    Note(String),
+    /// Training starts (or continues).
+    Started {
+        /// The algorithm.
+        algo: Algo,
+        /// Meta-train tasks.
+        train_tasks: usize,
+        /// Held-out train tasks (validation).
+        held_out: usize,
+        /// The budget, in `unit`s.
+        total: u64,
+        /// Updates already done (a resume), else 0.
+        done: u64,
+        /// What the budget counts ("update pairs", "steps").
+        unit: &'static str,
+        /// One unit in messages ("update", "step").
+        word: &'static str,
+        /// Whether the run resumed from a checkpoint.
+        resumed: bool,
+    },
+    /// The learner's progress, and one unit's word in messages ("update", "step").
+    Progress(Progress, &'static str),
+}
+
+impl RunEvent {
+    /// The line a log shows for this event; none for step counts and checkpoints.
+    pub fn log_line(&self) -> Option<String> {
+        match self {
+            RunEvent::Note(text) => Some(text.clone()),
+            RunEvent::Started {
+                algo,
+                train_tasks,
+                held_out,
+                total,
+                done,
+                unit,
+                word,
+                resumed,
+            } => {
+                let head = if *resumed {
+                    format!("resuming from {word} {done}\n")
+                } else {
+                    String::new()
+                };
+                Some(format!(
+                    "{head}{algo}: {train_tasks} training tasks, {held_out} held-out train tasks; \
+                     {total} {unit}"
+                ))
+            }
+            RunEvent::Progress(
+                Progress::Eval {
+                    step,
+                    metric,
+                    best,
+                    val_mse,
+                },
+                word,
+            ) => Some(match val_mse {
+                Some(mse) => {
+                    format!("{word} {step}: val mse {mse:.5}, held-out metric {metric:.4}")
+                }
+                None => format!(
+                    "{word} {step}: held-out train-task metric {metric:.4} (best {best:.4})"
+                ),
+            }),
+            RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
+                "early stop at {word} {s}: the held-out selection metric stopped improving"
+            )),
+            RunEvent::Progress(Progress::Steps(_) | Progress::Checkpoint(_), _) => None,
+        }
+    }
+}
+
+/// The algorithm a request runs: the recorded one for a resume (a different `req.algo` is
+/// refused), else `req.algo` or SMILe.
+pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
+    if !req.resume {
+        return Ok(req.algo.unwrap_or(Algo::Smile));
+    }
+    let algo = RunInfo::read(&req.out)?.algo(&req.out)?;
+    if let Some(given) = req.algo.filter(|g| *g != algo) {
+        return Err(Error::Usage(format!(
+            "{} is a {} run; --algo {} does not match (drop --algo to resume it)",
+            req.out.display(),
+            algo.name(),
+            given.name()
+        )));
+    }
+    Ok(algo)
+}
+
+/// Reads a demo file of any family; errors name `flag` and the path.
+pub fn read_demos(path: &Path, flag: &str) -> Result<DemoDataset> {
+    DemoDataset::read(path).map_err(|e| match e {
+        // Its message names the path already.
+        sim::DatasetError::Io { source, .. } => {
+            Error::Usage(format!("{flag} {}: {source}", path.display()))
+        }
+        e => Error::Usage(format!("{flag} {}: {e}", path.display())),
+    })
+}
+
+/// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a
+/// mismatch names the file, the flag and the `--env` that fits it.
+pub fn read_demos_of(path: &Path, flag: &str, family: Family) -> Result<DemoDataset> {
+    let demos = read_demos(path, flag)?;
+    if demos.family != family {
+        return Err(Error::Usage(format!(
+            "{flag} {} holds {} demos but --env is {family}; pass --env {} or a file of {family} \
+             demos",
+            path.display(),
+            demos.family,
+            demos.family
+        )));
+    }
+    demos
+        .ensure_family(family)
+        .map_err(|e| Error::Usage(format!("{flag} {}: {e}", path.display())))?;
+    Ok(demos)
+}
+
+/// Starts or resumes the run `req` describes and trains it to its budget or stopping rule.
+pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
+    let (family, ds) = match req.family {
+        Some(family) => (family, read_demos_of(&req.demos, "--demos", family)?),
+        None => {
+            let ds = read_demos(&req.demos, "--demos")?;
+            (ds.family, ds)
+        }
+    };
+    let demos_sha = checkpoint::sha256_file(&req.demos)?;
+    let algo = algo_of(req)?;
+    let mut expert = req.expert.clone();
+    if req.resume {
+        let rec = RunInfo::read(&req.out)?;
+        match &rec.demos_sha256 {
+            Some(sha) if *sha != demos_sha => {
+                return Err(Error::Usage(format!(
+                    "--demos {} is not the file {} was trained on (SHA-256 {} here, {} recorded \
+                     in {RUN_FILE}); resume with the run's own demos, or start a new run on these",
+                    req.demos.display(),
+                    req.out.display(),
+                    &demos_sha[..12],
+                    &sha[..sha.len().min(12)]
+                )));
+            }
+            Some(_) => {}
+            None => on(RunEvent::Note(format!(
+                "warning: {} records no demo checksum (a run older than that check); make sure \
+                 --demos is the file it started on",
+                req.out.join(RUN_FILE).display()
+            ))),
+        }
+        if expert.is_none() {
+            expert = rec.expert_path();
+        }
+    } else {
+        checkpoint::ensure_fresh_run_dir(&req.out)?;
+    }
+    let run = Run {
+        req,
+        algo,
+        family,
+        ds: &ds,
+        demos_sha,
+        expert,
+    };
+    match algo {
+        Algo::Smile | Algo::SmileStateOnly => run.train::<Smile>(on),
+        Algo::MetaBc | Algo::MetaDagger => run.train::<MetaBc>(on),
+    }
+}
+
+/// A request with its inputs read.
+struct Run<'a> {
+    req: &'a TrainRequest,
+    algo: Algo,
+    family: Family,
+    ds: &'a DemoDataset,
+    demos_sha: String,
+    expert: Option<PathBuf>,
+}
+
+impl Run<'_> {
+    /// The configuration: the caller's keys over the run's saved `config.toml` when resuming
+    /// (else over the configuration file), over the algorithm's defaults; the plant from
+    /// `physics`, else the file's, else the demos'.
+    fn config<L: MetaLearner>(&self) -> Result<L::Config> {
+        let req = self.req;
+        let file = if req.resume {
+            Some(req.out.join("config.toml"))
+        } else {
+            req.config_file.clone()
+        };
+        let text = match &file {
+            Some(p) => std::fs::read_to_string(p).map_err(|e| Error::Io {
+                path: p.clone(),
+                source: e,
+            })?,
+            None => String::new(),
+        };
+        let what = match (&file, req.resume) {
+            (Some(p), true) => format!(
+                "parsing {} (its {RUN_FILE} names the algorithm whose config this must be)",
+                p.display()
+            ),
+            (Some(p), false) => format!("parsing {}", p.display()),
+            (None, _) => "reading the flags".into(),
+        };
+        let mut set = req.set.clone();
+        // A new run on MuJoCo demos runs on MuJoCo without being told twice.
+        let in_file = text
+            .parse::<toml::Table>()
+            .is_ok_and(|t| t.contains_key("physics"));
+        if let Some(p) = req.physics.or((!in_file).then_some(self.ds.physics)) {
+            set.insert("physics".into(), p.name().into());
+        }
+        let mut cfg: L::Config = crate::io::from_toml_with_flags(&text, set)
+            .map_err(|e| Error::Config(format!("{what}: {e}")))?;
+        L::configure(&mut cfg, self.algo, self.family);
+        Ok(cfg)
+    }
+
+    /// Meta-DAgger's relabelling expert (and its recorded name); none for the others.
+    fn relabelling_expert(&self, on: &mut dyn FnMut(RunEvent)) -> Result<Option<ExpertSet>> {
+        let (algo, family) = (self.algo, self.family);
+        if !algo.needs_expert() {
+            if let Some(p) = &self.expert {
+                return Err(Error::Usage(format!(
+                    "--expert {} is Meta-DAgger's relabelling expert; {algo} learns from the \
+                     demos alone (drop --expert, or train --algo meta-dagger)",
+                    p.display()
+                )));
+            }
+            return Ok(None);
+        }
+        let scripted = self.expert.as_deref() == Some(Path::new(SCRIPTED_PD));
+        match &self.expert {
+            Some(p) if !scripted => {
+                on(RunEvent::Note(format!(
+                    "{algo}: relabelling with the expert {}",
+                    p.display()
+                )));
+                let set = ExpertSet::load(&[p])
+                    .map_err(|e| Error::Usage(format!("loading expert {}: {e}", p.display())))?;
+                Ok(Some(set))
+            }
+            _ if family == Family::PointGoal => {
+                on(RunEvent::Note(format!(
+                    "{algo}: relabelling with the scripted point-goal PD expert"
+                )));
+                let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+                Ok(Some(pd.into()))
+            }
+            _ => Err(Error::Usage(format!(
+                "{algo} on {family} needs --expert (a `smile expert` run)"
+            ))),
+        }
+    }
+
+    /// The name the run records for its expert.
+    fn expert_record(&self) -> Option<PathBuf> {
+        if !self.algo.needs_expert() {
+            return None;
+        }
+        Some(
+            self.expert
+                .clone()
+                .unwrap_or_else(|| PathBuf::from(SCRIPTED_PD)),
+        )
+    }
+
+    /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
+    /// nothing behind) and records the run. The returned lock is held for the whole
+    /// training: a second writer is refused.
+    fn start_dir(&self, physics: Physics) -> Result<crate::io::DirLock> {
+        let out = &self.req.out;
+        let lock = crate::io::DirLock::acquire(out)?;
+        let expert = self.expert_record();
+        let info = RunInfo {
+            algo: self.algo.name().into(),
+            expert: expert.as_ref().map(|p| p.to_string_lossy().into_owned()),
+            expert_os: expert
+                .as_ref()
+                .filter(|p| p.to_str().is_none())
+                .map(|p| p.as_os_str().to_owned()),
+            demos_sha256: Some(self.demos_sha.clone()),
+            physics,
+        };
+        let json = serde_json::to_string_pretty(&info).map_err(|e| Error::Serialise {
+            what: "run.json",
+            reason: e.to_string(),
+        })?;
+        checkpoint::write_atomic(&out.join(RUN_FILE), json.as_bytes())?;
+        Ok(lock)
+    }
+
+    fn train<L: MetaLearner>(&self, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
+        let req = self.req;
+        let cfg = self.config::<L>()?;
+        let expert = self.relabelling_expert(on)?;
+        let data = MetaData::from_dataset(self.ds, self.family, L::holdout_every(&cfg))
+            .map_err(|e| Error::Usage(format!("--demos {}: {e}", req.demos.display())))?;
+        let (train_tasks, held_out) = (data.train.len(), data.val.len());
+        let mut run = if req.resume {
+            let run = L::resume_from(&req.out, data, expert, &cfg)?;
+            check_resume(&req.out, &cfg, run.settings(), L::RESUMABLE)?;
+            run
+        } else {
+            L::start(cfg, data, expert)?
+        };
+        let cfg = run.settings().clone();
+        let _lock = self.start_dir(self.ds.physics)?;
+        let text = toml::to_string(&cfg).map_err(|e| Error::Serialise {
+            what: "config.toml",
+            reason: e.to_string(),
+        })?;
+        checkpoint::write_atomic(&req.out.join("config.toml"), text.as_bytes())?;
+        on(RunEvent::Started {
+            algo: self.algo,
+            train_tasks,
+            held_out,
+            total: run.total(),
+            done: run.done(),
+            unit: L::STEP_NAME,
+            word: L::STEP_WORD,
+            resumed: req.resume,
+        });
+        run.run(&req.out, &mut |p| on(RunEvent::Progress(p, L::STEP_WORD)))
+    }
+}
+
+/// On a resume: the configuration asked for must agree with the one the run continues (its
+/// checkpoint's), and so must its `config.toml` (a reader trusts that file to describe the
+/// run), except the `changeable` (budget) keys.
+fn check_resume<T: Serialize>(
+    out: &Path,
+    given: &T,
+    running: &T,
+    changeable: &[&str],
+) -> Result<()> {
+    let table = |c: &T| -> Result<toml::Table> {
+        toml::Table::try_from(c).map_err(|e| Error::Serialise {
+            what: "the configuration",
+            reason: e.to_string(),
+        })
+    };
+    let (mut g, mut r) = (table(given)?, table(running)?);
+    for key in changeable {
+        g.remove(*key);
+        r.remove(*key);
+    }
+    for (key, theirs) in &r {
+        let ours = g.get(key);
+        if ours != Some(theirs) {
+            let flag = match key.as_str() {
+                "seed" => "--seed",
+                "learner_threads" => "--learner-threads",
+                "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
+                "gp_weight" => "--gp-weight",
+                "bc_weight" => "--bc-weight",
+                "eval_every" => "--eval-every",
+                _ => "config.toml",
+            };
+            return Err(Error::Usage(format!(
+                "--resume continues {} with the configuration it started with, but {flag} \
+                 changes `{key}` ({} -> {}); drop the flag (or restore {}), or start a new run \
+                 to change it. Only --updates (and SMILe's --cpu-budget) may change on --resume",
+                out.display(),
+                theirs,
+                ours.map_or("missing".into(), ToString::to_string),
+                out.join("config.toml").display()
+            )));
+        }
+    }
+    Ok(())
+}
