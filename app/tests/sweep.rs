@@ -223,6 +223,24 @@ fn a_killed_local_sweep_resumes_to_the_same_results() {
             .status();
     }
     let _ = child.wait();
+    // SIGKILL lands asynchronously: a cell process still running (on a busy machine) holds its
+    // cell's lock, and the new runner would rightly leave that cell to it. Wait until every
+    // killed process is gone or a zombie (its files, the lock among them, closed).
+    for pid in &tree {
+        let t0 = Instant::now();
+        while std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|st| {
+            st[st.rfind(')').map_or(0, |i| i + 1)..]
+                .split_whitespace()
+                .next()
+                != Some("Z")
+        }) {
+            assert!(
+                t0.elapsed() < Duration::from_secs(30),
+                "pid {pid} survived kill -9"
+            );
+            std::thread::sleep(Duration::from_millis(10));
+        }
+    }
     assert!(
         !b.join("smile-s0/eval/eval.json").exists(),
         "killed too late: the cell had finished"

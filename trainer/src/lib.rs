@@ -44,7 +44,7 @@ pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type and `train`; the
 // meta-learners' common interface is `MetaLearner`.
-pub use algo::{Algo, MetaLearner, Progress, expert, meta_bc, sac, smile};
+pub use algo::{Algo, MetaLearner, Progress, WithLearner, expert, meta_bc, sac, smile};
 
 /// Errors and the result alias.
 pub use error::{Error, Result};

@@ -15,8 +15,7 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::{Expert, ExpertSet};
-use crate::algo::meta_bc::MetaBc;
-use crate::algo::smile::Smile;
+use crate::algo::learner::WithLearner;
 use crate::algo::{Algo, MetaLearner, Progress};
 use crate::data::MetaData;
 use crate::error::{Error, Result};
@@ -309,10 +308,14 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         demos_sha,
         expert,
     };
-    match algo {
-        Algo::Smile | Algo::SmileStateOnly => run.train::<Smile>(on),
-        Algo::MetaBc | Algo::MetaDagger => run.train::<MetaBc>(on),
+    struct Train<'r, 'o>(&'r Run<'r>, &'o mut dyn FnMut(RunEvent));
+    impl WithLearner for Train<'_, '_> {
+        type Output = Result<()>;
+        fn call<L: MetaLearner>(self, _: Algo) -> Result<()> {
+            self.0.train::<L>(self.1)
+        }
     }
+    algo.with_learner(Train(&run, on))
 }
 
 /// A request with its inputs read.

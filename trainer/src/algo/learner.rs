@@ -13,6 +13,8 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use sim::Family;
 
+pub use crate::algo::fit::Progress;
+
 use crate::algo::expert::ExpertSet;
 use crate::algo::meta_bc::{MetaBc, MetaBcConfig};
 use crate::algo::smile::{Smile, SmileConfig};
@@ -33,54 +35,83 @@ pub enum Algo {
     MetaDagger,
 }
 
+/// The registry: per algorithm its name, whether it needs an expert, and (in
+/// [`Algo::with_learner`]) the learner type that runs it. Adding an algorithm is a variant, a
+/// line here and an arm there; the compiler lists nothing else to change.
+const REGISTRY: [(Algo, &str, bool); 4] = [
+    // (algorithm, name on the command line and in plans, queries an expert while training)
+    (Algo::Smile, "smile", false),
+    (Algo::SmileStateOnly, "smile-state-only", false),
+    (Algo::MetaBc, "meta-bc", false),
+    (Algo::MetaDagger, "meta-dagger", true),
+];
+
+/// A computation generic over the learner type, run for an [`Algo`] by
+/// [`Algo::with_learner`]: how code that serves every algorithm (a run directory, a plan
+/// check) reaches the algorithm's [`MetaLearner`] without naming it.
+pub trait WithLearner {
+    /// What it returns.
+    type Output;
+    /// Runs it with `L`, the learner of `algo`.
+    fn call<L: MetaLearner>(self, algo: Algo) -> Self::Output;
+}
+
 impl Algo {
     /// Every algorithm, in the order help texts list them.
-    pub const ALL: [Algo; 4] = [
-        Algo::Smile,
-        Algo::SmileStateOnly,
-        Algo::MetaBc,
-        Algo::MetaDagger,
-    ];
+    pub const ALL: [Algo; 4] = [REGISTRY[0].0, REGISTRY[1].0, REGISTRY[2].0, REGISTRY[3].0];
+
+    fn entry(self) -> &'static (Algo, &'static str, bool) {
+        REGISTRY
+            .iter()
+            .find(|e| e.0 == self)
+            .expect("every algorithm has its registry line")
+    }
 
     /// The name on the command line and in plans and run directories.
     pub fn name(self) -> &'static str {
-        match self {
-            Algo::Smile => "smile",
-            Algo::SmileStateOnly => "smile-state-only",
-            Algo::MetaBc => "meta-bc",
-            Algo::MetaDagger => "meta-dagger",
-        }
+        self.entry().1
     }
 
     /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
     pub fn needs_expert(self) -> bool {
+        self.entry().2
+    }
+
+    /// Runs `f` with the learner type of this algorithm: the one place mapping an algorithm
+    /// to the type that trains it.
+    pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
         match self {
-            Algo::MetaDagger => true,
-            Algo::Smile | Algo::SmileStateOnly | Algo::MetaBc => false,
+            Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
+            Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
         }
     }
 
     /// The config key holding this algorithm's training budget ([`MetaLearner::TOTAL_KEY`]).
     pub fn budget_key(self) -> &'static str {
-        match self {
-            Algo::Smile | Algo::SmileStateOnly => Smile::TOTAL_KEY,
-            Algo::MetaBc | Algo::MetaDagger => MetaBc::TOTAL_KEY,
+        struct Key;
+        impl WithLearner for Key {
+            type Output = &'static str;
+            fn call<L: MetaLearner>(self, _: Algo) -> &'static str {
+                L::TOTAL_KEY
+            }
         }
+        self.with_learner(Key)
     }
 
     /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
     /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.
     pub fn check_config(self, text: &str, family: Family) -> Result<()> {
-        fn check<L: MetaLearner>(text: &str, algo: Algo, family: Family) -> Result<()> {
-            let mut cfg = L::read_config(text)?;
-            L::configure(&mut cfg, algo, family);
-            L::validate(&cfg)
+        struct Check<'a>(&'a str, Family);
+        impl WithLearner for Check<'_> {
+            type Output = Result<()>;
+            fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
+                let mut cfg = L::read_config(self.0)?;
+                L::configure(&mut cfg, algo, self.1);
+                L::validate(&cfg)
+            }
         }
-        match self {
-            Algo::Smile | Algo::SmileStateOnly => check::<Smile>(text, self, family),
-            Algo::MetaBc | Algo::MetaDagger => check::<MetaBc>(text, self, family),
-        }
+        self.with_learner(Check(text, family))
     }
 }
 
@@ -105,28 +136,6 @@ impl FromStr for Algo {
                 ))
             })
     }
-}
-
-/// What a learner reports while it trains.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Progress {
-    /// Updates done so far: SMILe's update pairs, Meta-BC's gradient steps.
-    Steps(u64),
-    /// An evaluation on the held-out train tasks.
-    Eval {
-        /// Updates done.
-        step: u64,
-        /// The family's metric now.
-        metric: f32,
-        /// The metric of the policy kept so far.
-        best: f32,
-        /// Meta-BC: the action MSE on the held-out tasks' demos.
-        val_mse: Option<f32>,
-    },
-    /// A checkpoint was written at this step.
-    Checkpoint(u64),
-    /// The learner's stopping rule ended training at this step (Meta-BC's patience).
-    Stopped(u64),
 }
 
 /// A meta-learner: built from its configuration and the meta-train demos, or resumed from a

@@ -6,11 +6,14 @@
 //! * [`meta_bc`]: the baselines Meta-BC and Meta-DAgger.
 //! * [`learner`]: [`Algo`] and [`MetaLearner`], the one interface SMILe and Meta-BC implement
 //!   and `smile train`, the quickstart and the sweep drive.
+//! * `fit`: the one fit loop they train through (metrics, evaluation and keeping the best,
+//!   checkpoints, stopping, the final policies), each learner its `Fit` hooks.
 
 pub mod expert;
+mod fit;
 pub mod learner;
 pub mod meta_bc;
 pub mod sac;
 pub mod smile;
 
-pub use learner::{Algo, MetaLearner, Progress};
+pub use learner::{Algo, MetaLearner, Progress, WithLearner};
