@@ -13,6 +13,7 @@ pub mod expert;
 mod fit;
 pub mod learner;
 pub mod meta_bc;
+mod registry;
 pub mod sac;
 pub mod smile;
 

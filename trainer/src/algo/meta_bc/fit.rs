@@ -1,0 +1,196 @@
+//! Meta-BC / Meta-DAgger in the shared fit loop (its [`Fit`] hooks: the step and DAgger's
+//! rollouts, the evaluation and patience rule) and its [`MetaLearner`] impl.
+
+use std::path::Path;
+
+use sim::Family;
+
+use super::{MetaBc, MetaBcConfig, Selection};
+use crate::algo::expert::ExpertSet;
+use crate::algo::fit::{Evaluation, Fields, Fit, Progress, fit};
+use crate::algo::learner::{Algo, MetaLearner};
+use crate::data::{MetaData, better, quick_eval};
+use crate::error::Result;
+use crate::io::MetricsLog;
+use crate::model::{MetaPolicy, TrainingMark};
+
+/// Trains until `total_steps` or the stopping rule through the shared fit loop ([`fit`]);
+/// logs `losses/bc_mse`, `eval/val_mse`, `eval/val_metric`; keeps the best weights by
+/// `select_by` (lowest validation MSE, or best held-out rollout metric) in
+/// `dir/meta_policy.safetensors` and the final ones in `dir/last/`.
+pub fn train(run: &mut MetaBc, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+    let (t0, s0) = (std::time::Instant::now(), run.steps);
+    fit(&mut MetaBcFit { run, t0, s0 }, dir, on)
+}
+
+/// A Meta-BC / Meta-DAgger run inside the fit loop, with this process's clock.
+struct MetaBcFit<'a> {
+    run: &'a mut MetaBc,
+    t0: std::time::Instant,
+    s0: u64,
+}
+
+impl MetaBcFit<'_> {
+    fn at_end(&self) -> bool {
+        self.run.steps >= self.run.cfg.total_steps
+    }
+}
+
+impl Fit for MetaBcFit<'_> {
+    fn done(&self) -> u64 {
+        self.run.steps
+    }
+
+    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
+        Ok(())
+    }
+
+    fn finished(&self) -> bool {
+        self.at_end() || self.run.stopped
+    }
+
+    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
+        let run = &mut *self.run;
+        let cfg = &run.cfg;
+        if cfg.dagger && run.steps.is_multiple_of(cfg.dagger_every.max(1)) {
+            run.dagger_rollouts(cfg.dagger_rollouts)?;
+        }
+        let mse = run.step()?;
+        on(Progress::Steps(run.steps));
+        if !run.steps.is_multiple_of(50) {
+            return Ok(Vec::new());
+        }
+        let sps = (run.steps - self.s0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9);
+        Ok(vec![
+            ("losses/bc_mse", mse as f64),
+            ("charts/sps", sps),
+            ("charts/dataset_size", run.dataset_size() as f64),
+        ])
+    }
+
+    fn eval_due(&mut self) -> bool {
+        let every = self.run.cfg.eval_every;
+        every > 0 && (self.run.steps.is_multiple_of(every) || self.at_end())
+    }
+
+    fn evaluate(&mut self) -> Result<Option<Evaluation>> {
+        let at_end = self.at_end();
+        let run = &mut *self.run;
+        let cfg = &run.cfg;
+        let val_mse = run.val_mse()?;
+        let val_metric = quick_eval(
+            &run.meta_policy(),
+            &run.data.val,
+            cfg.eval_contexts,
+            cfg.eval_context_size,
+            cfg.eval_episodes,
+            cfg.env_config(),
+        )?;
+        let improved = match cfg.select_by {
+            Selection::Mse => val_mse < run.best_mse,
+            Selection::Rollouts => {
+                better(run.data.family.metric_kind(), val_metric, run.best_metric)
+            }
+        };
+        // Without held-out tasks the last policy is the one kept.
+        let keep = improved || (run.data.val.is_empty() && at_end);
+        let mut stopped = false;
+        if keep {
+            (run.best_mse, run.best_metric) = (val_mse, val_metric);
+            run.bad_evals = 0;
+        } else {
+            run.bad_evals += 1;
+            if cfg.patience > 0 && run.bad_evals >= cfg.patience {
+                run.stopped = true;
+                stopped = true;
+            }
+        }
+        Ok(Some(Evaluation {
+            keep,
+            fields: vec![
+                ("eval/val_mse", val_mse as f64),
+                ("eval/val_metric", val_metric as f64),
+                ("eval/val_best_mse", run.best_mse as f64),
+                ("eval/val_best_metric", run.best_metric as f64),
+            ],
+            progress: Progress::Eval {
+                step: run.steps,
+                metric: val_metric,
+                best: run.best_metric,
+                val_mse: Some(val_mse),
+            },
+            stopped,
+        }))
+    }
+
+    fn checkpoint_due(&mut self) -> bool {
+        let every = self.run.cfg.checkpoint_every.max(1);
+        self.run.steps.is_multiple_of(every) || self.at_end() || self.run.stopped
+    }
+
+    fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        self.run.save_checkpoint(dir)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.run.meta_policy()
+    }
+
+    fn mark(&self, finished: bool) -> TrainingMark {
+        self.run.mark(finished)
+    }
+}
+
+impl MetaLearner for MetaBc {
+    type Config = MetaBcConfig;
+    const TOTAL_KEY: &'static str = "total_steps";
+    const STEP_NAME: &'static str = "steps";
+    const STEP_WORD: &'static str = "step";
+    const RESUMABLE: &'static [&'static str] = &["total_steps"];
+
+    fn configure(cfg: &mut MetaBcConfig, algo: Algo, family: Family) {
+        cfg.env = family;
+        cfg.dagger = algo == Algo::MetaDagger;
+    }
+
+    fn validate(cfg: &MetaBcConfig) -> Result<()> {
+        cfg.validate()
+    }
+
+    fn holdout_every(cfg: &MetaBcConfig) -> usize {
+        cfg.holdout_every
+    }
+
+    fn start(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
+        MetaBc::new(cfg, data, expert)
+    }
+
+    fn resume_from(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<ExpertSet>,
+        wanted: &MetaBcConfig,
+    ) -> Result<Self> {
+        MetaBc::resume(dir, data, expert, Some(wanted.total_steps))
+    }
+
+    fn settings(&self) -> &MetaBcConfig {
+        self.config()
+    }
+
+    fn total(&self) -> u64 {
+        self.config().total_steps
+    }
+
+    fn done(&self) -> u64 {
+        self.steps()
+    }
+
+    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+        crate::algo::meta_bc::train(self, dir, on)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.meta_policy()
+    }
+}

@@ -1,0 +1,86 @@
+//! The registry's other half: which learner type runs each [`Algo`], and what is asked of
+//! an algorithm through it. The only module that names every learner.
+
+use sim::Family;
+
+use crate::algo::learner::{Algo, MetaLearner, WithLearner};
+use crate::algo::meta_bc::MetaBc;
+use crate::algo::smile::Smile;
+use crate::error::Result;
+
+impl Algo {
+    /// Runs `f` with the learner type of this algorithm: the one place mapping an algorithm
+    /// to the type that trains it.
+    pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
+        match self {
+            Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
+            Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
+        }
+    }
+
+    /// The config key holding this algorithm's training budget ([`MetaLearner::TOTAL_KEY`]).
+    pub fn budget_key(self) -> &'static str {
+        struct Key;
+        impl WithLearner for Key {
+            type Output = &'static str;
+            fn call<L: MetaLearner>(self, _: Algo) -> &'static str {
+                L::TOTAL_KEY
+            }
+        }
+        self.with_learner(Key)
+    }
+
+    /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
+    /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
+    /// validates it: what a sweep plan checks before it runs anything.
+    pub fn check_config(self, text: &str, family: Family) -> Result<()> {
+        struct Check<'a>(&'a str, Family);
+        impl WithLearner for Check<'_> {
+            type Output = Result<()>;
+            fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
+                let mut cfg = L::read_config(self.0)?;
+                L::configure(&mut cfg, algo, self.1);
+                L::validate(&cfg)
+            }
+        }
+        self.with_learner(Check(text, family))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::algo::learner::Algo;
+
+    #[test]
+    fn names_round_trip_and_unknown_ones_list_the_choices() {
+        for a in Algo::ALL {
+            assert_eq!(a.name().parse::<Algo>().unwrap(), a);
+            assert_eq!(a.to_string(), a.name());
+        }
+        let e = "smiles".parse::<Algo>().unwrap_err().to_string();
+        assert!(
+            e.contains("smile-state-only") && e.contains("meta-dagger"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn configs_are_checked_against_their_algorithm() {
+        let pg = Family::PointGoal;
+        Algo::Smile.check_config("gp_weight = 10.0", pg).unwrap();
+        // A SMILe key is unknown to Meta-BC, and an invalid value is refused by its own type.
+        assert!(Algo::MetaBc.check_config("gp_weight = 10.0", pg).is_err());
+        assert!(Algo::Smile.check_config("gp_weight = -1.0", pg).is_err());
+        Algo::MetaDagger
+            .check_config("total_steps = 10", pg)
+            .unwrap();
+        // What the algorithm sets is checked too: state-only SMILe has no actions to clone.
+        Algo::Smile.check_config("bc_weight = 1.0", pg).unwrap();
+        assert!(
+            Algo::SmileStateOnly
+                .check_config("bc_weight = 1.0", pg)
+                .is_err()
+        );
+    }
+}

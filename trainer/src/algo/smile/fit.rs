@@ -1,0 +1,261 @@
+//! SMILe in the shared fit loop (its [`Fit`] hooks: the iteration, the compute budget, the
+//! held-out evaluation schedule) and its [`MetaLearner`] impl.
+
+use std::path::Path;
+
+use sim::Family;
+
+use super::{Smile, SmileConfig};
+use crate::algo::expert::ExpertSet;
+use crate::algo::fit::{Evaluation, Fields, Fit, Progress, fit};
+use crate::algo::learner::{Algo, MetaLearner};
+use crate::data::{MetaData, better};
+use crate::error::{Error, Result};
+use crate::io::MetricsLog;
+use crate::model::{DiscStats, MetaPolicy, TrainingMark};
+
+/// Trains until `total_updates` (or the `cpu_budget_s` compute budget) through the shared fit
+/// loop ([`fit`]): metrics in `dir/metrics.jsonl`, an evaluation on held-out train tasks every
+/// `eval_every` updates (the best policy so far in `dir/meta_policy.safetensors`; the final
+/// one in `dir/last/`), a checkpoint every `checkpoint_every` updates and at the end.
+pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+    fit(&mut SmileFit::new(run)?, dir, on)
+}
+
+/// A SMILe run inside the fit loop, with the loop's clocks and schedule.
+struct SmileFit<'a> {
+    run: &'a mut Smile,
+    /// CPU-seconds of the run's earlier processes, and this process's at the start.
+    cpu_before: f64,
+    cpu0: Option<f64>,
+    /// Wall clock and update count when this process started training.
+    t0: std::time::Instant,
+    u0: u64,
+    next_ckpt: u64,
+    next_eval: u64,
+    done: bool,
+}
+
+impl<'a> SmileFit<'a> {
+    fn new(run: &'a mut Smile) -> Result<Self> {
+        // The compute budget (`cpu_budget_s`) counts the run's CPU time: what its earlier
+        // processes used (from the checkpoint) plus this process's from here, warm start and
+        // first evaluation included.
+        let (cpu_before, cpu0) = (run.cpu_s, crate::threads::process_cpu_seconds());
+        if run.cfg.cpu_budget_s > 0.0 && cpu0.is_none() {
+            return Err(Error::Config(
+                "cpu_budget_s is set, but this platform does not report the process's CPU time"
+                    .into(),
+            ));
+        }
+        let (u0, done) = (run.updates, run.updates >= run.cfg.total_updates);
+        Ok(Self {
+            run,
+            cpu_before,
+            cpu0,
+            t0: std::time::Instant::now(),
+            u0,
+            next_ckpt: 0,
+            next_eval: 0,
+            done,
+        })
+    }
+}
+
+impl Fit for SmileFit<'_> {
+    fn done(&self) -> u64 {
+        self.run.updates
+    }
+
+    fn begin(&mut self, log: &mut MetricsLog) -> Result<()> {
+        let run = &mut *self.run;
+        if run.updates == 0 && run.replay.total_len() == 0 {
+            run.warm_start()?;
+        }
+        let cfg = &run.cfg;
+        (self.t0, self.u0) = (std::time::Instant::now(), run.updates);
+        let every = cfg.checkpoint_every.max(1);
+        self.next_ckpt = (run.updates / every + 1) * every;
+        self.next_eval = run
+            .updates
+            .checked_div(cfg.eval_every)
+            .map_or(u64::MAX, |k| (k + 1) * cfg.eval_every);
+        if !run.data.val.is_empty() && run.updates == 0 {
+            // The untrained policy as the first point of the validation curve.
+            let m = run.validate()?;
+            log.log(0, &[("eval/val_metric", m as f64)])?;
+        }
+        Ok(())
+    }
+
+    fn finished(&self) -> bool {
+        self.done
+    }
+
+    // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
+    // times between the discriminator (+ encoder) and the policy.
+    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
+        let run = &mut *self.run;
+        let report = run.iteration(&mut |u| on(Progress::Steps(u)))?;
+        let (ds, ss, rm) = match report.last {
+            Some((d, s, r)) => (d, Some(s), r),
+            None => (DiscStats::default(), None, 0.0),
+        };
+        let ups = (run.updates - self.u0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9);
+        let cpu_s = self.cpu_before
+            + crate::threads::process_cpu_seconds()
+                .zip(self.cpu0)
+                .map_or(0.0, |(now, start)| now - start);
+        run.cpu_s = cpu_s;
+        let cfg = &run.cfg;
+        self.done = run.updates >= cfg.total_updates
+            || (cfg.cpu_budget_s > 0.0 && cpu_s >= cfg.cpu_budget_s);
+        let mut fields = vec![
+            ("losses/disc_bce", ds.bce as f64),
+            ("losses/disc_gp", ds.gp as f64),
+            ("charts/disc_acc_expert", ds.acc_expert as f64),
+            ("charts/disc_acc_policy", ds.acc_policy as f64),
+            ("charts/reward_mean", rm as f64),
+            ("charts/sps", ups),
+            ("charts/env_steps", run.env_steps as f64),
+            ("charts/cpu_s", cpu_s),
+        ];
+        if let Some(s) = &ss {
+            fields.extend(s.fields());
+        }
+        if cfg.bc_weight > 0.0 {
+            // The weight of the pair just done.
+            let w = cfg.bc_weight_at(run.updates.saturating_sub(1));
+            fields.push(("charts/bc_weight", w as f64));
+        }
+        Ok(fields)
+    }
+
+    fn eval_due(&mut self) -> bool {
+        let (updates, every) = (self.run.updates, self.run.cfg.eval_every);
+        let due = updates >= self.next_eval || (self.done && every > 0);
+        if due {
+            self.next_eval = (updates / every + 1) * every;
+        }
+        due
+    }
+
+    fn evaluate(&mut self) -> Result<Option<Evaluation>> {
+        let run = &mut *self.run;
+        if run.data.val.is_empty() {
+            return Ok(None);
+        }
+        let m = run.validate()?;
+        let keep = better(run.data.family.metric_kind(), m, run.best);
+        if keep {
+            run.best = m;
+        }
+        Ok(Some(Evaluation {
+            keep,
+            fields: vec![
+                ("eval/val_metric", m as f64),
+                ("eval/val_best", run.best as f64),
+            ],
+            progress: Progress::Eval {
+                step: run.updates,
+                metric: m,
+                best: run.best,
+                val_mse: None,
+            },
+            stopped: false,
+        }))
+    }
+
+    fn checkpoint_due(&mut self) -> bool {
+        let every = self.run.cfg.checkpoint_every.max(1);
+        let due = self.run.updates >= self.next_ckpt || self.done;
+        if due {
+            self.next_ckpt = (self.run.updates / every + 1) * every;
+        }
+        due
+    }
+
+    fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        self.run.save_checkpoint(dir)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.run.meta_policy()
+    }
+
+    fn mark(&self, finished: bool) -> TrainingMark {
+        self.run.mark(finished)
+    }
+
+    fn final_replaces_kept(&self) -> bool {
+        self.run.data.val.is_empty()
+    }
+}
+
+impl MetaLearner for Smile {
+    type Config = SmileConfig;
+    const TOTAL_KEY: &'static str = "total_updates";
+    const STEP_NAME: &'static str = "update pairs";
+    const STEP_WORD: &'static str = "update";
+    const RESUMABLE: &'static [&'static str] = &["total_updates", "cpu_budget_s"];
+
+    fn configure(cfg: &mut SmileConfig, algo: Algo, family: Family) {
+        cfg.env = family;
+        cfg.context.state_only = algo == Algo::SmileStateOnly;
+    }
+
+    fn validate(cfg: &SmileConfig) -> Result<()> {
+        cfg.validate()
+    }
+
+    fn holdout_every(cfg: &SmileConfig) -> usize {
+        cfg.holdout_every
+    }
+
+    fn start(cfg: SmileConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
+        refuse_expert(cfg.algo_name(), expert.is_some())?;
+        Smile::new(cfg, data)
+    }
+
+    fn resume_from(
+        dir: &Path,
+        data: MetaData,
+        expert: Option<ExpertSet>,
+        wanted: &SmileConfig,
+    ) -> Result<Self> {
+        refuse_expert("smile", expert.is_some())?;
+        let mut run = Smile::resume(dir, data, Some(wanted.total_updates))?;
+        run.set_cpu_budget(wanted.cpu_budget_s)?;
+        Ok(run)
+    }
+
+    fn settings(&self) -> &SmileConfig {
+        self.config()
+    }
+
+    fn total(&self) -> u64 {
+        self.config().total_updates
+    }
+
+    fn done(&self) -> u64 {
+        self.updates()
+    }
+
+    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+        crate::algo::smile::train(self, dir, on)
+    }
+
+    fn policy(&self) -> MetaPolicy {
+        self.meta_policy()
+    }
+}
+
+/// Refuses an expert given to an algorithm that learns from the demos alone.
+fn refuse_expert(algo: &str, given: bool) -> Result<()> {
+    if given {
+        return Err(Error::Config(format!(
+            "{algo} learns from the demos alone and takes no expert (Meta-DAgger does)"
+        )));
+    }
+    Ok(())
+}
