@@ -283,87 +283,118 @@ impl DiscBenchShape {
     }
 }
 
+/// The networks, optimisers and fixed random batch of one discriminator + encoder update at a
+/// [`DiscBenchShape`]: what `smile bench --workload disc` and the criterion benchmark time.
+pub struct DiscFixture {
+    encoder: ContextEncoder,
+    disc: Discriminator,
+    disc_opt: Adam,
+    enc_opt: Adam,
+    batch: DiscBatch,
+    rng: ChaCha8Rng,
+    gp_weight: f32,
+}
+
+impl DiscFixture {
+    /// The fixture of `shape`, every weight and row drawn from `seed`.
+    pub fn new(shape: &DiscBenchShape, seed: u64) -> Result<Self> {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let (od, ad) = (shape.obs_dim, shape.act_dim);
+        let cfg = ContextConfig {
+            enc_hidden: shape.enc_hidden.clone(),
+            r_dim: shape.r_dim,
+            z_dim: shape.z_dim,
+            head_hidden: vec![],
+            stochastic_z: false,
+            ..ContextConfig::default()
+        };
+        let encoder = ContextEncoder::new(od, ad, cfg, &mut rng)?;
+        let disc = Discriminator::new(
+            od,
+            ad,
+            shape.z_dim,
+            &shape.hidden,
+            DiscInput::StateAction,
+            10.0,
+            &mut rng,
+        )?;
+        let disc_opt = Adam::new(
+            disc.vars().to_vec(),
+            AdamConfig {
+                beta1: 0.0,
+                ..AdamConfig::with_lr(3e-4)
+            },
+        );
+        let enc_opt = Adam::new(encoder.vars(), AdamConfig::with_lr(3e-4));
+        let normal = |rng: &mut ChaCha8Rng, n: usize| -> Vec<f32> {
+            (0..n)
+                .map(|_| rng.sample::<f32, _>(rand_distr::StandardNormal))
+                .collect()
+        };
+        let trajectories: Vec<sim::Trajectory> = (0..shape.tasks * shape.ctx_trajs)
+            .map(|_| {
+                let mut t = sim::Trajectory::new(0);
+                for i in 0..shape.ctx_len {
+                    let (o, a, n) = (
+                        normal(&mut rng, od),
+                        normal(&mut rng, ad),
+                        normal(&mut rng, od),
+                    );
+                    t.push(
+                        i as u32,
+                        sim::TransitionRef {
+                            obs: &o,
+                            action: &a,
+                            reward: 0.0,
+                            next_obs: &n,
+                            done: false,
+                        },
+                    );
+                }
+                t
+            })
+            .collect();
+        let specs: Vec<ContextSpec<'_>> = trajectories
+            .chunks(shape.ctx_trajs)
+            .map(|c| ContextSpec::all(c.iter().collect()))
+            .collect();
+        let context = encoder.batch(&ObsNorm::identity(od), &specs)?;
+        let rows = shape.tasks * shape.samples;
+        let batch = DiscBatch::new(
+            context,
+            normal(&mut rng, rows * (od + ad)),
+            normal(&mut rng, rows * (od + ad)),
+            shape.tasks,
+            shape.samples,
+        )?;
+        Ok(Self {
+            encoder,
+            disc,
+            disc_opt,
+            enc_opt,
+            batch,
+            rng,
+            gp_weight: shape.gp_weight,
+        })
+    }
+
+    /// One discriminator + encoder update on the fixed batch (SMILe's own step).
+    pub fn step(&mut self) -> Result<()> {
+        let learner = DiscLearner {
+            encoder: &self.encoder,
+            disc: &self.disc,
+            disc_opt: &mut self.disc_opt,
+            enc_opt: &mut self.enc_opt,
+            gp_weight: self.gp_weight,
+        };
+        disc_update(learner, &self.batch, 0, &mut self.rng).map(|_| ())
+    }
+}
+
 /// Median time of one discriminator + encoder update at `shape` on a fixed random batch.
 pub fn bench_disc_step(shape: DiscBenchShape, warmup: usize, iters: usize) -> Result<Timing> {
-    let mut rng = ChaCha8Rng::seed_from_u64(0);
-    let (od, ad) = (shape.obs_dim, shape.act_dim);
-    let cfg = ContextConfig {
-        enc_hidden: shape.enc_hidden.clone(),
-        r_dim: shape.r_dim,
-        z_dim: shape.z_dim,
-        head_hidden: vec![],
-        stochastic_z: false,
-        ..ContextConfig::default()
-    };
-    let encoder = ContextEncoder::new(od, ad, cfg, &mut rng)?;
-    let disc = Discriminator::new(
-        od,
-        ad,
-        shape.z_dim,
-        &shape.hidden,
-        DiscInput::StateAction,
-        10.0,
-        &mut rng,
-    )?;
-    let mut disc_opt = Adam::new(
-        disc.vars().to_vec(),
-        AdamConfig {
-            beta1: 0.0,
-            ..AdamConfig::with_lr(3e-4)
-        },
-    );
-    let mut enc_opt = Adam::new(encoder.vars(), AdamConfig::with_lr(3e-4));
-    let normal = |rng: &mut ChaCha8Rng, n: usize| -> Vec<f32> {
-        (0..n)
-            .map(|_| rng.sample::<f32, _>(rand_distr::StandardNormal))
-            .collect()
-    };
-    let trajectories: Vec<sim::Trajectory> = (0..shape.tasks * shape.ctx_trajs)
-        .map(|_| {
-            let mut t = sim::Trajectory::new(0);
-            for i in 0..shape.ctx_len {
-                let (o, a, n) = (
-                    normal(&mut rng, od),
-                    normal(&mut rng, ad),
-                    normal(&mut rng, od),
-                );
-                t.push(
-                    i as u32,
-                    sim::TransitionRef {
-                        obs: &o,
-                        action: &a,
-                        reward: 0.0,
-                        next_obs: &n,
-                        done: false,
-                    },
-                );
-            }
-            t
-        })
-        .collect();
-    let specs: Vec<ContextSpec<'_>> = trajectories
-        .chunks(shape.ctx_trajs)
-        .map(|c| ContextSpec::all(c.iter().collect()))
-        .collect();
-    let context = encoder.batch(&ObsNorm::identity(od), &specs)?;
-    let rows = shape.tasks * shape.samples;
-    let batch = DiscBatch::new(
-        context,
-        normal(&mut rng, rows * (od + ad)),
-        normal(&mut rng, rows * (od + ad)),
-        shape.tasks,
-        shape.samples,
-    )?;
-    time_it(warmup, iters, || {
-        let learner = DiscLearner {
-            encoder: &encoder,
-            disc: &disc,
-            disc_opt: &mut disc_opt,
-            enc_opt: &mut enc_opt,
-            gp_weight: shape.gp_weight,
-        };
-        disc_update(learner, &batch, 0, &mut rng).map(|_| ())
-    })
+    let mut fixture = DiscFixture::new(&shape, 0)?;
+    time_it(warmup, iters, || fixture.step())
 }
 
 /// Per-pair timing of whole SMILe iterations (`smile bench --workload pair`).

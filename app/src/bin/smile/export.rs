@@ -55,8 +55,7 @@ enum Format {
 
 /// Reads a demo file given with `flag` and checks that it fits the policy (one-line errors).
 fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
-    let demos =
-        DemoDataset::read(path).with_context(|| format!("reading {flag} {}", path.display()))?;
+    let demos = trainer::run::read_demos(path, flag)?;
     export::check_demos_fit(mp, &demos, &format!("{flag} {}", path.display()))?;
     Ok(demos)
 }

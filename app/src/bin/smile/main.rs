@@ -118,40 +118,6 @@ pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, 
     }
 }
 
-/// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a
-/// mismatch names the file, the flag and the `--env` that fits it.
-pub(crate) fn read_demos(
-    path: &std::path::Path,
-    flag: &str,
-    family: sim::Family,
-) -> Result<sim::DemoDataset> {
-    let demos = read_any_demos(path, flag)?;
-    if demos.family != family {
-        anyhow::bail!(
-            "{flag} {} holds {} demos but --env is {family}; pass --env {} or a file of {family} \
-             demos",
-            path.display(),
-            demos.family,
-            demos.family
-        );
-    }
-    demos
-        .ensure_family(family)
-        .map_err(|e| anyhow::anyhow!("{flag} {}: {e}", path.display()))?;
-    Ok(demos)
-}
-
-/// Reads a demo file of any family, errors naming `flag` and the path.
-pub(crate) fn read_any_demos(path: &std::path::Path, flag: &str) -> Result<sim::DemoDataset> {
-    sim::DemoDataset::read(path).map_err(|e| match e {
-        // Its message names the path already.
-        sim::DatasetError::Io { source, .. } => {
-            anyhow::anyhow!("{flag} {}: {source}", path.display())
-        }
-        e => anyhow::anyhow!("{flag} {}: {e}", path.display()),
-    })
-}
-
 /// One line for an error: `<top message>: <root cause>`, the root left out when the top
 /// already says it (the OS error is not repeated down a "Caused by" chain).
 fn error_line(e: &anyhow::Error) -> String {
