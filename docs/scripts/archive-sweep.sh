@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Keeps what a sweep's tables and curves are made from, without its checkpoints: the manifest
-# and, per cell, its config, evaluation and training metrics (a few hundred KB a cell, where the
-# run directory holds tens of MB). `smile report` and docs/scripts/learning_curves.py read the
+# and, per cell, its config, evaluation and training metrics thinned to the evaluations and 200
+# other lines (docs/scripts/thin_metrics.py; a few KB a cell, where the run directory holds
+# tens of MB). `smile report` and docs/scripts/learning_curves.py read the
 # copy as they read the sweep, so a table can be made again after runs/ is gone.
 #
 #   docs/scripts/archive-sweep.sh runs/SWEEP [DEST]      # DEST defaults to docs/results/SWEEP
@@ -29,9 +30,13 @@ for cell in "$src"/*/; do
     mkdir -p "$dest/$name/$b"
     for f in eval.json plan.json eval.md; do [ -f "$before/$f" ] && cp "$before/$f" "$dest/$name/$b/"; done
   done
-  for f in config.toml run.json compute.json metrics.jsonl; do
+  for f in config.toml run.json compute.json; do
     [ -f "$cell/train/$f" ] && cp "$cell/train/$f" "$dest/$name/train/"
   done
+  # The training log thinned to its evaluations and at most 200 other lines (the full log
+  # stays in the run directory): what the tables and curves read, a few KB a cell.
+  [ -f "$cell/train/metrics.jsonl" ] &&
+    python3 "$(dirname "$0")/thin_metrics.py" "$cell/train/metrics.jsonl" "$dest/$name/train/metrics.jsonl"
   n=$((n + 1))
 done
 echo "archived $n evaluated cells of $src in $dest ($(du -sh "$dest" | cut -f1))"
