@@ -639,16 +639,15 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         per_task_blob: blob_result.tasks.clone(),
         per_task_candle: smile_result.tasks.clone(),
     };
-    write(&out.join("policy.blob.json"), json(&export_report)?)?;
+    export_report.write(&export::ExportReport::path_beside(&out.join("policy.blob")))?;
     let report = EvalReport::new(
         args.env,
         Split::Test,
         protocol(args),
         vec![smile_result.clone(), bc_result.clone(), blob_result.clone()],
     );
-    write(&out.join("eval.json"), json(&report)?)?;
-    write(&out.join("eval.md"), report.markdown())?;
-    report.plot_svg(&out.join("eval.svg"))?;
+    // eval.md, eval.svg and eval.json, as `smile eval` writes them.
+    eval::write_report(&report, out)?;
 
     stage(
         6,

@@ -117,6 +117,10 @@ pub enum Error {
     /// A demo dataset could not be read, written or used (from `sim`, its format's owner).
     #[error("dataset: {0}")]
     Dataset(#[from] sim::DatasetError),
+
+    /// An export report (`<blob>.json`) that cannot be read or written.
+    #[error("{0}")]
+    Report(#[from] sim::ReportError),
     /// infer-core could not write a blob from the policy.
     #[error("blob writer: {0}")]
     BlobWrite(#[from] infer_core::WriteError),
