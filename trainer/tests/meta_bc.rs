@@ -246,3 +246,46 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
     assert!(mark.finished && mark.updates == best_step, "{mark:?}");
     std::fs::remove_dir_all(&root).ok();
 }
+
+/// `pre_tanh_loss` (the original code's loss, kept for issue 46's comparison) regresses the
+/// pre-tanh mean: the same seed then learns other weights, its executed actions (tanh of a mean
+/// fitted to the demo actions) are squashed, and a default config is written without the key.
+#[test]
+fn the_pre_tanh_loss_is_the_original_codes_and_off_by_default() {
+    trainer::threads::set_compute_threads(1);
+    let data = || MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let cfg = MetaBcConfig {
+        total_steps: 40,
+        eval_every: 0,
+        ..tiny(false)
+    };
+    let text = toml::to_string(&cfg).unwrap();
+    assert!(!text.contains("pre_tanh_loss"), "{text}");
+    let mut ours = MetaBc::new(cfg.clone(), data(), None).unwrap();
+    let original_cfg = MetaBcConfig {
+        pre_tanh_loss: true,
+        ..cfg
+    };
+    assert!(
+        toml::to_string(&original_cfg)
+            .unwrap()
+            .contains("pre_tanh_loss = true")
+    );
+    let mut original = MetaBc::new(original_cfg, data(), None).unwrap();
+    // The same initial weights (one seed); the first step's losses already differ.
+    let (a, b) = (ours.step().unwrap(), original.step().unwrap());
+    assert!(a.is_finite() && b.is_finite() && a != b, "{a} vs {b}");
+    for _ in 0..20 {
+        ours.step().unwrap();
+        original.step().unwrap();
+    }
+    let (p, q) = (ours.meta_policy(), original.meta_policy());
+    let w = |m: &MetaPolicy| {
+        m.policy.net().vars()[0]
+            .flatten_all()
+            .unwrap()
+            .to_vec1::<f32>()
+            .unwrap()
+    };
+    assert_ne!(w(&p), w(&q));
+}

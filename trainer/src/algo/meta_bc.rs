@@ -215,7 +215,13 @@ impl MetaBc {
         let x = Tensor::cat(&[&x_obs, &z_rows], 1)?;
         let (mean, _) = self.policy.heads(&x)?;
         let target = Tensor::from_vec(a_all, (rows, ad), dev)?;
-        Ok((mean.tanh()? - target)?.sqr()?.mean_all()?)
+        // The original code regressed the pre-tanh mean (`pre_tanh_loss`, for comparison only).
+        let output = if self.cfg.pre_tanh_loss {
+            mean
+        } else {
+            mean.tanh()?
+        };
+        Ok((output - target)?.sqr()?.mean_all()?)
     }
 
     /// One gradient step; returns the training MSE. With `learner_threads` > 1 it runs in the

@@ -81,6 +81,12 @@ pub struct MetaBcConfig {
     /// its large matrix products (`crate::threads`); the same weights on any count. Default 1.
     #[serde(skip_serializing_if = "crate::threads::is_one")]
     pub learner_threads: usize,
+    /// Regress the policy's pre-tanh mean instead of the action it outputs, `tanh(mean)`: the
+    /// original code's loss (reference §3, "original bug"), kept only to measure what it did
+    /// to the paper's Meta-BC rows (issue 46). Default false (the executed action; configs
+    /// that leave it out are written without it).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub pre_tanh_loss: bool,
 }
 
 impl Default for MetaBcConfig {
@@ -110,6 +116,7 @@ impl Default for MetaBcConfig {
             horizon: None,
             seed: 0,
             learner_threads: 1,
+            pre_tanh_loss: false,
         }
     }
 }
