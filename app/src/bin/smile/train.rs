@@ -135,10 +135,17 @@ pub fn run(a: TrainArgs) -> Result<()> {
             eprintln!("{line}");
         }
     });
+    // An error before training started names its input already; one during training gets
+    // the run's place.
+    let started = pb.is_some();
     if let Some(bar) = pb {
         bar.finish();
     }
-    res.with_context(|| format!("{algo} training in {}", a.out.display()))?;
+    if started {
+        res.with_context(|| format!("{algo} training in {}", a.out.display()))?;
+    } else {
+        res?;
+    }
     eprintln!("wrote {}", a.out.join(trainer::META_POLICY_FILE).display());
     Ok(())
 }
