@@ -25,12 +25,12 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// The checkpoint's update / step counter (`key`), read from `checkpoint.json`.
+/// The checkpoint's update / step counter (`key`), read from `checkpoint.safetensors`, the
+/// file a resume reads (`checkpoint.json` beside it is a copy written after it, so a kill
+/// between the two leaves the copy one checkpoint behind).
 fn checkpoint_count(run: &Path, key: &str) -> u64 {
-    let ck: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(run.join("checkpoint.json")).unwrap())
-            .unwrap();
-    ck[key].as_u64().unwrap()
+    let ck = trainer::checkpoint::load(run).unwrap();
+    ck.meta[key].as_u64().unwrap()
 }
 
 /// Runs `smile train ARGS -o run`, kills it (SIGKILL) as soon as it has written a checkpoint at
@@ -44,7 +44,7 @@ fn train_and_kill(args: &[&str], run: &Path, key: &str, after: u64) -> u64 {
         .spawn()
         .unwrap();
     let t0 = Instant::now();
-    let ck = run.join("checkpoint.json");
+    let ck = run.join("checkpoint.safetensors");
     while !(ck.exists() && checkpoint_count(run, key) >= after) {
         if let Some(status) = child.try_wait().unwrap() {
             panic!("smile train exited ({status}) before the kill");
