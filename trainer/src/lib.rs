@@ -63,8 +63,8 @@ pub use optim::{Adam, AdamConfig};
 pub use algo::expert::{DemoSpec, record as record_demos, record_with as record_demos_with};
 /// Demos, the meta-train split, task and context sampling, rollouts and replay.
 pub use data::{
-    ActFn, Batch, BatchVecs, ContextDraw, Episode, MetaData, ReplayBuffer, Step, TaskReplay,
-    better, distinct_tasks, quick_eval, run_episode, sample_context,
+    ActFn, ActionNoise, Batch, BatchVecs, ContextDraw, Episode, MetaData, ReplayBuffer, Step,
+    TaskReplay, better, distinct_tasks, quick_eval, run_episode, sample_context,
 };
 
 /// Checkpoints, blob export and ONNX export keep their namespaces (`checkpoint::load`,
