@@ -172,28 +172,7 @@ fn per_task_experts_make_demos_for_their_tasks() {
     let mut dirs = Vec::new();
     for v in ["0.3", "-1.2"] {
         let run = d.join(format!("task{v}"));
-        ok(&smile(&[
-            "expert",
-            "--env",
-            "point-goal",
-            "--task-value",
-            v,
-            "--total-steps",
-            "40",
-            "--learning-starts",
-            "20",
-            "--horizon",
-            "20",
-            "--hidden",
-            "8,8",
-            "--batch-size",
-            "8",
-            "-o",
-            run.to_str().unwrap(),
-            "--quiet",
-            "--eval-episodes",
-            "1",
-        ]));
+        common::tiny_per_task_expert(v, &run);
         let eval: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(run.join("eval.json")).unwrap()).unwrap();
         assert_eq!(eval["tasks"].as_array().unwrap().len(), 1);

@@ -54,21 +54,8 @@ fn tiny_run(dir: &Path, quiet: bool, env: &[(&str, &str)]) -> (PathBuf, PathBuf,
     let train = dir.join("train.safetensors");
     common::train_demos(6, 2, 20).write(&train).unwrap();
     let run = dir.join("bc");
-    let mut args = vec![
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--updates",
-        "400",
-        "--eval-every",
-        "0",
-        "--hidden",
-        "16,16",
-    ];
+    let mut args = common::meta_bc_args(&train, &run);
+    args.extend(["--updates", "400", "--eval-every", "0", "--hidden", "16,16"]);
     if quiet {
         args.push("--quiet");
     }

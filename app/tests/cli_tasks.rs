@@ -64,28 +64,7 @@ fn demos_task_params_and_per_task_experts_match_a_label_value() {
 
     // A per-task expert trained with --task-value 0.4909 is the one used in that test task.
     let per_task = dir.join("per-task");
-    let err = ok(&smile(&[
-        "expert",
-        "--env",
-        "point-goal",
-        "--task-value",
-        LABEL_VALUE,
-        "--total-steps",
-        "40",
-        "--learning-starts",
-        "20",
-        "--horizon",
-        "20",
-        "--hidden",
-        "8,8",
-        "--batch-size",
-        "8",
-        "-o",
-        s(&per_task),
-        "--quiet",
-        "--eval-episodes",
-        "1",
-    ]));
+    let err = common::tiny_per_task_expert(LABEL_VALUE, &per_task);
     assert!(
         err.contains("a per-task expert on goal_angle=0.4909 (value 0.49087"),
         "{err}"
@@ -145,14 +124,7 @@ fn eval_finds_contexts_recorded_at_label_values() {
         .write(&contexts)
         .unwrap();
     let run = dir.join("bc");
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
+    let tail = [
         "--updates",
         "20",
         "--eval-every",
@@ -160,7 +132,10 @@ fn eval_finds_contexts_recorded_at_label_values() {
         "--hidden",
         "8,8",
         "--quiet",
-    ]));
+    ];
+    ok(&smile(
+        &[&common::meta_bc_args(&train, &run)[..], &tail].concat(),
+    ));
     let out = dir.join("eval");
     ok(&smile(&[
         "eval",

@@ -35,14 +35,7 @@ fn tiny_bc(dir: &Path, steps: &str) -> (PathBuf, PathBuf, PathBuf) {
         .write(&test)
         .unwrap();
     let run = dir.join("bc");
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
+    let tail = [
         "--updates",
         steps,
         "--eval-every",
@@ -50,7 +43,10 @@ fn tiny_bc(dir: &Path, steps: &str) -> (PathBuf, PathBuf, PathBuf) {
         "--hidden",
         "16,16",
         "--quiet",
-    ]));
+    ];
+    ok(&smile(
+        &[&common::meta_bc_args(&train, &run)[..], &tail].concat(),
+    ));
     (run, train, test)
 }
 

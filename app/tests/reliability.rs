@@ -173,20 +173,8 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
     let dir = tmp("resume");
     let (train, _) = demos(&dir);
     let run = dir.join("bc");
-    let base = [
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--hidden",
-        "8,8",
-        "--eval-every",
-        "20",
-        "--quiet",
-    ];
+    let tail = ["--hidden", "8,8", "--eval-every", "20", "--quiet"];
+    let base = [&common::meta_bc_args(&train, &run)[..], &tail].concat();
     ok(&smile(&[&base[..], &["--updates", "40"]].concat()));
     let resume = |extra: &[&str]| {
         let mut args = vec![

@@ -511,18 +511,6 @@ fn compare_cmd(args: CompareArgs) -> Result<()> {
     Ok(())
 }
 
-/// One line for an error: `<top message>: <root cause>`, the root left out when the top
-/// already says it (the OS error is not repeated down a "Caused by" chain).
-fn error_line(e: &anyhow::Error) -> String {
-    let top = e.to_string();
-    let root = e.root_cause().to_string();
-    if top.contains(&root) {
-        top
-    } else {
-        format!("{top}: {root}")
-    }
-}
-
 fn main() -> std::process::ExitCode {
     let result = match Cli::parse().cmd {
         Cmd::Run(args) => run_cmd(args),
@@ -531,7 +519,7 @@ fn main() -> std::process::ExitCode {
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", error_line(&e));
+            eprintln!("error: {}", sim::error_line(e.as_ref()));
             // The full chain and a backtrace only when asked for.
             if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
                 eprintln!("\n{e:?}");

@@ -2,23 +2,15 @@
 //! param=VALUE` (what it prints and writes), and `compare` against an export report, with its
 //! errors' messages. (`run`'s refusals of a bad `--task` or context have their own tests.)
 
+mod common;
+use common::{firmware_sim, s, tmp};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use firmware_sim::reference::pd_point_goal_blob;
 use infer_core::Quant;
 use sim::{DemoDataset, EnvConfig, Family, PointGoalPdExpert, Split, TaskDemos, make_env};
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fwsim-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// What `smile export` writes beside a blob (the typed report firmware-sim reads), with the
 /// host's per-task metric `(task value, metric)` and the blob's checksum.
@@ -57,13 +49,6 @@ fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
         per_task_candle: rows,
     };
     serde_json::to_string_pretty(&report).unwrap()
-}
-
-fn firmware_sim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
-        .args(args)
-        .output()
-        .unwrap()
 }
 
 /// Stdout of a successful run (panics with its stderr otherwise).

@@ -2,8 +2,11 @@
 //! sim's tolerance (and says which demo it used), `--task N` out of range gives the valid range,
 //! and every refusal is one `error:` line that says what to do, with exit status 1.
 
+mod common;
+use common::{firmware_sim, one_line_error, s, tmp};
+
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use firmware_sim::reference;
 use infer_core::{Dims, FloatModel, ModelKind, Quant, write_blob};
@@ -12,41 +15,8 @@ use sim::{
     record_trajectory,
 };
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fwsim-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn firmware_sim(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
-        .args(args)
-        .env_remove("RUST_BACKTRACE")
-        .output()
-        .expect("run firmware-sim")
-}
-
 fn stdout(out: &Output) -> String {
     String::from_utf8_lossy(&out.stdout).into_owned()
-}
-
-/// Asserts the run failed with status 1 and one `error:` line on stderr; returns that line.
-fn one_line_error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
-    let lines: Vec<&str> = err.lines().collect();
-    assert_eq!(lines.len(), 1, "not one line: {err}");
-    assert!(lines[0].starts_with("error: "), "{err}");
-    assert!(
-        !err.contains("Caused by") && !err.contains("backtrace"),
-        "{err}"
-    );
-    lines[0].to_string()
 }
 
 /// The reference point-goal blob and one short PD demo per point-goal test goal.

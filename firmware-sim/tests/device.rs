@@ -1,20 +1,14 @@
 //! The simulated device end to end: link, flash, teach, control loop, faults.
 
+mod common;
+use common::pd_demo as demo;
+
 use firmware_sim::link::{HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::{
     Controller, Device, DeviceConfig, DeviceError, LoopConfig, LoopError, host, reference, run,
 };
 use infer_core::{Calibration, FloatModel, Model, ModelKind, Quant, write_blob};
-use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
-
-fn demo(task: &Task, seed: u64) -> Trajectory {
-    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
-    let expert = PointGoalPdExpert::default();
-    record_trajectory(env.as_mut(), task, seed, |oracle, action| {
-        expert.act(oracle, action).unwrap()
-    })
-    .unwrap()
-}
+use sim::{EnvConfig, Family, Task, Trajectory, make_env};
 
 fn blob(quant: Quant, demo: &Trajectory) -> Vec<u8> {
     reference::pd_point_goal_blob(quant, &[demo]).unwrap()

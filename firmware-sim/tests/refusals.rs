@@ -1,20 +1,16 @@
 //! Every way the device refuses a message over the link, each asserting the exact
 //! [`Refusal`], and that a refused message leaves nothing half-applied.
 
+mod common;
+
 use firmware_sim::link::{Endpoint, HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::session::{SessionConfig, run_session};
 use firmware_sim::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, host, reference};
 use infer_core::{BlobError, Dims, FloatModel, Model, ModelKind, Quant, write_blob};
-use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
+use sim::{Family, Task, Trajectory};
 
 fn demo() -> Trajectory {
-    let task = Family::PointGoal.test_tasks()[0];
-    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
-    let expert = PointGoalPdExpert::default();
-    record_trajectory(env.as_mut(), &task, 1, |oracle, action| {
-        expert.act(oracle, action).unwrap()
-    })
-    .unwrap()
+    common::pd_demo(&Family::PointGoal.test_tasks()[0], 1)
 }
 
 fn point_goal_blob() -> Vec<u8> {

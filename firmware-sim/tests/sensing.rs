@@ -1,19 +1,13 @@
 //! Position-only sensing: the device gets positions, estimates velocities on board, and
 //! controls about as well as with full-state sensing; bad readings never reach the policy.
 
+mod common;
+use common::pd_demo as demo;
+
 use firmware_sim::link::{LinkConfig, SimLink};
 use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, RunReport, Sensing, host, run};
 use infer_core::{Model, Quant};
-use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
-
-fn demo(task: &Task, seed: u64) -> Trajectory {
-    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
-    let expert = PointGoalPdExpert::default();
-    record_trajectory(env.as_mut(), task, seed, |oracle, action| {
-        expert.act(oracle, action).unwrap()
-    })
-    .unwrap()
-}
+use sim::{EnvConfig, Family, Task, make_env};
 
 /// The hand-built PD policy (w8a8) taught one demo of `task`, run once under `config`.
 fn run_task(task: &Task, config: &LoopConfig) -> RunReport {

@@ -2,6 +2,23 @@
 
 use crate::Family;
 
+/// One line for an error, as the command-line tools (`smile`, `firmware-sim`) print it:
+/// `<top message>: <root cause>`, the root left out when the top already says it (the OS
+/// error is not repeated down a "Caused by" chain).
+pub fn error_line(e: &(dyn std::error::Error + 'static)) -> String {
+    let top = e.to_string();
+    let mut root = e;
+    while let Some(next) = root.source() {
+        root = next;
+    }
+    let root = root.to_string();
+    if top.contains(&root) {
+        top
+    } else {
+        format!("{top}: {root}")
+    }
+}
+
 /// Everything that can go wrong while building, resetting or stepping an environment.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum SimError {

@@ -60,14 +60,7 @@ pub fn point_goal_demo_files(dir: &std::path::Path) -> (std::path::PathBuf, std:
 
 /// A finished 20-step Meta-BC run in `run`.
 pub fn tiny_bc(train: &std::path::Path, run: &std::path::Path) {
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(train),
-        "-o",
-        s(run),
+    let tail = [
         "--updates",
         "20",
         "--eval-every",
@@ -75,5 +68,46 @@ pub fn tiny_bc(train: &std::path::Path, run: &std::path::Path) {
         "--hidden",
         "8,8",
         "--quiet",
-    ]));
+    ];
+    ok(&smile(&[&meta_bc_args(train, run)[..], &tail].concat()));
+}
+
+/// `smile expert` for a tiny per-task point-goal SAC expert of task `value` into `run` (40 env
+/// steps, 8 x 8 nets, one evaluation episode); returns its stderr.
+pub fn tiny_per_task_expert(value: &str, run: &std::path::Path) -> String {
+    ok(&smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--task-value",
+        value,
+        "--total-steps",
+        "40",
+        "--learning-starts",
+        "20",
+        "--horizon",
+        "20",
+        "--hidden",
+        "8,8",
+        "--batch-size",
+        "8",
+        "-o",
+        s(run),
+        "--quiet",
+        "--eval-episodes",
+        "1",
+    ]))
+}
+
+/// The arguments of `smile train --algo meta-bc` on `train` into `run`; append the rest.
+pub fn meta_bc_args<'a>(train: &'a std::path::Path, run: &'a std::path::Path) -> Vec<&'a str> {
+    vec![
+        "train",
+        "--algo",
+        "meta-bc",
+        "--demos",
+        s(train),
+        "-o",
+        s(run),
+    ]
 }

@@ -118,23 +118,11 @@ pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, 
     }
 }
 
-/// One line for an error: `<top message>: <root cause>`, the root left out when the top
-/// already says it (the OS error is not repeated down a "Caused by" chain).
-fn error_line(e: &anyhow::Error) -> String {
-    let top = e.to_string();
-    let root = e.root_cause().to_string();
-    if top.contains(&root) {
-        top
-    } else {
-        format!("{top}: {root}")
-    }
-}
-
 fn main() -> std::process::ExitCode {
     match run() {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", error_line(&e));
+            eprintln!("error: {}", sim::error_line(e.as_ref()));
             // The full chain and a backtrace only when asked for.
             if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
                 eprintln!("\n{e:?}");

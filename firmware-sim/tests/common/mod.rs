@@ -1,0 +1,54 @@
+//! Shared by firmware-sim's integration tests: temp directories, the binary, its output
+//! checks, and point-goal PD demos.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
+
+/// A new, empty directory `<temp>/fwsim-cli-<name>-<pid>`.
+pub fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fwsim-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A path as a `&str` argument.
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs the `firmware-sim` binary built for these tests (no backtraces asked for).
+pub fn firmware_sim(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .expect("run firmware-sim")
+}
+
+/// Asserts the run failed with status 1 and one `error:` line on stderr; returns that line.
+pub fn one_line_error(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
+    let lines: Vec<&str> = err.lines().collect();
+    assert_eq!(lines.len(), 1, "not one line: {err}");
+    assert!(lines[0].starts_with("error: "), "{err}");
+    assert!(
+        !err.contains("Caused by") && !err.contains("backtrace"),
+        "{err}"
+    );
+    lines[0].to_string()
+}
+
+/// One point-goal demo of `task` by the scripted PD expert from reset seed `seed`.
+pub fn pd_demo(task: &Task, seed: u64) -> Trajectory {
+    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let expert = PointGoalPdExpert::default();
+    record_trajectory(env.as_mut(), task, seed, |oracle, action| {
+        expert.act(oracle, action).unwrap()
+    })
+    .unwrap()
+}
