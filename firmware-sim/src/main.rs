@@ -516,15 +516,5 @@ fn main() -> std::process::ExitCode {
         Cmd::Run(args) => run_cmd(args),
         Cmd::Compare(args) => compare_cmd(args),
     };
-    match result {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", sim::error_line(e.as_ref()));
-            // The full chain and a backtrace only when asked for.
-            if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
-                eprintln!("\n{e:?}");
-            }
-            std::process::ExitCode::FAILURE
-        }
-    }
+    sim::exit_code(result)
 }

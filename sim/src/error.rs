@@ -2,6 +2,24 @@
 
 use crate::Family;
 
+/// A command-line tool's exit: success, or the error as one `error:` line on stderr (the full
+/// chain and a backtrace only when `RUST_BACKTRACE` asks for them) and exit status 1.
+pub fn exit_code<E>(result: Result<(), E>) -> std::process::ExitCode
+where
+    E: AsRef<dyn std::error::Error> + std::fmt::Debug,
+{
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", error_line(e.as_ref()));
+            if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
+                eprintln!("\n{e:?}");
+            }
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
 /// One line for an error, as the command-line tools (`smile`, `firmware-sim`) print it:
 /// `<top message>: <root cause>`, the root left out when the top already says it (the OS
 /// error is not repeated down a "Caused by" chain).

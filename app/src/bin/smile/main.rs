@@ -119,17 +119,7 @@ pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, 
 }
 
 fn main() -> std::process::ExitCode {
-    match run() {
-        Ok(()) => std::process::ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {}", sim::error_line(e.as_ref()));
-            // The full chain and a backtrace only when asked for.
-            if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") {
-                eprintln!("\n{e:?}");
-            }
-            std::process::ExitCode::FAILURE
-        }
-    }
+    sim::exit_code(run())
 }
 
 fn run() -> Result<()> {
