@@ -71,6 +71,12 @@ fn bad_plans_are_refused_before_anything_runs() {
             "(line 10): contexts file",
         ),
         (
+            // A header comment that quotes the file does not take the line number.
+            format!("# made with: smile demos -o missing.safetensors\n{good}")
+                .replace("\"test.safetensors\"", "\"missing.safetensors\""),
+            "(line 11): contexts file",
+        ),
+        (
             good.replace("rollouts = 2", "rollouts = 2\nbogus = 1"),
             "unknown field `bogus`",
         ),

@@ -190,9 +190,10 @@ pub struct Sweep {
 }
 
 fn plan_err(path: &Path, text: &str, needle: Option<&str>, msg: String) -> Error {
+    // The first line that names it outside a comment (a plan's header often quotes its files).
     let line = needle.and_then(|n| {
         text.lines()
-            .position(|l| l.contains(n))
+            .position(|l| l.split('#').next().is_some_and(|code| code.contains(n)))
             .map(|i| format!(" (line {})", i + 1))
     });
     Error::Config(format!(
