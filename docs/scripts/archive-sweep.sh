@@ -20,6 +20,9 @@ for cell in "$src"/*/; do
   cell=${cell%/}
   name=$(basename "$cell")
   [ -f "$cell/eval/eval.json" ] || continue   # only finished, evaluated cells
+  # Archived before with this evaluation: keep that copy (thinning a thinned log again would
+  # drop more of it, and a sweep restored from the archive holds only the thinned logs).
+  if cmp -s "$cell/eval/eval.json" "$dest/$name/eval/eval.json"; then n=$((n + 1)); continue; fi
   mkdir -p "$dest/$name/eval" "$dest/$name/train"
   for f in cell.toml cell.json; do [ -f "$cell/$f" ] && cp "$cell/$f" "$dest/$name/"; done
   for f in eval.json plan.json eval.md; do [ -f "$cell/eval/$f" ] && cp "$cell/eval/$f" "$dest/$name/eval/"; done
