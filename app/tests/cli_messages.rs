@@ -14,7 +14,7 @@ fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-cli-msg", name)
 }
 
-use common::s;
+use common::{one_line_error, s};
 
 /// `smile` with stdout and stderr piped (stderr is not a terminal), RUST_BACKTRACE unset and
 /// the extra environment `env`.
@@ -25,20 +25,6 @@ fn smile_env(args: &[&str], env: &[(&str, &str)]) -> Output {
         cmd.env(k, v);
     }
     cmd.output().expect("run smile")
-}
-
-/// Asserts the run failed with status 1 and one `error:` line on stderr; returns that line.
-fn one_line_error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
-    let lines: Vec<&str> = err.lines().collect();
-    assert_eq!(lines.len(), 1, "not one line: {err}");
-    assert!(lines[0].starts_with("error: "), "{err}");
-    assert!(
-        !err.contains("Caused by") && !err.contains("backtrace"),
-        "{err}"
-    );
-    lines[0].to_string()
 }
 
 /// Cheetah-vel test-split "demos" of an open-loop action: only family, split and shapes matter.

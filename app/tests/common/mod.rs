@@ -11,6 +11,12 @@ mod demos;
 
 pub use demos::*;
 
+// The one-line error check is firmware-sim's test helper (one definition for both binaries).
+#[path = "../../../firmware-sim/tests/common/output.rs"]
+mod output;
+#[allow(unused_imports)] // not every test binary checks an error
+pub use output::one_line_error;
+
 /// A new, empty directory `<temp>/<prefix>-<name>-<pid>` (removed first if a previous run left
 /// it behind).
 pub fn fresh_dir(prefix: &str, name: &str) -> std::path::PathBuf {

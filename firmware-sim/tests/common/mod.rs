@@ -5,6 +5,11 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+// The one-line error check is shared with the app's tests (they include output.rs by path).
+mod output;
+#[allow(unused_imports)] // not every test binary checks an error
+pub use output::one_line_error;
+
 use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
 
 /// A new, empty directory `<temp>/fwsim-cli-<name>-<pid>`.
@@ -27,20 +32,6 @@ pub fn firmware_sim(args: &[&str]) -> Output {
         .env_remove("RUST_BACKTRACE")
         .output()
         .expect("run firmware-sim")
-}
-
-/// Asserts the run failed with status 1 and one `error:` line on stderr; returns that line.
-pub fn one_line_error(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert_eq!(out.status.code(), Some(1), "stderr: {err}");
-    let lines: Vec<&str> = err.lines().collect();
-    assert_eq!(lines.len(), 1, "not one line: {err}");
-    assert!(lines[0].starts_with("error: "), "{err}");
-    assert!(
-        !err.contains("Caused by") && !err.contains("backtrace"),
-        "{err}"
-    );
-    lines[0].to_string()
 }
 
 /// One point-goal demo of `task` by the scripted PD expert from reset seed `seed`.
