@@ -9,14 +9,10 @@ pub use crate::config::Sensing;
 use crate::config::{LoopConfig, LoopError, adc_lsb};
 use crate::link::MAX_DIM;
 
-/// The filter's default acceleration std per family (units/s^2), from the sweep in
-/// `docs/ESTIMATOR.md`.
+/// The filter's default acceleration std for `family` (units/s^2): its spec's
+/// ([`sim::FamilySpec::estimator_accel_std`], from the sweep in `docs/ESTIMATOR.md`).
 pub fn default_accel_std(family: Family) -> f32 {
-    match family {
-        Family::PointGoal => 2.0,
-        // The legged robots: joints accelerate fast.
-        Family::CheetahVel | Family::WalkerDyn | Family::AntGoal | Family::AntLinClass => 50.0,
-    }
+    family.spec().estimator_accel_std
 }
 
 /// The estimator's channel for a family's observation component.

@@ -4,7 +4,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use plotters::prelude::*;
-use sim::Family;
+use sim::RunView;
 
 use crate::control::RunReport;
 
@@ -66,17 +66,10 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
         report.task.label(),
         report.metric
     );
-    match family {
-        Family::PointGoal | Family::AntGoal => {
+    match family.spec().view {
+        // `xy`: where the family observes its (x, y): point-goal first, the ant's torso last.
+        RunView::GoalPath { xy } => {
             let goal = report.task.goal().unwrap_or_default();
-            // Where the family observes its (x, y): point-goal first, the ant's torso last.
-            let xy = match family {
-                Family::AntGoal => sim::ant::obs::XY,
-                Family::PointGoal
-                | Family::CheetahVel
-                | Family::WalkerDyn
-                | Family::AntLinClass => 0,
-            };
             let mut chart = ChartBuilder::on(&root)
                 .caption(title, ("sans-serif", 18))
                 .margin(10)
@@ -110,9 +103,9 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
                 .border_style(BLACK)
                 .draw()?;
         }
-        Family::CheetahVel | Family::WalkerDyn | Family::AntLinClass => {
+        RunView::Velocity { target } => {
             let t_max = report.records.last().map_or(1.0, |r| r.time.max(1e-3));
-            let target = if family == Family::CheetahVel {
+            let target = if target {
                 report.task.value() as f32
             } else {
                 f32::NAN

@@ -146,20 +146,7 @@ pub trait Environment: Send {
 /// task. Errors if the backend is not in this build ([`SimError::PhysicsUnavailable`]) or the
 /// family has no robot on it (point-goal is Rapier's only).
 pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment>, SimError> {
-    match family {
-        Family::PointGoal if config.physics != Physics::Rapier => {
-            Err(SimError::PhysicsUnavailable {
-                physics: config.physics,
-                how: "point-goal is a Rapier point mass with no MuJoCo model; use --physics rapier"
-                    .into(),
-            })
-        }
-        Family::PointGoal => Ok(Box::new(crate::PointGoalEnv::new(config))),
-        Family::CheetahVel => Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config)?)),
-        Family::WalkerDyn => Ok(Box::new(crate::PlanarLeggedEnv::walker(config)?)),
-        Family::AntGoal => Ok(Box::new(crate::AntGoalEnv::new(config)?)),
-        Family::AntLinClass => Ok(Box::new(crate::AntLinClassEnv::new(config)?)),
-    }
+    (family.spec().make_env)(config)
 }
 
 /// Accumulates a family's per-episode metric from the `StepInfo`s of an episode.

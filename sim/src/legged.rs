@@ -32,6 +32,9 @@ pub struct PlanarLeggedEnv {
     task: Task,
     config: EnvConfig,
     clock: EpisodeClock,
+    /// Observed velocities are clipped to +-this (the walker's, as in Gymnasium; none for the
+    /// cheetah).
+    velocity_clip: f32,
     obs: [f32; OBS_DIM],
     action: [f32; ACT_DIM],
 }
@@ -49,6 +52,7 @@ impl PlanarLeggedEnv {
             Family::CheetahVel,
             Robot::HalfCheetah,
             CHEETAH_HORIZON,
+            f32::INFINITY,
             config,
         )
     }
@@ -56,13 +60,20 @@ impl PlanarLeggedEnv {
     /// A walker-dyn environment on `config.physics`, reset to the first train dynamics with
     /// seed 0.
     pub fn walker(config: EnvConfig) -> Result<Self, SimError> {
-        Self::build(Family::WalkerDyn, Robot::Walker2d, WALKER_HORIZON, config)
+        Self::build(
+            Family::WalkerDyn,
+            Robot::Walker2d,
+            WALKER_HORIZON,
+            WALKER_VELOCITY_CLIP,
+            config,
+        )
     }
 
     fn build(
         family: Family,
         robot: Robot,
         horizon: usize,
+        velocity_clip: f32,
         config: EnvConfig,
     ) -> Result<Self, SimError> {
         let task = family.train_tasks()[0];
@@ -75,6 +86,7 @@ impl PlanarLeggedEnv {
             task,
             config,
             clock: EpisodeClock::new(config.horizon.unwrap_or(horizon)),
+            velocity_clip,
             obs: [0.0; OBS_DIM],
             action: [0.0; ACT_DIM],
         };
@@ -82,17 +94,8 @@ impl PlanarLeggedEnv {
         Ok(env)
     }
 
-    fn velocity_clip(&self) -> f32 {
-        match self.family {
-            Family::WalkerDyn => WALKER_VELOCITY_CLIP,
-            Family::CheetahVel | Family::PointGoal | Family::AntGoal | Family::AntLinClass => {
-                f32::INFINITY
-            }
-        }
-    }
-
     fn observe(&mut self) {
-        let clip = self.velocity_clip();
+        let clip = self.velocity_clip;
         self.plant.observe(&mut self.obs, clip);
     }
 

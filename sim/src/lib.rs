@@ -48,6 +48,7 @@ pub mod render;
 mod robots;
 pub mod seeds;
 mod sensing;
+mod spec;
 mod task;
 
 pub use ant_goal::AntGoalEnv;
@@ -67,6 +68,7 @@ pub use plant::{Robot, TorsoPose};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;
+pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
     Family, GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, Task, WALKER_NOMINAL_SEED,
     WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,

@@ -10,7 +10,6 @@
 //! ground-speed or optical-flow sensor) and passed through with the same noise and ADC as the
 //! positions.
 
-use crate::Family;
 
 /// The physical meaning of one observation entry.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,7 +53,7 @@ const POINT_GOAL_RATE_SCALE: f32 =
     1.0 / (1.0 + crate::point_goal::LINEAR_DAMPING * crate::point_goal::CONTROL_DT);
 
 /// point-goal: `[x, y, vx, vy]`.
-const POINT_GOAL: [ObsComponent; 4] = [
+pub(crate) const POINT_GOAL: [ObsComponent; 4] = [
     Position,
     Position,
     ObsComponent::Rate {
@@ -69,7 +68,7 @@ const POINT_GOAL: [ObsComponent; 4] = [
 
 /// cheetah-vel and walker-dyn: torso height, torso angle, six joint angles, torso (vx, vz,
 /// angular velocity), six joint velocities. vx is the derivative of the unobserved torso x.
-const PLANAR: [ObsComponent; 17] = [
+pub(crate) const PLANAR: [ObsComponent; 17] = [
     Position,
     Angle,
     Angle,
@@ -93,7 +92,7 @@ const PLANAR: [ObsComponent; 17] = [
 /// direct), eight joint angles, torso linear velocity (world frame: the rates of x, y, z),
 /// angular velocity (a gyro's: direct, not the derivative of the quaternion entries), eight
 /// joint velocities, torso x and y.
-const ANT: [ObsComponent; 29] = [
+pub(crate) const ANT: [ObsComponent; 29] = [
     Position,
     Direct,
     Direct,
@@ -127,7 +126,7 @@ const ANT: [ObsComponent; 29] = [
 
 /// ant-linclass: the ant's entries, then the two points to classify, which the device is given
 /// (as data, not measured by a sensor): passed through.
-const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
+pub(crate) const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
     let mut table = [Direct; crate::ant_linclass::OBS_DIM];
     let mut i = 0;
     while i < ANT.len() {
@@ -137,22 +136,10 @@ const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
     table
 };
 
-impl Family {
-    /// Per observation index, what the entry is: a measured position or angle, the rate of
-    /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
-    pub fn obs_components(self) -> &'static [ObsComponent] {
-        match self {
-            Family::PointGoal => &POINT_GOAL,
-            Family::CheetahVel | Family::WalkerDyn => &PLANAR,
-            Family::AntGoal => &ANT,
-            Family::AntLinClass => &ANT_LINCLASS,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::Family;
     use crate::{EnvConfig, Task, make_env};
     use ObsComponent::Rate;
     use std::f32::consts::{PI, TAU};

@@ -1,11 +1,11 @@
 //! Task families, their tasks and the paper's meta-train / meta-test splits.
 
-use std::f32::consts::PI;
 use std::fmt;
 use std::str::FromStr;
 
-use crate::SimError;
 use crate::ant_linclass as linclass;
+use crate::spec::{self, FamilySpec};
+use crate::{ObsComponent, SimError};
 use crate::dynamics::WalkerDynamics;
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
@@ -16,9 +16,10 @@ pub(crate) const POINT_GOAL_ACT_DIM: usize = 2;
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
 /// `walker-dyn`, `ant-goal`, `ant-linclass`.
 ///
-/// Deliberately not `#[non_exhaustive]`: the workspace matches on it exhaustively, so a new
-/// family fails to compile at every place that must say what it does (evaluation protocol,
-/// presets, plots, the filter's defaults) instead of falling silently into a catch-all arm.
+/// What the workspace knows about each family is its [`FamilySpec`] ([`Family::spec`]), one
+/// declarative block per family in `spec.rs`. Deliberately not `#[non_exhaustive]`: a new
+/// family fails to compile at [`Family::spec`] (and the app's per-family recipes) instead of
+/// falling silently into a catch-all arm.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum Family {
     /// Planar point robot reaching a goal on the circle of radius 2 (top view).
@@ -102,15 +103,21 @@ impl Family {
         Family::AntLinClass,
     ];
 
+    /// The family's spec: everything the workspace knows about it ([`FamilySpec`]). The one
+    /// place that maps a family to its data; everything else reads the spec's fields.
+    pub fn spec(self) -> &'static FamilySpec {
+        match self {
+            Family::PointGoal => &spec::POINT_GOAL_SPEC,
+            Family::CheetahVel => &spec::CHEETAH_VEL_SPEC,
+            Family::WalkerDyn => &spec::WALKER_DYN_SPEC,
+            Family::AntGoal => &spec::ANT_GOAL_SPEC,
+            Family::AntLinClass => &spec::ANT_LINCLASS_SPEC,
+        }
+    }
+
     /// The CLI name of the family.
     pub fn name(self) -> &'static str {
-        match self {
-            Family::PointGoal => "point-goal",
-            Family::CheetahVel => "cheetah-vel",
-            Family::WalkerDyn => "walker-dyn",
-            Family::AntGoal => "ant-goal",
-            Family::AntLinClass => "ant-linclass",
-        }
+        self.spec().name
     }
 
     /// The family's tasks of one split, exactly as in the reference.
@@ -124,39 +131,13 @@ impl Family {
     /// Meta-train tasks: 32 goals at k*pi/16 (point-goal, ant-goal); 31 velocities 0.0..=3.0
     /// step 0.1; 50 dynamics seeds; 64 hyperplane seeds.
     pub fn train_tasks(self) -> Vec<Task> {
-        match self {
-            Family::PointGoal | Family::AntGoal => (0..32)
-                .map(|k| self.goal_task(k as f32 * PI / 16.0))
-                .collect(),
-            Family::CheetahVel => (0..=30)
-                .map(|k| Task::cheetah_vel(k as f32 * 0.1))
-                .collect(),
-            Family::WalkerDyn => (0..50)
-                .map(|i| Task::walker_dyn(WALKER_TRAIN_SEED_BASE + i))
-                .collect(),
-            Family::AntLinClass => (0..linclass::TRAIN_TASKS)
-                .map(|i| Task::ant_linclass(linclass::TRAIN_SEED_BASE + i))
-                .collect(),
-        }
+        (self.spec().train_tasks)()
     }
 
     /// Meta-test tasks: 16 goals at 2n*pi/16 + pi/32 (point-goal, ant-goal); 30 velocities
     /// 0.05..=2.95 step 0.1; 25 dynamics seeds; 32 hyperplane seeds.
     pub fn test_tasks(self) -> Vec<Task> {
-        match self {
-            Family::PointGoal | Family::AntGoal => (0..16)
-                .map(|n| self.goal_task(2.0 * n as f32 * PI / 16.0 + PI / 32.0))
-                .collect(),
-            Family::CheetahVel => (0..30)
-                .map(|k| Task::cheetah_vel(0.05 + k as f32 * 0.1))
-                .collect(),
-            Family::WalkerDyn => (0..25)
-                .map(|i| Task::walker_dyn(WALKER_TEST_SEED_BASE + i))
-                .collect(),
-            Family::AntLinClass => (0..linclass::TEST_TASKS)
-                .map(|i| Task::ant_linclass(linclass::TEST_SEED_BASE + i))
-                .collect(),
-        }
+        (self.spec().test_tasks)()
     }
 
     /// A task of this family from one explicit number: goal angle (radians), target velocity
@@ -169,42 +150,19 @@ impl Family {
         if !value.is_finite() {
             return Err(invalid("not finite"));
         }
-        match self {
-            Family::PointGoal | Family::AntGoal => Ok(self.goal_task(value as f32)),
-            Family::CheetahVel => Ok(Task::cheetah_vel(value as f32)),
-            Family::WalkerDyn => {
-                if value < 0.0 || value.fract() != 0.0 || value > u32::MAX as f64 {
-                    return Err(invalid("a dynamics seed must be a non-negative integer"));
-                }
-                Ok(Task::walker_dyn(value as u64))
-            }
-            Family::AntLinClass => {
-                if value < 0.0 || value.fract() != 0.0 || value > u32::MAX as f64 {
-                    return Err(invalid("a hyperplane seed must be a non-negative integer"));
-                }
-                Ok(Task::ant_linclass(value as u64))
-            }
-        }
+        (self.spec().task_from_value)(value).map_err(invalid)
     }
 
     /// How far a number may be from a task's value and still name it: [`TASK_VALUE_TOLERANCE`]
     /// for point-goal, ant-goal and cheetah-vel, 0 for walker-dyn and ant-linclass (seeds are
     /// integers).
     pub fn value_tolerance(self) -> f64 {
-        match self {
-            Family::PointGoal | Family::CheetahVel | Family::AntGoal => TASK_VALUE_TOLERANCE,
-            Family::WalkerDyn | Family::AntLinClass => 0.0,
-        }
+        self.spec().value_tolerance
     }
 
     /// What a task value of this family is, for messages: `goal angle (rad)`, ...
     pub fn value_name(self) -> &'static str {
-        match self {
-            Family::PointGoal | Family::AntGoal => "goal angle (rad)",
-            Family::CheetahVel => "target velocity (m/s)",
-            Family::WalkerDyn => "dynamics seed",
-            Family::AntLinClass => "hyperplane seed",
-        }
+        self.spec().value_name
     }
 
     /// The one tolerant lookup of a task by its parameter: the index in `tasks` of the task
@@ -247,9 +205,7 @@ impl Family {
     pub fn task_named(self, value: f64) -> Result<Task, SimError> {
         let mut known = self.train_tasks();
         known.extend(self.test_tasks());
-        if self == Family::WalkerDyn {
-            known.push(Task::walker_nominal());
-        }
+        known.extend(self.spec().nominal_task);
         match self.find_task(value, &known) {
             Ok(i) => Ok(known[i]),
             Err(_) => self.task_from_value(value),
@@ -258,31 +214,17 @@ impl Family {
 
     /// Dimension of the learner-facing observation.
     pub fn obs_dim(self) -> usize {
-        match self {
-            Family::PointGoal => POINT_GOAL_OBS_DIM,
-            Family::CheetahVel | Family::WalkerDyn => crate::planar::OBS_DIM,
-            Family::AntGoal => crate::ant::OBS_DIM,
-            Family::AntLinClass => linclass::OBS_DIM,
-        }
+        self.spec().obs_dim
     }
 
     /// Dimension of the action.
     pub fn act_dim(self) -> usize {
-        match self {
-            Family::PointGoal => POINT_GOAL_ACT_DIM,
-            Family::CheetahVel | Family::WalkerDyn => crate::planar::ACT_DIM,
-            Family::AntGoal | Family::AntLinClass => crate::ant::ACT_DIM,
-        }
+        self.spec().act_dim
     }
 
     /// Dimension of the task parameter vector appended in the oracle observation.
     pub fn task_dim(self) -> usize {
-        match self {
-            Family::PointGoal | Family::AntGoal => 2,
-            Family::CheetahVel => 1,
-            Family::WalkerDyn => WalkerDynamics::VECTOR_DIM,
-            Family::AntLinClass => linclass::POINT_DIM,
-        }
+        self.spec().task_dim
     }
 
     /// Dimension of the oracle observation (observation followed by the task parameter).
@@ -292,23 +234,13 @@ impl Family {
 
     /// The paper's evaluation metric of this family.
     pub fn metric_kind(self) -> MetricKind {
-        match self {
-            Family::PointGoal | Family::AntGoal => MetricKind::MinGoalDistance,
-            Family::CheetahVel => MetricKind::MeanVelocityError,
-            Family::WalkerDyn => MetricKind::Return,
-            Family::AntLinClass => MetricKind::ClassificationSuccess,
-        }
+        self.spec().metric
     }
 
-    /// The goal task at `goal_angle` of a goal family (point-goal or ant-goal); the other
-    /// families never call it.
-    fn goal_task(self, goal_angle: f32) -> Task {
-        match self {
-            Family::AntGoal => Task::ant_goal(goal_angle),
-            Family::PointGoal | Family::CheetahVel | Family::WalkerDyn | Family::AntLinClass => {
-                Task::point_goal(goal_angle)
-            }
-        }
+    /// Per observation index, what the entry is: a measured position or angle, the rate of
+    /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
+    pub fn obs_components(self) -> &'static [ObsComponent] {
+        self.spec().obs_components
     }
 }
 

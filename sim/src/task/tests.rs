@@ -1,6 +1,7 @@
 //! The splits, names and the tolerant task lookup.
 
 use super::*;
+use std::f32::consts::PI;
 
 #[test]
 fn splits_match_the_reference() {

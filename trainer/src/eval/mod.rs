@@ -83,47 +83,17 @@ impl Protocol {
         }
     }
 
-    /// The reference protocol of `family` (§5).
+    /// The reference protocol of `family` (§5), from its spec ([`sim::EvalDefaults`]).
     pub fn for_family(family: Family) -> Self {
-        match family {
-            Family::CheetahVel => Self {
-                context_sizes: vec![1, 2, 3, 4],
-                draws: 3,
-                rollouts: 5,
-                horizon: None,
-                action_noise: 0.0,
-                run_through_falls: false,
-                physics: Physics::Rapier,
-            },
-            Family::WalkerDyn => Self {
-                context_sizes: vec![1],
-                draws: 3,
-                rollouts: 1,
-                horizon: None,
-                action_noise: 0.0,
-                run_through_falls: false,
-                physics: Physics::Rapier,
-            },
-            // Aggregating demos is what this family tests: the success per context size.
-            Family::AntLinClass => Self {
-                context_sizes: vec![1, 2, 4, 8],
-                draws: 3,
-                rollouts: 5,
-                horizon: None,
-                action_noise: 0.0,
-                run_through_falls: false,
-                physics: Physics::Rapier,
-            },
-            // point-goal and ant-goal (the paper's Figure 2 protocol).
-            Family::PointGoal | Family::AntGoal => Self {
-                context_sizes: vec![1],
-                draws: 3,
-                rollouts: 10,
-                horizon: None,
-                action_noise: 0.0,
-                run_through_falls: false,
-                physics: Physics::Rapier,
-            },
+        let defaults = family.spec().eval;
+        Self {
+            context_sizes: defaults.context_sizes.to_vec(),
+            draws: defaults.draws,
+            rollouts: defaults.rollouts,
+            horizon: None,
+            action_noise: 0.0,
+            run_through_falls: false,
+            physics: Physics::Rapier,
         }
     }
 }

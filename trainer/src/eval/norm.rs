@@ -38,14 +38,11 @@ impl References {
     /// walker-dyn has it), a policy of another family or with the wrong observation width, a
     /// base not trained on the unmodified dynamics.
     pub fn load(family: Family, base: &Path, experts: &[impl AsRef<Path>]) -> Result<Self> {
-        let nominal = match family {
-            Family::WalkerDyn => Task::walker_nominal(),
-            other => {
-                return Err(Error::Data(format!(
-                    "the normalised metric (--base, --expert) is defined for walker-dyn only, \
-                     not {other}"
-                )));
-            }
+        let Some(nominal) = family.spec().nominal_task else {
+            return Err(Error::Data(format!(
+                "the normalised metric (--base, --expert) is defined for walker-dyn only, not \
+                 {family}"
+            )));
         };
         let wrong_family = |path: &Path, found: Family| Error::WrongFamily {
             what: format!("the policy {}", path.display()),
