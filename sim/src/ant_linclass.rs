@@ -134,13 +134,19 @@ pub fn scripted_target(oracle_obs: &[f32]) -> Result<[f32; 2], SimError> {
 /// MuJoCo-held plant (2026-12-01): 0.84 at 1.0, 0.89 at 1.1, **1.00 at 1.2**, 0.75 at 1.3, 0.60
 /// at 1.4. (With the old plant's expert: 0.74 at 1.0, 0.88 at 1.2, 0.903 at 1.4, 0.31 at 1.6.)
 /// Every failure is a no-op (the right direction, too slow or past it), never the wrong target.
+/// The default of `smile expert --kind scripted-linclass --aim-scale`: the MuJoCo ant-goal
+/// expert wants its own (`assets/experts/ant-linclass-mujoco/README.md`).
 pub const AIM_SCALE: f32 = 1.2;
 
 /// Writes the ant-goal oracle observation (the ant's 29 entries, then the goal (x, y)) that
-/// makes an ant-goal expert walk towards [`scripted_target`] (aimed [`AIM_SCALE`] times as far):
-/// how the scripted classifier drives a learned locomotion expert. `out` has length
-/// `Family::AntGoal.oracle_obs_dim()`.
-pub fn goal_expert_input(oracle_obs: &[f32], out: &mut [f32]) -> Result<(), SimError> {
+/// makes an ant-goal expert walk towards [`scripted_target`], aimed `aim_scale` times as far
+/// ([`AIM_SCALE`] by default): how the scripted classifier drives a learned locomotion expert.
+/// `out` has length `Family::AntGoal.oracle_obs_dim()`.
+pub fn goal_expert_input(
+    oracle_obs: &[f32],
+    aim_scale: f32,
+    out: &mut [f32],
+) -> Result<(), SimError> {
     let target = scripted_target(oracle_obs)?;
     let expected = Family::AntGoal.oracle_obs_dim();
     if out.len() != expected {
@@ -151,7 +157,7 @@ pub fn goal_expert_input(oracle_obs: &[f32], out: &mut [f32]) -> Result<(), SimE
     }
     let ant = crate::ant::OBS_DIM;
     out[..ant].copy_from_slice(&oracle_obs[..ant]);
-    out[ant..].copy_from_slice(&target.map(|t| t * AIM_SCALE));
+    out[ant..].copy_from_slice(&target.map(|t| t * aim_scale));
     Ok(())
 }
 

@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use sim::ant_linclass::AIM_SCALE;
 use sim::{EnvConfig, Family, Split};
 use trainer::checkpoint;
 use trainer::expert::{self, Expert, ExpertConfig, ExpertTrainer};
@@ -288,7 +289,7 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
     trainer::threads::set_compute_threads(1);
     let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts");
     let d = tmp("linclass");
-    expert::export_scripted_linclass(&assets.join("ant-goal"), &d).unwrap();
+    expert::export_scripted_linclass(&assets.join("ant-goal"), AIM_SCALE, &d).unwrap();
     let ex = Expert::load(&d).unwrap();
     assert_eq!(
         (ex.family(), ex.name()),
@@ -307,8 +308,31 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
         eval
     );
     // Only an ant-goal SAC expert can be driven.
-    let err = expert::export_scripted_linclass(&assets.join("ant-linclass"), &tmp("linclass-bad"))
-        .unwrap_err();
+    let err = expert::export_scripted_linclass(
+        &assets.join("ant-linclass"),
+        AIM_SCALE,
+        &tmp("linclass-bad"),
+    )
+    .unwrap_err();
     assert!(err.to_string().contains("ant-goal SAC expert"), "{err}");
+    // The aim is stored and read back: another aim acts differently, a bad one is refused.
+    let far = tmp("linclass-far");
+    expert::export_scripted_linclass(&assets.join("ant-goal"), 2.0, &far).unwrap();
+    let far_expert = Expert::load(&far).unwrap();
+    let task = tasks[0];
+    let mut env = sim::make_env(Family::AntLinClass, EnvConfig::default()).unwrap();
+    env.reset(&task, 0).unwrap();
+    let mut oracle = vec![0.0; Family::AntLinClass.oracle_obs_dim()];
+    env.oracle_observation(&mut oracle).unwrap();
+    let (mut near_action, mut far_action) = ([0.0f32; 8], [0.0f32; 8]);
+    ex.act(&oracle, &mut near_action).unwrap();
+    far_expert.act(&oracle, &mut far_action).unwrap();
+    assert_ne!(near_action, far_action);
+    for bad in [0.0, -1.0, f32::NAN] {
+        let err = expert::export_scripted_linclass(&assets.join("ant-goal"), bad, &tmp("lc-bad"))
+            .unwrap_err();
+        assert!(err.to_string().contains("aim scale"), "{err}");
+    }
+    std::fs::remove_dir_all(&far).ok();
     std::fs::remove_dir_all(&d).ok();
 }

@@ -97,7 +97,7 @@ fn the_scripted_target_is_the_episodes_correct_target_and_feeds_an_ant_goal_expe
         env.oracle_observation(&mut oracle).unwrap();
         assert_eq!(&oracle[OBS_DIM..], &task.linclass_normal().unwrap());
         assert_eq!(scripted_target(&oracle), Ok(env.correct_target()));
-        goal_expert_input(&oracle, &mut goal_input).unwrap();
+        goal_expert_input(&oracle, AIM_SCALE, &mut goal_input).unwrap();
         let ant = crate::ant::OBS_DIM;
         assert_eq!(&goal_input[..ant], &env.observation()[..ant]);
         assert_eq!(
@@ -110,7 +110,7 @@ fn the_scripted_target_is_the_episodes_correct_target_and_feeds_an_ant_goal_expe
         Err(SimError::BufferLength { .. })
     ));
     assert!(matches!(
-        goal_expert_input(&oracle, &mut goal_input[1..]),
+        goal_expert_input(&oracle, AIM_SCALE, &mut goal_input[1..]),
         Err(SimError::BufferLength { .. })
     ));
 }

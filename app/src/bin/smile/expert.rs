@@ -37,6 +37,11 @@ pub struct ExpertArgs {
     /// ant-goal` run directory or policy file, e.g. assets/experts/ant-goal).
     #[arg(long)]
     goal_expert: Option<PathBuf>,
+    /// --kind scripted-linclass: aim the ant-goal expert this many times as far as the chosen
+    /// target, so it crosses the decision radius within the episode (1.2 suits the Rapier
+    /// expert; see assets/experts/ant-linclass*/README.md).
+    #[arg(long, default_value_t = sim::ant_linclass::AIM_SCALE)]
+    aim_scale: f32,
     /// TOML file with an `ExpertConfig` (flags given here override it).
     #[arg(long)]
     config: Option<PathBuf>,
@@ -212,7 +217,7 @@ pub fn run(a: ExpertArgs) -> Result<()> {
             .unwrap_or_else(|| PathBuf::from("runs/expert-ant-linclass-scripted"));
         trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
         std::fs::create_dir_all(&dir)?;
-        expert::export_scripted_linclass(goal, &dir)
+        expert::export_scripted_linclass(goal, a.aim_scale, &dir)
             .with_context(|| format!("--goal-expert {}", goal.display()))?;
         return finish(&dir, a.eval_episodes, None, EnvConfig::default());
     }

@@ -41,8 +41,14 @@ pub fn export_scripted_pd(dir: &Path) -> Result<()> {
 /// Write the scripted ant-linclass expert to `dir/policy.safetensors`: the ant-goal SAC
 /// expert at `goal_expert` (a run directory or policy file, copied in) walking to the target
 /// that [`sim::ant_linclass::scripted_target`] picks with the true hyperplane, as the paper
-/// drove two of its Ant-goal experts.
-pub fn export_scripted_linclass(goal_expert: &Path, dir: &Path) -> Result<()> {
+/// drove two of its Ant-goal experts, aimed `aim_scale` times as far as the target
+/// ([`sim::ant_linclass::AIM_SCALE`] by default; stored in the file).
+pub fn export_scripted_linclass(goal_expert: &Path, aim_scale: f32, dir: &Path) -> Result<()> {
+    if !(aim_scale.is_finite() && aim_scale > 0.0) {
+        return Err(Error::Usage(format!(
+            "the aim scale must be a finite number > 0, not {aim_scale}"
+        )));
+    }
     let file = if goal_expert.is_dir() {
         goal_expert.join(POLICY_FILE)
     } else {
@@ -75,7 +81,7 @@ pub fn export_scripted_linclass(goal_expert: &Path, dir: &Path) -> Result<()> {
         "kind": "expert-policy", "expert": "scripted-linclass",
         "env": Family::AntLinClass.name(), "widths": widths, "log_std_bounds": bounds,
         "physics": policy_physics(&ck, &file)?.name(),
-        "goal_expert": file.display().to_string(),
+        "goal_expert": file.display().to_string(), "aim_scale": aim_scale,
     });
     write_policy(dir, POLICY_FILE, &tensors, &meta)
 }
@@ -124,6 +130,9 @@ pub enum Expert {
         policy: TanhGaussianPolicy,
         /// The plant the ant-goal expert was trained on.
         physics: Physics,
+        /// How far beyond the target it aims the ant-goal expert (the file's `aim_scale`;
+        /// [`sim::ant_linclass::AIM_SCALE`] for files from before it was stored).
+        aim_scale: f32,
     },
 }
 
@@ -194,7 +203,15 @@ impl Expert {
                 let goal = Family::AntGoal;
                 let policy = load_actor(&ck, goal.oracle_obs_dim(), goal.act_dim(), &bad)?;
                 let physics = policy_physics(&ck, &file)?;
-                Ok(Expert::ScriptedLinClass { policy, physics })
+                let aim_scale = match ck.meta.get("aim_scale") {
+                    None => sim::ant_linclass::AIM_SCALE,
+                    Some(_) => ck.meta_field("aim_scale")?,
+                };
+                Ok(Expert::ScriptedLinClass {
+                    policy,
+                    physics,
+                    aim_scale,
+                })
             }
             other => Err(bad(&format!("unknown expert kind {other:?}"))),
         }
@@ -235,9 +252,11 @@ impl Expert {
                 Ok(())
             }
             Expert::ScriptedPd(pd) => Ok(pd.act(oracle_obs, action)?),
-            Expert::ScriptedLinClass { policy, .. } => {
+            Expert::ScriptedLinClass {
+                policy, aim_scale, ..
+            } => {
                 let mut goal_input = [0.0f32; sim::ant::OBS_DIM + 2];
-                sim::ant_linclass::goal_expert_input(oracle_obs, &mut goal_input)?;
+                sim::ant_linclass::goal_expert_input(oracle_obs, *aim_scale, &mut goal_input)?;
                 let mut rng = ChaCha8Rng::seed_from_u64(0); // unused: deterministic action
                 action.copy_from_slice(&policy.act(&goal_input, true, &mut rng)?);
                 Ok(())
