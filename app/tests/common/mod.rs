@@ -159,3 +159,13 @@ pub fn export_args<'a>(
     let policy = ["export", "--policy", s(policy)];
     [&policy[..], &["--quant", quant, "--contexts", s(contexts)]].concat()
 }
+
+/// The arguments of `smile demos --env point-goal` with `options`, from `expert` into `out`.
+pub fn point_goal_demos_args<'a>(
+    options: &[&'a str],
+    expert: &'a str,
+    out: &'a str,
+) -> Vec<&'a str> {
+    let env = ["demos", "--env", "point-goal"];
+    [&env[..], options, &["--expert", expert, "-o", out]].concat()
+}
