@@ -15,14 +15,19 @@ fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-reliability", name)
 }
 
-/// Point-goal PD demos: (train, test) files in `dir`.
-fn demos(dir: &Path) -> (PathBuf, PathBuf) {
-    common::point_goal_demo_files(dir)
+/// A fresh directory for the test `name` holding point-goal PD demos: (dir, train, test).
+fn with_demos(name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = tmp(name);
+    let (train, test) = common::point_goal_demo_files(&dir);
+    (dir, train, test)
 }
 
-/// A finished 20-step Meta-BC run in `run`.
-fn tiny_bc(train: &Path, run: &Path) {
-    common::tiny_bc(train, run)
+/// `with_demos(name)` and a finished 20-step Meta-BC run `bc` in it: (dir, test, run).
+fn with_tiny_bc(name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (dir, train, test) = with_demos(name);
+    let run = dir.join("bc");
+    common::tiny_bc(&train, &run);
+    (dir, test, run)
 }
 
 fn err_of(out: &std::process::Output) -> String {
@@ -64,8 +69,7 @@ fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
 /// finished with --resume; --allow-unfinished uses it with a warning.
 #[test]
 fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
-    let dir = tmp("killed");
-    let (train, test) = demos(&dir);
+    let (dir, train, test) = with_demos("killed");
     let run = dir.join("bc");
     let mut child = start_long_bc(&train, &run);
     let second = smile(&[&resume_args(&train, &run)[..], &["--quiet"]].concat());
@@ -124,8 +128,7 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
 /// Item 7: --resume refuses flags it would ignore, an edited config.toml, and other demos.
 #[test]
 fn resume_refuses_changed_flags_edited_config_and_other_demos() {
-    let dir = tmp("resume");
-    let (train, _) = demos(&dir);
+    let (dir, train, _) = with_demos("resume");
     let run = dir.join("bc");
     let tail = ["--hidden", "8,8", "--eval-every", "20", "--quiet"];
     let base = [&common::meta_bc_args(&train, &run)[..], &tail].concat();
@@ -179,10 +182,7 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
 /// Item 8: a policy file holding NaN weights is refused by name, not evaluated to a number.
 #[test]
 fn nan_weights_are_refused() {
-    let dir = tmp("nan");
-    let (train, test) = demos(&dir);
-    let run = dir.join("bc");
-    tiny_bc(&train, &run);
+    let (dir, test, run) = with_tiny_bc("nan");
     // Overwrite the first f32 of the first tensor's data with NaN.
     let file = run.join(trainer::META_POLICY_FILE);
     let mut bytes = std::fs::read(&file).unwrap();
@@ -199,8 +199,7 @@ fn nan_weights_are_refused() {
 #[test]
 fn demos_never_truncate_an_existing_file() {
     let dir = tmp("demos");
-    let pd = dir.join("pd");
-    common::scripted_pd_expert(&pd);
+    let pd = common::scripted_pd_expert(dir.join("pd"));
     let out = dir.join("d.safetensors");
     let record = [
         "demos",
@@ -261,8 +260,7 @@ fn demos_never_truncate_an_existing_file() {
 /// Items 11 and 12: numeric flags are checked at the door with the flag's name and range.
 #[test]
 fn numeric_flags_are_validated_by_name() {
-    let dir = tmp("flags");
-    let (train, test) = demos(&dir);
+    let (dir, train, test) = with_demos("flags");
     let run = dir.join("r");
     let train_args = ["train", "--demos", s(&train), "-o", s(&run)];
     let train_with = |extra: &[&str]| smile(&[&train_args[..], extra].concat());
@@ -342,10 +340,7 @@ fn quickstart_refuses_a_non_empty_directory() {
 /// unfinished expert directory says how to finish it.
 #[test]
 fn messages_name_the_path_and_the_fix() {
-    let dir = tmp("messages");
-    let (train, test) = demos(&dir);
-    let run = dir.join("bc");
-    tiny_bc(&train, &run);
+    let (dir, test, run) = with_tiny_bc("messages");
     let file = dir.join("a-file");
     std::fs::write(&file, "x").unwrap();
     let e = err_of(&smile(&eval_args(&run, &test, &file)));

@@ -144,10 +144,12 @@ pub fn eval_args<'a>(
     ]
 }
 
-/// `smile expert --kind scripted-pd` for point-goal into `dir` (the scripted PD expert).
-pub fn scripted_pd_expert(dir: &std::path::Path) {
+/// `smile expert --kind scripted-pd` for point-goal into `dir` (the scripted PD expert);
+/// returns `dir`.
+pub fn scripted_pd_expert(dir: std::path::PathBuf) -> std::path::PathBuf {
     let kind = ["--env", "point-goal", "--kind", "scripted-pd"];
-    ok(&smile(&[&["expert"][..], &kind, &["-o", s(dir)]].concat()));
+    ok(&smile(&[&["expert"][..], &kind, &["-o", s(&dir)]].concat()));
+    dir
 }
 
 /// The arguments of `smile export` of `policy` at `quant` with `contexts`; append the rest.
