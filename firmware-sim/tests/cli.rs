@@ -69,8 +69,10 @@ fn fails(out: &Output) -> String {
     err
 }
 
-/// The hand-built PD blob and one PD demo for each of the first `n` test goals, in `dir`.
-fn blob_and_demos(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
+/// A fresh directory for the test `name` holding the hand-built PD blob and one PD demo for each
+/// of the first `n` test goals: (dir, blob, demos).
+fn blob_and_demos(name: &str, n: usize) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = tmp(name);
     let fam = Family::PointGoal;
     let mut env = make_env(fam, EnvConfig::default()).unwrap();
     let pd = PointGoalPdExpert::default();
@@ -90,7 +92,7 @@ fn blob_and_demos(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
     let (blob_path, demos_path) = (dir.join("pd.blob"), dir.join("demos.safetensors"));
     std::fs::write(&blob_path, blob).unwrap();
     ds.write(&demos_path).unwrap();
-    (blob_path, demos_path)
+    (dir, blob_path, demos_path)
 }
 
 /// The arguments of `firmware-sim compare` of `blob` on point-goal with `demos`; append the rest.
@@ -110,8 +112,7 @@ fn summary_metric(summary: &str) -> f32 {
 
 #[test]
 fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
-    let dir = tmp("run");
-    let (blob, demos) = blob_and_demos(&dir, 6);
+    let (dir, blob, demos) = blob_and_demos("run", 6);
     let tasks = Family::PointGoal.test_tasks();
     for (spec, task) in [
         ("3".to_string(), tasks[3]),
@@ -149,8 +150,7 @@ fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
 
 #[test]
 fn compare_runs_the_reports_tasks_on_the_device() {
-    let dir = tmp("compare");
-    let (blob, demos) = blob_and_demos(&dir, 3);
+    let (dir, blob, demos) = blob_and_demos("compare", 3);
     let tasks = Family::PointGoal.test_tasks();
     let report = export_report(&[(tasks[0].value(), 0.5), (tasks[2].value(), 0.25)], "");
     let mut reference = blob.clone().into_os_string();
@@ -220,8 +220,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
 /// too many ticks and zero episodes are refused at the door, by flag.
 #[test]
 fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
-    let dir = tmp("refuse");
-    let (blob, demos) = blob_and_demos(&dir, 1);
+    let (dir, blob, demos) = blob_and_demos("refuse", 1);
     let task = Family::PointGoal.test_tasks()[0];
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
@@ -279,8 +278,7 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
 
 #[test]
 fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
-    let dir = tmp("physics");
-    let (blob, demos) = blob_and_demos(&dir, 1);
+    let (dir, blob, demos) = blob_and_demos("physics", 1);
     let run = |extra: &[&str]| {
         let out = dir.join("out");
         let mut args = run_args(&blob, "point-goal", "0", &demos);
