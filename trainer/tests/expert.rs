@@ -241,11 +241,11 @@ fn demos_round_trip_and_are_deterministic() {
 #[test]
 fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
     trainer::threads::set_compute_threads(1);
-    let d = tmp("ant-goal");
     let cfg = ExpertConfig {
         env: Family::AntGoal,
         ..tiny(60)
     };
+    let d = tmp("ant-goal");
     trained(cfg.clone(), &d);
     let ex = Expert::load(&d).unwrap();
     assert_eq!(ex.family(), Family::AntGoal);
