@@ -2,9 +2,15 @@
 //! corrupt checkpoint and bad config errors.
 
 mod common;
-use common::{ok, smile};
+use common::{ok, point_goal_demos_args, smile};
 
 use std::path::{Path, PathBuf};
+
+/// The shipped point-goal meta-train demos (all 32 goals).
+const SHIPPED_TRAIN_DEMOS: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../assets/experts/point-goal/demos-train-4x-sub20.safetensors"
+);
 
 fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-cli", name)
@@ -75,10 +81,7 @@ fn expert_resume_demos_pipeline() {
 
     let demos = d.join("demos.safetensors");
     let demos_s = demos.to_str().unwrap();
-    ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
+    let options = [
         "--split",
         "test",
         "--per-task",
@@ -87,31 +90,22 @@ fn expert_resume_demos_pipeline() {
         "5",
         "--horizon",
         "20",
-        "--expert",
-        run_s,
-        "-o",
-        demos_s,
-    ]));
+    ];
+    ok(&smile(&point_goal_demos_args(&options, run_s, demos_s)));
     let ds = sim::DemoDataset::read(&demos).unwrap();
     assert_eq!(
         (ds.tasks.len(), ds.expert.as_str(), ds.subsample_factor),
         (16, "sac-oracle", 5)
     );
-    ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
+    let options = [
         "--task-params",
         "0.3,-1.2",
         "--per-task",
         "2",
         "--horizon",
         "20",
-        "--expert",
-        run_s,
-        "-o",
-        demos_s,
-    ]));
+    ];
+    ok(&smile(&point_goal_demos_args(&options, run_s, demos_s)));
     assert_eq!(
         sim::DemoDataset::read(&demos).unwrap().trajectory_count(),
         4
@@ -198,21 +192,19 @@ fn per_task_experts_make_demos_for_their_tasks() {
     let experts = dirs.join(",");
     let demos = d.join("demos.safetensors");
     let demos_with = |expert: &str, out: &std::path::Path| {
-        ok(&smile(&[
-            "demos",
-            "--env",
-            "point-goal",
+        let options = [
             "--task-params",
             "0.3,-1.2",
             "--per-task",
             "1",
             "--horizon",
             "20",
-            "--expert",
+        ];
+        ok(&smile(&point_goal_demos_args(
+            &options,
             expert,
-            "-o",
             out.to_str().unwrap(),
-        ]))
+        )))
     };
     demos_with(&experts, &demos);
     let ds = sim::DemoDataset::read(&demos).unwrap();
@@ -221,19 +213,12 @@ fn per_task_experts_make_demos_for_their_tasks() {
         (2, "sac-oracle-per-task")
     );
     // A task without its expert (and no general expert) is an error.
-    let out = smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--task-params",
-        "0.5",
-        "--horizon",
-        "20",
-        "--expert",
+    let options = ["--task-params", "0.5", "--horizon", "20"];
+    let out = smile(&point_goal_demos_args(
+        &options,
         &experts,
-        "-o",
         demos.to_str().unwrap(),
-    ]);
+    ));
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("no expert for task"));
     // A folder of policy files stands for its experts: the same demos as the list.
@@ -256,10 +241,7 @@ fn per_task_experts_make_demos_for_their_tasks() {
     assert_eq!((a.tasks, a.expert), (b.tasks, b.expert));
     // Meta-DAgger checks up front that every meta-train task has its relabelling expert (the
     // shipped demos cover all 32 goals, the folder two other ones).
-    let train = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/experts/point-goal/demos-train-4x-sub20.safetensors"
-    );
+    let train = SHIPPED_TRAIN_DEMOS;
     let out = smile(&[
         "train",
         "--algo",
@@ -280,15 +262,11 @@ fn per_task_experts_make_demos_for_their_tasks() {
     let empty = d.join("empty");
     std::fs::create_dir_all(&empty).unwrap();
     let to = d.join("none.safetensors");
-    let out = smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--expert",
+    let out = smile(&point_goal_demos_args(
+        &[],
         empty.to_str().unwrap(),
-        "-o",
         to.to_str().unwrap(),
-    ]);
+    ));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         !out.status.success() && err.contains("holds no expert"),
@@ -375,18 +353,19 @@ fn two_tiny_quickstarts_with_one_seed_are_byte_identical() {
 fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     let d = tmp("bench");
     let json = d.join("bench.json");
-    let out = smile(&[
-        "bench",
-        "--hidden",
-        "8",
-        "16",
-        "--iters",
-        "1",
-        "--warmup",
-        "0",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    // One timed iteration, no warm-up, rows into `json` (the options before that first).
+    let bench = |options: &[&str]| {
+        let once = [
+            "--iters",
+            "1",
+            "--warmup",
+            "0",
+            "--json",
+            json.to_str().unwrap(),
+        ];
+        smile(&[&["bench"][..], options, &once].concat())
+    };
+    let out = bench(&["--hidden", "8", "16"]);
     ok(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
@@ -426,25 +405,15 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     }
 
     // The discriminator step and whole SMILe iterations, one tiny timing each.
-    let demos = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../assets/experts/point-goal/demos-train-4x-sub20.safetensors"
-    );
-    let out = smile(&[
-        "bench",
+    let demos = SHIPPED_TRAIN_DEMOS;
+    let out = bench(&[
         "--workload",
         "disc",
         "pair",
         "--hidden",
         "8",
-        "--iters",
-        "1",
-        "--warmup",
-        "0",
         "--demos",
         demos,
-        "--json",
-        json.to_str().unwrap(),
     ]);
     ok(&out);
     let rows: serde_json::Value =
@@ -474,20 +443,13 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     );
 
     // The authors' shapes, and every layer named, on two learner threads.
-    let out = smile(&[
-        "bench",
+    let out = bench(&[
         "--workload",
         "sac",
         "disc",
         "--authors",
-        "--iters",
-        "1",
-        "--warmup",
-        "0",
         "--learner-threads",
         "2",
-        "--json",
-        json.to_str().unwrap(),
     ]);
     ok(&out);
     let rows: serde_json::Value =
@@ -505,17 +467,7 @@ fn bench_times_one_tiny_iteration_and_names_bad_flags() {
     assert_eq!(disc["shape"]["hidden"], serde_json::json!([512, 512, 512]));
     assert_eq!(disc["shape"]["enc_hidden"], serde_json::json!([256, 256]));
     assert!((disc["flops"].as_f64().unwrap() / 1e9 - 11.87).abs() < 0.01);
-    let out = smile(&[
-        "bench",
-        "--hidden",
-        "16,8,4",
-        "--iters",
-        "1",
-        "--warmup",
-        "0",
-        "--json",
-        json.to_str().unwrap(),
-    ]);
+    let out = bench(&["--hidden", "16,8,4"]);
     ok(&out);
     assert!(String::from_utf8_lossy(&out.stdout).contains("16,8,4"));
 

@@ -25,20 +25,22 @@ fn train_eval_export_and_refuse_meta_test_data() {
     demos(Split::Train, fam.train_tasks()[..8].to_vec(), &train);
     demos(Split::Test, fam.test_tasks(), &test);
     let s = |p: &PathBuf| p.to_str().unwrap().to_string();
+    // `smile train --algo <algo> --demos <demos> -o <run>`, then `rest`.
+    let train_run = |algo: &str, demos: &PathBuf, run: &PathBuf, rest: &[&str]| {
+        let (demos, run) = (s(demos), s(run));
+        smile(
+            &[
+                &["train", "--algo", algo, "--demos", &demos, "-o", &run][..],
+                rest,
+            ]
+            .concat(),
+        )
+    };
 
     // Held-out honesty: a meta-test file is refused by every algorithm, before any training.
     for algo in ["smile", "smile-state-only", "meta-bc", "meta-dagger"] {
         let out_dir = dir.join(format!("refused-{algo}"));
-        let out = smile(&[
-            "train",
-            "--algo",
-            algo,
-            "--demos",
-            &s(&test),
-            "-o",
-            &s(&out_dir),
-            "--quiet",
-        ]);
+        let out = train_run(algo, &test, &out_dir, &["--quiet"]);
         assert!(!out.status.success(), "{algo} trained on meta-test demos");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("meta-test"), "{algo}: {err}");
@@ -86,62 +88,34 @@ fn train_eval_export_and_refuse_meta_test_data() {
     bc.context = sc.context.clone();
     std::fs::write(dir.join("bc.toml"), toml::to_string(&bc).unwrap()).unwrap();
     let (run_s, run_b) = (dir.join("smile"), dir.join("bc"));
-    ok(&smile(&[
-        "train",
-        "--algo",
+    let (smile_toml, bc_toml) = (s(&dir.join("smile.toml")), s(&dir.join("bc.toml")));
+    ok(&train_run(
         "smile",
-        "--demos",
-        &s(&train),
-        "-o",
-        &s(&run_s),
-        "--config",
-        &s(&dir.join("smile.toml")),
-        "--quiet",
-    ]));
-    ok(&smile(&[
-        "train",
-        "--algo",
+        &train,
+        &run_s,
+        &["--config", &smile_toml, "--quiet"],
+    ));
+    ok(&train_run(
         "meta-bc",
-        "--demos",
-        &s(&train),
-        "-o",
-        &s(&run_b),
-        "--config",
-        &s(&dir.join("bc.toml")),
-        "--quiet",
-    ]));
+        &train,
+        &run_b,
+        &["--config", &bc_toml, "--quiet"],
+    ));
     // Resume extends the run.
-    ok(&smile(&[
-        "train",
-        "--algo",
-        "smile",
-        "--demos",
-        &s(&train),
-        "-o",
-        &s(&run_s),
-        "--resume",
-        "--updates",
-        "30",
-        "--quiet",
-    ]));
+    let resume = ["--resume", "--updates", "30", "--quiet"];
+    ok(&train_run("smile", &train, &run_s, &resume));
     let ck: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(run_s.join("checkpoint.json")).unwrap())
             .unwrap();
     assert_eq!(ck["updates"], 30);
     // Starting a fresh run over an existing one is refused and overwrites nothing.
     let before = std::fs::read(run_s.join("checkpoint.safetensors")).unwrap();
-    let out = smile(&[
-        "train",
-        "--algo",
+    let out = train_run(
         "smile",
-        "--demos",
-        &s(&train),
-        "-o",
-        &s(&run_s),
-        "--config",
-        &s(&dir.join("smile.toml")),
-        "--quiet",
-    ]);
+        &train,
+        &run_s,
+        &["--config", &smile_toml, "--quiet"],
+    );
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(

@@ -23,18 +23,10 @@ fn stderr(out: &std::process::Output) -> String {
 #[test]
 fn a_build_without_mujoco_says_how_to_get_it() {
     let dir = tmp("no-feature");
-    let out = smile(&[
-        "expert",
-        "--env",
-        "cheetah-vel",
-        "--physics",
-        "mujoco",
-        "--total-steps",
-        "10",
-        "-o",
-        s(&dir.join("e")),
-        "--quiet",
-    ]);
+    let e = dir.join("e");
+    let mut args = vec!["expert", "--env", "cheetah-vel", "--physics", "mujoco"];
+    args.extend(["--total-steps", "10", "-o", s(&e), "--quiet"]);
+    let out = smile(&args);
     let err = stderr(&out);
     assert!(
         err.contains("fetch-mujoco.sh") && err.contains("--features mujoco"),
@@ -168,25 +160,25 @@ fn the_pipeline_runs_on_mujoco_and_each_plant_refuses_the_others_files() {
 
     // Evaluation runs on the policy's plant; contexts of another plant are refused.
     let eval = dir.join("eval");
-    ok(&smile(&[
-        "eval",
-        "--env",
-        "cheetah-vel",
-        "--policy",
-        s(&run),
-        "--contexts",
-        s(&test),
-        "--split",
-        "test",
-        "--rollouts",
-        "1",
-        "--context-sizes",
-        "1",
-        "--horizon",
-        "20",
-        "-o",
-        s(&eval),
-    ]));
+    // `smile eval` of `run` on cheetah-vel's meta-test `contexts`, one rollout, then `rest`.
+    let eval_on = |contexts: &PathBuf, rest: &[&str]| {
+        let head = [
+            "eval",
+            "--env",
+            "cheetah-vel",
+            "--policy",
+            s(&run),
+            "--contexts",
+            s(contexts),
+            "--split",
+            "test",
+            "--rollouts",
+            "1",
+        ];
+        smile(&[&head[..], rest].concat())
+    };
+    let sizes = ["--context-sizes", "1", "--horizon", "20", "-o", s(&eval)];
+    ok(&eval_on(&test, &sizes));
     let rapier_test = dir.join("rapier-test.safetensors");
     common::open_loop_demos(
         sim::Family::CheetahVel,
@@ -196,23 +188,11 @@ fn the_pipeline_runs_on_mujoco_and_each_plant_refuses_the_others_files() {
     )
     .write(&rapier_test)
     .unwrap();
-    let err = stderr(&smile(&[
-        "eval",
-        "--env",
-        "cheetah-vel",
-        "--policy",
-        s(&run),
-        "--contexts",
-        s(&rapier_test),
-        "--split",
-        "test",
-        "--rollouts",
-        "1",
-        "--horizon",
-        "20",
-        "-o",
-        s(&dir.join("eval2")),
-    ]));
+    let eval2 = dir.join("eval2");
+    let err = stderr(&eval_on(
+        &rapier_test,
+        &["--horizon", "20", "-o", s(&eval2)],
+    ));
     assert!(
         err.contains("rapier plant") && err.contains("mujoco"),
         "{err}"

@@ -36,21 +36,20 @@ fn demos_task_params_and_per_task_experts_match_a_label_value() {
         "1",
     ]));
     let demos = dir.join("new.safetensors");
-    let err = ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
+    let params = format!("{LABEL_VALUE},0.3");
+    let options = [
         "--task-params",
-        &format!("{LABEL_VALUE},0.3"),
+        &params,
         "--per-task",
         "1",
         "--horizon",
         "20",
-        "--expert",
+    ];
+    let err = ok(&smile(&common::point_goal_demos_args(
+        &options,
         s(&pd),
-        "-o",
         s(&demos),
-    ]));
+    )));
     // The stored task is the test task itself, not a neighbour 2.6e-5 rad away; 0.3 is new.
     let ds = DemoDataset::read(&demos).unwrap();
     assert_eq!(ds.tasks[0].task, goal, "{err}");
@@ -71,21 +70,12 @@ fn demos_task_params_and_per_task_experts_match_a_label_value() {
     );
     let test_demos = dir.join("test.safetensors");
     let experts = format!("{},{}", s(&per_task), s(&pd));
-    let err = ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--split",
-        "test",
-        "--per-task",
-        "1",
-        "--horizon",
-        "20",
-        "--expert",
+    let options = ["--split", "test", "--per-task", "1", "--horizon", "20"];
+    let err = ok(&smile(&common::point_goal_demos_args(
+        &options,
         &experts,
-        "-o",
         s(&test_demos),
-    ]));
+    )));
     assert!(
         err.contains(&format!(
             "goal_angle=0.4909: expert {} (trained on goal_angle=0.4909)",

@@ -84,17 +84,8 @@ fn export_refuses_demos_of_another_family_in_one_line_and_f32_needs_no_calibrati
     }
     // f32 and w8a32 need no calibration demos; w8a8 says it needs them.
     for quant in ["f32", "w8a32"] {
-        let err = ok(&smile(&[
-            "export",
-            "--policy",
-            s(&run),
-            "--quant",
-            quant,
-            "--contexts",
-            s(&test),
-            "-o",
-            s(&blob),
-        ]));
+        let export = common::export_args(&run, quant, &test);
+        let err = ok(&smile(&[&export[..], &["-o", s(&blob)]].concat()));
         assert!(err.contains(&format!("bytes, {quant}")), "{err}");
     }
     let out = smile(&[
@@ -290,18 +281,13 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         };
         std::fs::write(&cfg, format!("{budget}{toml_text}")).unwrap();
         let run = dir.join(format!("run{i}"));
-        let out = smile(&[
-            "train",
-            "--algo",
-            algo,
-            "--demos",
-            s(&train),
-            "--config",
-            s(&cfg),
-            "-o",
-            s(&run),
-            "--quiet",
-        ]);
+        let out = smile(
+            &[
+                &["train", "--algo", algo, "--demos", s(&train)][..],
+                &["--config", s(&cfg), "-o", s(&run), "--quiet"],
+            ]
+            .concat(),
+        );
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(
             out.status.code(),

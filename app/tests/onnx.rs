@@ -249,21 +249,23 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
     std::fs::create_dir_all(&run).unwrap();
     random_policy(fam, "smile", norm, 99).save(&run).unwrap();
     let out = dir.join("onnx");
-    let export = |o: &Path, extra: &[&str]| {
+    // `smile export --format onnx` of `policy` on `contexts` into `o`, then `extra`.
+    let export_onnx = |policy: &Path, contexts: &Path, o: &Path, extra: &[&str]| {
         let mut args = vec![
             "export",
             "--policy",
-            s(&run),
+            s(policy),
             "--format",
             "onnx",
             "--contexts",
-            s(&test),
+            s(contexts),
             "-o",
             s(o),
         ];
         args.extend_from_slice(extra);
         smile(&args)
     };
+    let export = |o: &Path, extra: &[&str]| export_onnx(&run, &test, o, extra);
     let err = common::ok(&export(&out, &[]));
     assert!(err.contains("ONNX opset 17"), "{err}");
     assert_eq!(
@@ -293,17 +295,7 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
     // A run directory without a policy.
     let empty = dir.join("empty-run");
     std::fs::create_dir_all(&empty).unwrap();
-    let o = smile(&[
-        "export",
-        "--policy",
-        s(&empty),
-        "--format",
-        "onnx",
-        "--contexts",
-        s(&test),
-        "-o",
-        s(&dir.join("x")),
-    ]);
+    let o = export_onnx(&empty, &test, &dir.join("x"), &[]);
     let err = one_line_error(&o);
     assert!(err.contains("meta_policy.safetensors"), "{err}");
     // Contexts and demos of another family.
@@ -311,17 +303,7 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
     test_demos(Family::CheetahVel, 1).write(&cheetah).unwrap();
     let x = dir.join("x");
     for o in [
-        smile(&[
-            "export",
-            "--policy",
-            s(&run),
-            "--format",
-            "onnx",
-            "--contexts",
-            s(&cheetah),
-            "-o",
-            s(&x),
-        ]),
+        export_onnx(&run, &cheetah, &x, &[]),
         export(&x, &["--demos", s(&cheetah)]),
     ] {
         let err = one_line_error(&o);

@@ -3,7 +3,7 @@
 //! train, each called as a user calls the binary. Every case here failed on the code before.
 
 mod common;
-use common::{ok, s, smile};
+use common::{eval_args, ok, resume_args, s, smile};
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -15,14 +15,19 @@ fn tmp(name: &str) -> PathBuf {
     common::fresh_dir("smile-reliability", name)
 }
 
-/// Point-goal PD demos: (train, test) files in `dir`.
-fn demos(dir: &Path) -> (PathBuf, PathBuf) {
-    common::point_goal_demo_files(dir)
+/// A fresh directory for the test `name` holding point-goal PD demos: (dir, train, test).
+fn with_demos(name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = tmp(name);
+    let (train, test) = common::point_goal_demo_files(&dir);
+    (dir, train, test)
 }
 
-/// A finished 20-step Meta-BC run in `run`.
-fn tiny_bc(train: &Path, run: &Path) {
-    common::tiny_bc(train, run)
+/// `with_demos(name)` and a finished 20-step Meta-BC run `bc` in it: (dir, test, run).
+fn with_tiny_bc(name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let (dir, train, test) = with_demos(name);
+    let run = dir.join("bc");
+    common::tiny_bc(&train, &run);
+    (dir, test, run)
 }
 
 fn err_of(out: &std::process::Output) -> String {
@@ -41,24 +46,9 @@ fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
     let cfg = run.with_extension("toml");
     std::fs::write(&cfg, "patience = 0\n").unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_smile"))
-        .args([
-            "train",
-            "--algo",
-            "meta-bc",
-            "--demos",
-            s(train),
-            "-o",
-            s(run),
-            "--config",
-            s(&cfg),
-            "--updates",
-            "100000000",
-            "--eval-every",
-            "20",
-            "--hidden",
-            "8,8",
-            "--quiet",
-        ])
+        .args(common::meta_bc_args(train, run))
+        .args(["--config", s(&cfg), "--updates", "100000000"])
+        .args(["--eval-every", "20", "--hidden", "8,8", "--quiet"])
         .env("RAYON_NUM_THREADS", "1")
         .stdout(Stdio::null())
         .stderr(Stdio::null())
@@ -79,19 +69,10 @@ fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
 /// finished with --resume; --allow-unfinished uses it with a warning.
 #[test]
 fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
-    let dir = tmp("killed");
-    let (train, test) = demos(&dir);
+    let (dir, train, test) = with_demos("killed");
     let run = dir.join("bc");
     let mut child = start_long_bc(&train, &run);
-    let second = smile(&[
-        "train",
-        "--resume",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--quiet",
-    ]);
+    let second = smile(&[&resume_args(&train, &run)[..], &["--quiet"]].concat());
     let e = err_of(&second);
     assert!(
         e.contains("in use by another process") && e.contains(&child.id().to_string()),
@@ -101,18 +82,7 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
     child.wait().unwrap();
     let ev = dir.join("eval");
     let eval = |extra: &[&str]| {
-        let mut args = vec![
-            "eval",
-            "--policy",
-            s(&run),
-            "--contexts",
-            s(&test),
-            "-o",
-            s(&ev),
-            "--rollouts",
-            "1",
-            "--quiet",
-        ];
+        let mut args = eval_args(&run, &test, &ev);
         args.extend_from_slice(extra);
         smile(&args)
     };
@@ -122,17 +92,14 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
         "{e}"
     );
     assert!(!ev.join("eval.json").exists());
-    let e = err_of(&smile(&[
-        "export",
-        "--policy",
-        s(&run),
-        "--quant",
-        "f32",
-        "--contexts",
-        s(&test),
-        "-o",
-        s(&dir.join("p.blob")),
-    ]));
+    let blob = dir.join("p.blob");
+    let e = err_of(&smile(
+        &[
+            &common::export_args(&run, "f32", &test)[..],
+            &["-o", s(&blob)],
+        ]
+        .concat(),
+    ));
     assert!(e.contains("unfinished run"), "{e}");
     let e = err_of(&smile(&[
         "latents",
@@ -152,17 +119,8 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
         "{warned}"
     );
     // Finishing it (a budget already spent) marks the kept policy finished.
-    ok(&smile(&[
-        "train",
-        "--resume",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--updates",
-        "1",
-        "--quiet",
-    ]));
+    let finish = ["--updates", "1", "--quiet"];
+    ok(&smile(&[&resume_args(&train, &run)[..], &finish].concat()));
     ok(&eval(&[]));
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -170,22 +128,14 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
 /// Item 7: --resume refuses flags it would ignore, an edited config.toml, and other demos.
 #[test]
 fn resume_refuses_changed_flags_edited_config_and_other_demos() {
-    let dir = tmp("resume");
-    let (train, _) = demos(&dir);
+    let (dir, train, _) = with_demos("resume");
     let run = dir.join("bc");
     let tail = ["--hidden", "8,8", "--eval-every", "20", "--quiet"];
     let base = [&common::meta_bc_args(&train, &run)[..], &tail].concat();
     ok(&smile(&[&base[..], &["--updates", "40"]].concat()));
     let resume = |extra: &[&str]| {
-        let mut args = vec![
-            "train",
-            "--resume",
-            "--demos",
-            s(&train),
-            "-o",
-            s(&run),
-            "--quiet",
-        ];
+        let mut args = resume_args(&train, &run);
+        args.push("--quiet");
         args.extend_from_slice(extra);
         smile(&args)
     };
@@ -216,17 +166,8 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
     )
     .write(&other)
     .unwrap();
-    let e = err_of(&smile(&[
-        "train",
-        "--resume",
-        "--demos",
-        s(&other),
-        "-o",
-        s(&run),
-        "--updates",
-        "60",
-        "--quiet",
-    ]));
+    let budget = ["--updates", "60", "--quiet"];
+    let e = err_of(&smile(&[&resume_args(&other, &run)[..], &budget].concat()));
     assert!(
         e.contains("is not the file") && e.contains("SHA-256"),
         "{e}"
@@ -241,28 +182,14 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
 /// Item 8: a policy file holding NaN weights is refused by name, not evaluated to a number.
 #[test]
 fn nan_weights_are_refused() {
-    let dir = tmp("nan");
-    let (train, test) = demos(&dir);
-    let run = dir.join("bc");
-    tiny_bc(&train, &run);
+    let (dir, test, run) = with_tiny_bc("nan");
     // Overwrite the first f32 of the first tensor's data with NaN.
     let file = run.join(trainer::META_POLICY_FILE);
     let mut bytes = std::fs::read(&file).unwrap();
     let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
     bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
     std::fs::write(&file, &bytes).unwrap();
-    let e = err_of(&smile(&[
-        "eval",
-        "--policy",
-        s(&run),
-        "--contexts",
-        s(&test),
-        "-o",
-        s(&dir.join("ev")),
-        "--rollouts",
-        "1",
-        "--quiet",
-    ]));
+    let e = err_of(&smile(&eval_args(&run, &test, &dir.join("ev"))));
     assert!(e.contains("non-finite") && e.contains("diverged"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
@@ -272,48 +199,27 @@ fn nan_weights_are_refused() {
 #[test]
 fn demos_never_truncate_an_existing_file() {
     let dir = tmp("demos");
-    let pd = dir.join("pd");
-    ok(&smile(&[
-        "expert",
-        "--env",
-        "point-goal",
-        "--kind",
-        "scripted-pd",
-        "-o",
-        s(&pd),
-    ]));
+    let pd = common::scripted_pd_expert(dir.join("pd"));
     let out = dir.join("d.safetensors");
-    let rec = |extra: &[&str]| {
-        let mut args = vec![
-            "demos",
-            "--env",
-            "point-goal",
-            "--horizon",
-            "10",
-            "--expert",
-            s(&pd),
-            "-o",
-            s(&out),
-        ];
-        args.extend_from_slice(extra);
-        smile(&args)
-    };
-    ok(&rec(&["--per-task", "1"]));
-    let before = std::fs::read(&out).unwrap();
-    // A full disk, as the kernel reports it: the child may write files of at most 4 KiB
-    // (RLIMIT_FSIZE, with SIGXFSZ ignored so the write fails with EFBIG instead of killing
-    // it). Recording 16 demos a task needs more: the write fails, the old file stays whole.
-    let mut args = vec![
+    let record = [
         "demos",
         "--env",
         "point-goal",
         "--horizon",
         "10",
         "--expert",
+        s(&pd),
+        "-o",
+        s(&out),
     ];
-    args.extend([s(&pd), "-o", s(&out), "--per-task", "16"]);
+    let rec = |extra: &[&str]| smile(&[&record[..], extra].concat());
+    ok(&rec(&["--per-task", "1"]));
+    let before = std::fs::read(&out).unwrap();
+    // A full disk, as the kernel reports it: the child may write files of at most 4 KiB
+    // (RLIMIT_FSIZE, with SIGXFSZ ignored so the write fails with EFBIG instead of killing
+    // it). Recording 16 demos a task needs more: the write fails, the old file stays whole.
     let mut cmd = Command::new(env!("CARGO_BIN_EXE_smile"));
-    cmd.args(&args);
+    cmd.args(record).args(["--per-task", "16"]);
     use std::os::unix::process::CommandExt;
     // SAFETY: only async-signal-safe calls (setrlimit, signal) between fork and exec.
     unsafe {
@@ -354,23 +260,10 @@ fn demos_never_truncate_an_existing_file() {
 /// Items 11 and 12: numeric flags are checked at the door with the flag's name and range.
 #[test]
 fn numeric_flags_are_validated_by_name() {
-    let dir = tmp("flags");
-    let (train, test) = demos(&dir);
+    let (dir, train, test) = with_demos("flags");
     let run = dir.join("r");
-    let train_with = |flag: &str, value: &str| {
-        smile(&[
-            "train",
-            "--demos",
-            s(&train),
-            "-o",
-            s(&run),
-            "--updates",
-            "5",
-            flag,
-            value,
-            "--quiet",
-        ])
-    };
+    let train_args = ["train", "--demos", s(&train), "-o", s(&run)];
+    let train_with = |extra: &[&str]| smile(&[&train_args[..], extra].concat());
     for (flag, value) in [
         ("--gp-weight", "nan"),
         ("--gp-weight=-1", ""),
@@ -379,17 +272,9 @@ fn numeric_flags_are_validated_by_name() {
         ("--updates", "0"),
     ] {
         let e = if value.is_empty() {
-            err_of(&smile(&[
-                "train",
-                "--demos",
-                s(&train),
-                "-o",
-                s(&run),
-                flag,
-                "--quiet",
-            ]))
+            err_of(&train_with(&[flag, "--quiet"]))
         } else {
-            err_of(&train_with(flag, value))
+            err_of(&train_with(&["--updates", "5", flag, value, "--quiet"]))
         };
         let name = flag.split('=').next().unwrap();
         assert!(e.contains(name), "{flag} {value}: {e}");
@@ -404,29 +289,13 @@ fn numeric_flags_are_validated_by_name() {
     ] {
         let cfg = dir.join("bad.toml");
         std::fs::write(&cfg, text).unwrap();
-        let e = err_of(&smile(&[
-            "train",
-            "--demos",
-            s(&train),
-            "-o",
-            s(&run),
-            "--config",
-            s(&cfg),
-            "--quiet",
-        ]));
+        let e = err_of(&train_with(&["--config", s(&cfg), "--quiet"]));
         assert!(e.contains(key) && e.contains("finite"), "{text}: {e}");
         assert!(!e.contains("panicked"), "{e}");
     }
-    let e = err_of(&smile(&[
-        "--threads",
-        "1000",
-        "train",
-        "--demos",
-        s(&train),
-        "-o",
-        s(&run),
-        "--quiet",
-    ]));
+    let e = err_of(&smile(
+        &[&["--threads", "1000"][..], &train_args, &["--quiet"]].concat(),
+    ));
     assert!(e.contains("--threads") && e.contains("1 to 64"), "{e}");
     let e = err_of(&smile(&[
         "eval",
@@ -471,24 +340,10 @@ fn quickstart_refuses_a_non_empty_directory() {
 /// unfinished expert directory says how to finish it.
 #[test]
 fn messages_name_the_path_and_the_fix() {
-    let dir = tmp("messages");
-    let (train, test) = demos(&dir);
-    let run = dir.join("bc");
-    tiny_bc(&train, &run);
+    let (dir, test, run) = with_tiny_bc("messages");
     let file = dir.join("a-file");
     std::fs::write(&file, "x").unwrap();
-    let e = err_of(&smile(&[
-        "eval",
-        "--policy",
-        s(&run),
-        "--contexts",
-        s(&test),
-        "-o",
-        s(&file),
-        "--rollouts",
-        "1",
-        "--quiet",
-    ]));
+    let e = err_of(&smile(&eval_args(&run, &test, &file)));
     assert!(e.contains(s(&file)), "{e}");
     // An expert run with a checkpoint but no policy yet.
     let ex = dir.join("expert");

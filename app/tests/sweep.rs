@@ -331,13 +331,16 @@ rollouts = 1
     };
     let p = dir.join("plan.toml");
     std::fs::write(&p, plan(100, r#""train.safetensors""#)).unwrap();
-    ok(&smile(&[
-        "sweep",
-        p.to_str().unwrap(),
-        "--jobs",
-        "1",
-        "--quiet",
-    ]));
+    let sweep_quietly = || {
+        ok(&smile(&[
+            "sweep",
+            p.to_str().unwrap(),
+            "--jobs",
+            "1",
+            "--quiet",
+        ]))
+    };
+    sweep_quietly();
     let cell = out.join("meta-bc-s0");
     let first = bytes(&cell.join("train/meta_policy.safetensors"));
     std::fs::write(&p, plan(200, r#""train.safetensors""#)).unwrap();
@@ -368,13 +371,7 @@ rollouts = 1
     let dirs: Vec<_> = sweep.cells.iter().map(|c| sweep.cell_dir(c)).collect();
     assert_eq!(dirs.len(), 2);
     assert_ne!(dirs[0], dirs[1], "{dirs:?}");
-    ok(&smile(&[
-        "sweep",
-        p.to_str().unwrap(),
-        "--jobs",
-        "1",
-        "--quiet",
-    ]));
+    sweep_quietly();
     // One evaluation unreadable: the report names it.
     std::fs::write(dirs[1].join("eval/eval.json"), "{\"trunc").unwrap();
     let rep = dir.join("report");

@@ -11,12 +11,7 @@
 # release build (cargo build --release -p smile-app) and the PyTorch venv (.venv-torch, see
 # docs/bench/pytorch/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
 set -euo pipefail
-cd "$(dirname "$0")/../.."
-out=${1:?usage: bench-authors.sh OUT_DIR}
-mkdir -p "$out"
-py=.venv-torch/bin/python
-smile=target/release/smile
-echo "machine: $(nproc) vCPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2), $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$out/machine.txt"
+source "$(dirname "$0")/bench-common.sh"
 echo "== sgemm anchor (torch, 1 thread)"
 $py - <<'PY' | tee "$out/sgemm.txt"
 import time, torch

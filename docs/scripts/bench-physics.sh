@@ -10,11 +10,7 @@
 # Needs a `--features mujoco` build of smile (cargo build --release --features mujoco). Run on
 # quiet cores where possible; the output names the load. About 6 minutes.
 set -euo pipefail
-cd "$(dirname "$0")/../.."
-out=${1:?usage: bench-physics.sh OUT_DIR}
-mkdir -p "$out"
-smile=target/release/smile
-echo "machine: $(nproc) vCPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2), $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)" | tee "$out/machine.txt"
+source "$(dirname "$0")/bench-common.sh"
 taskset -c 0 cargo bench -q -p sim --features mujoco --bench env_steps -- \
   --warm-up-time 1 --measurement-time 4 2>&1 | grep -E "^env_step|time:|thrpt:" | tee "$out/env_steps.txt"
 for plant in cheetah-vel cheetah-vel-mujoco; do

@@ -63,27 +63,17 @@ def gym_version():
         return gymnasium.__version__
 
 
+def planar(xml, period, phases, reset):
+    """A planar robot's entry: root joints rootx, rootz, rooty; 5 physics steps a control step."""
+    return dict(xml=xml, frame_skip=5, root_joints=["rootx", "rootz", "rooty"], planar=True,
+                period=period, phases=phases, reset=reset)
+
+
 FAMILIES = {
-    "cheetah": dict(
-        xml="half_cheetah.xml",
-        frame_skip=5,
-        root_joints=["rootx", "rootz", "rooty"],
-        planar=True,
-        period=0.5,
-        # bthigh, bshin, bfoot (back leg leads by half a period), fthigh, fshin, ffoot
-        phases=[np.pi] * 3 + [0.0] * 3,
-        reset="cheetah",
-    ),
-    "walker": dict(
-        xml="walker2d.xml",
-        frame_skip=5,
-        root_joints=["rootx", "rootz", "rooty"],
-        planar=True,
-        period=0.8,
-        # right leg (thigh, leg, foot) 0, left leg pi
-        phases=[0.0] * 3 + [np.pi] * 3,
-        reset="walker",
-    ),
+    # bthigh, bshin, bfoot (back leg leads by half a period), fthigh, fshin, ffoot
+    "cheetah": planar("half_cheetah.xml", 0.5, [np.pi] * 3 + [0.0] * 3, "cheetah"),
+    # right leg (thigh, leg, foot) 0, left leg pi
+    "walker": planar("walker2d.xml", 0.8, [0.0] * 3 + [np.pi] * 3, "walker"),
     "ant": dict(
         xml="ant.xml",
         frame_skip=5,

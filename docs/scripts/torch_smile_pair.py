@@ -32,11 +32,15 @@ perf_counter_ns; the median is reported as one JSON line, as torch_reference.py 
 Compare with `smile bench --workload pair --config docs/configs/authors-cv-smile.toml ...`'s
 `updates_only_per_pair_us` (its pairs without the rollouts; PyTorch here has no simulator).
 """
-import argparse, json, math, os, statistics, time
+import argparse, json, math, os, sys
 
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+
+# The timing loop is torch_reference.py's (one per call, median and percentiles).
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "bench", "pytorch"))
+from torch_reference import bench  # noqa: E402
 
 LR = 3e-4
 OBS, ACT = 17, 6  # sim/src/planar.rs OBS_DIM; the cheetah's six joints
@@ -169,38 +173,24 @@ def make_pair(a):
     return pair
 
 
-def bench(step, warmup, iters):
-    for _ in range(warmup):
-        step()
-    times = []
-    for _ in range(iters):
-        t0 = time.perf_counter_ns(); step(); times.append(time.perf_counter_ns() - t0)
-    times.sort()
-    med = statistics.median(times) / 1e3
-    return {"median_us": round(med, 1), "p10_us": round(times[len(times) // 10] / 1e3, 1),
-            "p90_us": round(times[9 * len(times) // 10] / 1e3, 1), "pairs_per_s": round(1e6 / med, 2)}
-
-
 def main():
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--threads", nargs="+", type=int, default=[1, 2])
     p.add_argument("--iters", type=int, default=40)
     p.add_argument("--warmup", type=int, default=5)
-    p.add_argument("--layers", type=int, default=3, help="hidden layers of disc, Qs and policy")
-    p.add_argument("--disc-hidden", type=int, default=512)
-    p.add_argument("--sac-hidden", type=int, default=256)
-    p.add_argument("--enc-hidden", type=int, default=256)
-    p.add_argument("--head-hidden", type=int, default=64)
-    p.add_argument("--r-dim", type=int, default=64)
-    p.add_argument("--z-dim", type=int, default=64)
-    p.add_argument("--tasks", type=int, default=8, help="tasks per batch")
-    p.add_argument("--train-tasks", type=int, default=100, help="tasks to draw from")
-    p.add_argument("--per-task", type=int, default=128, help="disc expert (and policy) rows per task")
-    p.add_argument("--sac-per-task", type=int, default=128)
-    p.add_argument("--demos-per-task", type=int, default=4)
-    p.add_argument("--demo-len", type=int, default=50, help="transitions per demo (1000 steps, sub 20)")
-    p.add_argument("--max-context", type=int, default=4)
-    p.add_argument("--replay-rows", type=int, default=5000)
+    # The shapes (whole numbers), the authors' cheetah recipe by default.
+    for flag, default, help in [
+        ("--layers", 3, "hidden layers of disc, Qs and policy"),
+        ("--disc-hidden", 512, None), ("--sac-hidden", 256, None), ("--enc-hidden", 256, None),
+        ("--head-hidden", 64, None), ("--r-dim", 64, None), ("--z-dim", 64, None),
+        ("--tasks", 8, "tasks per batch"),
+        ("--train-tasks", 100, "tasks to draw from"),
+        ("--per-task", 128, "disc expert (and policy) rows per task"),
+        ("--sac-per-task", 128, None), ("--demos-per-task", 4, None),
+        ("--demo-len", 50, "transitions per demo (1000 steps, sub 20)"),
+        ("--max-context", 4, None), ("--replay-rows", 5000, None),
+    ]:
+        p.add_argument(flag, type=int, default=default, help=help)
     p.add_argument("--reward-scale", type=float, default=24.0)
     p.add_argument("--seed", type=int, default=0)
     a = p.parse_args()
@@ -208,7 +198,7 @@ def main():
     for t in a.threads:
         torch.set_num_threads(t)
         torch.manual_seed(a.seed)
-        results.append({"workload": "pair", "threads": t, **bench(make_pair(a), a.warmup, a.iters)})
+        results.append({"workload": "pair", "threads": t, **bench(make_pair(a), a.warmup, a.iters, "pairs_per_s", 2)})
     print(json.dumps({"torch": torch.__version__, "iters": a.iters, "warmup": a.warmup,
                       "args": vars(a), "loadavg_before": load_before,
                       "loadavg_after": os.getloadavg(), "results": results}))

@@ -3,7 +3,7 @@
 //! errors' messages. (`run`'s refusals of a bad `--task` or context have their own tests.)
 
 mod common;
-use common::{firmware_sim, s, tmp};
+use common::{firmware_sim, run_args, s, tmp};
 
 use std::path::{Path, PathBuf};
 use std::process::Output;
@@ -69,8 +69,10 @@ fn fails(out: &Output) -> String {
     err
 }
 
-/// The hand-built PD blob and one PD demo for each of the first `n` test goals, in `dir`.
-fn blob_and_demos(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
+/// A fresh directory for the test `name` holding the hand-built PD blob and one PD demo for each
+/// of the first `n` test goals: (dir, blob, demos).
+fn blob_and_demos(name: &str, n: usize) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = tmp(name);
     let fam = Family::PointGoal;
     let mut env = make_env(fam, EnvConfig::default()).unwrap();
     let pd = PointGoalPdExpert::default();
@@ -90,7 +92,13 @@ fn blob_and_demos(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
     let (blob_path, demos_path) = (dir.join("pd.blob"), dir.join("demos.safetensors"));
     std::fs::write(&blob_path, blob).unwrap();
     ds.write(&demos_path).unwrap();
-    (blob_path, demos_path)
+    (dir, blob_path, demos_path)
+}
+
+/// The arguments of `firmware-sim compare` of `blob` on point-goal with `demos`; append the rest.
+fn compare_args<'a>(blob: &'a Path, demos: &'a Path) -> Vec<&'a str> {
+    let blob = ["compare", "--blob", s(blob), "--env", "point-goal"];
+    [&blob[..], &["--contexts", s(demos)]].concat()
 }
 
 /// `metric          MinGoalDistance = 0.0123` -> 0.0123.
@@ -104,31 +112,16 @@ fn summary_metric(summary: &str) -> f32 {
 
 #[test]
 fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
-    let dir = tmp("run");
-    let (blob, demos) = blob_and_demos(&dir, 6);
+    let (dir, blob, demos) = blob_and_demos("run", 6);
     let tasks = Family::PointGoal.test_tasks();
     for (spec, task) in [
         ("3".to_string(), tasks[3]),
         (format!("param={}", tasks[5].value()), tasks[5]),
     ] {
         let out_dir = dir.join(format!("out-{}", spec.replace('=', "-")));
-        let stdout = ok(&firmware_sim(&[
-            "run",
-            "--blob",
-            s(&blob),
-            "--env",
-            "point-goal",
-            "--task",
-            &spec,
-            "--context",
-            s(&demos),
-            "--ticks",
-            "60",
-            "--link-corrupt",
-            "0.05",
-            "-o",
-            s(&out_dir),
-        ]));
+        let faults = ["--ticks", "60", "--link-corrupt", "0.05", "-o", s(&out_dir)];
+        let args = [&run_args(&blob, "point-goal", &spec, &demos)[..], &faults].concat();
+        let stdout = ok(&firmware_sim(&args));
         let label = task.label();
         assert!(
             stdout.contains(&format!("task            {label} (point-goal)")),
@@ -157,27 +150,17 @@ fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
 
 #[test]
 fn compare_runs_the_reports_tasks_on_the_device() {
-    let dir = tmp("compare");
-    let (blob, demos) = blob_and_demos(&dir, 3);
+    let (dir, blob, demos) = blob_and_demos("compare", 3);
     let tasks = Family::PointGoal.test_tasks();
     let report = export_report(&[(tasks[0].value(), 0.5), (tasks[2].value(), 0.25)], "");
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
     std::fs::write(&reference, report).unwrap();
     let out_dir = dir.join("cmp");
-    let stdout = ok(&firmware_sim(&[
-        "compare",
-        "--blob",
-        s(&blob),
-        "--env",
-        "point-goal",
-        "--contexts",
-        s(&demos),
-        "--episodes",
-        "2",
-        "-o",
-        s(&out_dir),
-    ]));
+    let episodes = ["--episodes", "2", "-o", s(&out_dir)];
+    let stdout = ok(&firmware_sim(
+        &[&compare_args(&blob, &demos)[..], &episodes].concat(),
+    ));
     let rep: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out_dir.join("compare.json")).unwrap())
             .unwrap();
@@ -205,17 +188,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     // A report whose task has no demo in --contexts (the message names the file), a file that
     // is not an export report, an entry without a metric, and no report at all.
     std::fs::write(&reference, export_report(&[(tasks[7].value(), 0.1)], "")).unwrap();
-    let args = [
-        "compare",
-        "--blob",
-        s(&blob),
-        "--env",
-        "point-goal",
-        "--contexts",
-        s(&demos),
-        "-o",
-        s(&out_dir),
-    ];
+    let args = [&compare_args(&blob, &demos)[..], &["-o", s(&out_dir)]].concat();
     let err = fails(&firmware_sim(&args));
     assert!(err.contains(s(&demos)), "{err}");
     std::fs::write(&reference, "{\"bytes\": 3}").unwrap();
@@ -232,7 +205,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
         "{err}"
     );
     let missing = dir.join("none.json");
-    let mut with_missing = args.to_vec();
+    let mut with_missing = args.clone();
     with_missing.extend(["--reference", s(&missing)]);
     let err = fails(&firmware_sim(&with_missing));
     assert!(
@@ -247,27 +220,16 @@ fn compare_runs_the_reports_tasks_on_the_device() {
 /// too many ticks and zero episodes are refused at the door, by flag.
 #[test]
 fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
-    let dir = tmp("refuse");
-    let (blob, demos) = blob_and_demos(&dir, 1);
+    let (dir, blob, demos) = blob_and_demos("refuse", 1);
     let task = Family::PointGoal.test_tasks()[0];
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
     let report = |sha: &str| export_report(&[(task.value(), 0.5)], sha);
     std::fs::write(&reference, report(&"0".repeat(64))).unwrap();
+    let cmp = dir.join("cmp");
     let compare = |episodes: &str| {
-        firmware_sim(&[
-            "compare",
-            "--blob",
-            s(&blob),
-            "--env",
-            "point-goal",
-            "--contexts",
-            s(&demos),
-            "--episodes",
-            episodes,
-            "-o",
-            s(&dir.join("cmp")),
-        ])
+        let rest = ["--episodes", episodes, "-o", s(&cmp)];
+        firmware_sim(&[&compare_args(&blob, &demos)[..], &rest].concat())
     };
     let err = fails(&compare("1"));
     assert!(err.contains("describes another blob"), "{err}");
@@ -278,19 +240,8 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
     assert!(e.contains("--episodes"), "{e}");
     let run_out = dir.join("run");
     let run = |extra: &[&str]| {
-        let mut args = vec![
-            "run",
-            "--blob",
-            s(&blob),
-            "--env",
-            "point-goal",
-            "--task",
-            "0",
-            "--context",
-            s(&demos),
-            "-o",
-            s(&run_out),
-        ];
+        let mut args = run_args(&blob, "point-goal", "0", &demos);
+        args.extend(["-o", s(&run_out)]);
         args.extend_from_slice(extra);
         firmware_sim(&args)
     };
@@ -327,25 +278,11 @@ fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
 
 #[test]
 fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
-    let dir = tmp("physics");
-    let (blob, demos) = blob_and_demos(&dir, 1);
+    let (dir, blob, demos) = blob_and_demos("physics", 1);
     let run = |extra: &[&str]| {
         let out = dir.join("out");
-        let mut args = vec![
-            "run",
-            "--blob",
-            s(&blob),
-            "--env",
-            "point-goal",
-            "--task",
-            "0",
-            "--context",
-            s(&demos),
-            "--ticks",
-            "5",
-            "-o",
-            s(&out),
-        ];
+        let mut args = run_args(&blob, "point-goal", "0", &demos);
+        args.extend(["--ticks", "5", "-o", s(&out)]);
         args.extend_from_slice(extra);
         firmware_sim(&args)
     };

@@ -73,21 +73,8 @@ fn cheetah_files(dir: &Path) -> (PathBuf, PathBuf) {
 }
 
 fn run(blob: &Path, env: &str, task: &str, context: &Path, out: &Path) -> Output {
-    firmware_sim(&[
-        "run",
-        "--blob",
-        s(blob),
-        "--env",
-        env,
-        "--task",
-        task,
-        "--context",
-        s(context),
-        "--ticks",
-        "5",
-        "-o",
-        s(out),
-    ])
+    let ticks = ["--ticks", "5", "-o", s(out)];
+    firmware_sim(&[&common::run_args(blob, env, task, context)[..], &ticks].concat())
 }
 
 #[test]

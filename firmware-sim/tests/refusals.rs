@@ -29,6 +29,24 @@ fn refusal(link: &mut SimLink, device: &mut dyn Endpoint, message: HostMessage<'
     }
 }
 
+/// Asserts that uploading `blob` to a new device of `config` is refused as `DoesNotFit` and
+/// leaves the device without a blob.
+fn assert_upload_does_not_fit(blob: &[u8], config: DeviceConfig) {
+    let mut device = Device::new(config);
+    let err = host::upload_blob(&mut link(), &mut device, blob).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            LinkError::Refused {
+                reason: Refusal::DoesNotFit,
+                ..
+            }
+        ),
+        "{err:?}"
+    );
+    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+}
+
 fn begin(blob: &[u8]) -> HostMessage<'static> {
     HostMessage::BlobBegin {
         len: blob.len() as u32,
@@ -150,10 +168,10 @@ fn oversize_incomplete_corrupt_and_invalid_blobs_are_refused() {
 
 #[test]
 fn bad_transitions_and_an_empty_context_are_refused() {
+    let mut link = link();
     let blob = point_goal_blob();
     let model = Model::from_bytes(&blob).unwrap();
     let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
-    let mut link = link();
     link.send(&mut controller, &HostMessage::TeachBegin)
         .unwrap();
     // Nothing pushed yet: no latent to fix.
@@ -213,19 +231,7 @@ fn a_valid_blob_the_device_cannot_run_is_refused_and_the_session_names_why() {
     };
     let wide = FloatModel::random(ModelKind::StateAction, dims, 3);
     let wide = write_blob(&wide, Quant::W8A32, &Default::default()).unwrap();
-    let mut device = Device::new(DeviceConfig::default());
-    let err = host::upload_blob(&mut link(), &mut device, &wide).unwrap_err();
-    assert!(
-        matches!(
-            err,
-            LinkError::Refused {
-                reason: Refusal::DoesNotFit,
-                ..
-            }
-        ),
-        "{err:?}"
-    );
-    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+    assert_upload_does_not_fit(&wide, DeviceConfig::default());
 
     // Fits the capacity but not a small RAM budget.
     let blob = point_goal_blob();
@@ -233,19 +239,7 @@ fn a_valid_blob_the_device_cannot_run_is_refused_and_the_session_names_why() {
         ram_bytes: 1024,
         ..DeviceConfig::default()
     };
-    let mut device = Device::new(tight);
-    let err = host::upload_blob(&mut link(), &mut device, &blob).unwrap_err();
-    assert!(
-        matches!(
-            err,
-            LinkError::Refused {
-                reason: Refusal::DoesNotFit,
-                ..
-            }
-        ),
-        "{err:?}"
-    );
-    assert_eq!(device.blob().err(), Some(DeviceError::NoBlob));
+    assert_upload_does_not_fit(&blob, tight);
 
     // A session reports the reason the device could not give over the wire.
     let task = Family::PointGoal.test_tasks()[0];

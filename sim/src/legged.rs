@@ -327,24 +327,23 @@ mod tests {
             }
             trace.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
         };
+        // Seed 4 twice is the same; another seed (cheetah) or task (walker) is not.
         let cheetah = Task::cheetah_vel(2.0);
-        assert_eq!(
-            run(Family::CheetahVel, cheetah, 4),
-            run(Family::CheetahVel, cheetah, 4)
-        );
-        assert_ne!(
-            run(Family::CheetahVel, cheetah, 4),
-            run(Family::CheetahVel, cheetah, 5)
-        );
-        let walker = Task::walker_dyn(3);
-        assert_eq!(
-            run(Family::WalkerDyn, walker, 4),
-            run(Family::WalkerDyn, walker, 4)
-        );
-        assert_ne!(
-            run(Family::WalkerDyn, walker, 4),
-            run(Family::WalkerDyn, Task::walker_dyn(4), 4)
-        );
+        for (family, task, (other_task, other_seed)) in [
+            (Family::CheetahVel, cheetah, (cheetah, 5)),
+            (
+                Family::WalkerDyn,
+                Task::walker_dyn(3),
+                (Task::walker_dyn(4), 4),
+            ),
+        ] {
+            assert_eq!(run(family, task, 4), run(family, task, 4), "{family:?}");
+            assert_ne!(
+                run(family, task, 4),
+                run(family, other_task, other_seed),
+                "{family:?}"
+            );
+        }
     }
 
     #[test]

@@ -48,34 +48,28 @@ fn eval_report_and_blob_parity() {
         draws: 2,
         rollouts: 1,
         horizon: Some(30),
-        action_noise: 0.0,
-        run_through_falls: false,
-        physics: Default::default(),
+        // No action noise, a fall ends an episode, Rapier.
+        ..Protocol::for_family(fam)
     };
-    let r = eval::evaluate(
-        &mut mp,
-        "meta-bc",
-        fam,
-        Split::Test,
-        &test,
-        &proto,
-        &mut |_, _| {},
-    )
-    .unwrap();
+    // `mp`'s evaluation on the test demos under `proto`.
+    let evaluate_test = |mp: &mut trainer::MetaPolicy| {
+        eval::evaluate(
+            mp,
+            "meta-bc",
+            fam,
+            Split::Test,
+            &test,
+            &proto,
+            &mut |_, _| {},
+        )
+        .unwrap()
+    };
+    let r = evaluate_test(&mut mp);
     assert_eq!(r.tasks.len(), 16);
     assert_eq!(r.by_context_size.len(), 2);
     assert!(r.mean.is_finite() && r.tasks.iter().all(|t| t.metric >= 0.0));
     // Same contexts and seeds: the evaluation is deterministic.
-    let r2 = eval::evaluate(
-        &mut mp,
-        "meta-bc",
-        fam,
-        Split::Test,
-        &test,
-        &proto,
-        &mut |_, _| {},
-    )
-    .unwrap();
+    let r2 = evaluate_test(&mut mp);
     assert_eq!(r, r2);
     let report = EvalReport {
         env: sim::Family::PointGoal,

@@ -1,6 +1,6 @@
 //! Expert runs: resume == uninterrupted, corrupt checkpoints, divergence, demo round trip.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use sim::ant_linclass::AIM_SCALE;
 use sim::{EnvConfig, Family, Split};
@@ -32,15 +32,20 @@ fn tiny(total: u64) -> ExpertConfig {
     }
 }
 
+/// A new expert run of `cfg`, trained to its budget in `dir`.
+fn trained(cfg: ExpertConfig, dir: &Path) -> ExpertTrainer {
+    let mut run = ExpertTrainer::new(cfg).unwrap();
+    expert::train(&mut run, dir, &mut |_| {}).unwrap();
+    run
+}
+
 #[test]
 fn resumed_run_equals_uninterrupted_run() {
     trainer::threads::set_compute_threads(1);
     let (a, b) = (tmp("full"), tmp("split"));
-    let mut full = ExpertTrainer::new(tiny(120)).unwrap();
-    expert::train(&mut full, &a, &mut |_| {}).unwrap();
+    let full = trained(tiny(120), &a);
 
-    let mut first = ExpertTrainer::new(tiny(60)).unwrap();
-    expert::train(&mut first, &b, &mut |_| {}).unwrap();
+    let first = trained(tiny(60), &b);
     drop(first); // "killed" after its checkpoint at step 60
     let mut resumed = ExpertTrainer::resume(&b, Some(120)).unwrap();
     assert_eq!(resumed.env_steps(), 60);
@@ -56,20 +61,8 @@ fn resumed_run_equals_uninterrupted_run() {
         .iter()
         .chain(&[("replay.obs".to_string(), names[0].1.clone())])
     {
-        let x = ca
-            .get(name)
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .to_vec1::<f32>()
-            .unwrap();
-        let y = cb
-            .get(name)
-            .unwrap()
-            .flatten_all()
-            .unwrap()
-            .to_vec1::<f32>()
-            .unwrap();
+        let [x, y] = [&ca, &cb].map(|c| c.get(name).unwrap().flatten_all().unwrap());
+        let (x, y) = (x.to_vec1::<f32>().unwrap(), y.to_vec1::<f32>().unwrap());
         assert_eq!(x, y, "{name} differs after resume");
     }
     std::fs::remove_dir_all(&a).ok();
@@ -84,8 +77,7 @@ fn keep_best_ships_the_better_of_the_best_evaluation_and_the_final_weights() {
         keep_best: true,
         ..tiny(200)
     };
-    let mut run = ExpertTrainer::new(cfg.clone()).unwrap();
-    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    let run = trained(cfg.clone(), &d);
     let best = run.best_eval().expect("evaluations ran every 40 steps");
     assert!(best.env_steps >= 40 && best.env_steps <= 200);
     let best_file = d.join(expert::BEST_POLICY_FILE);
@@ -118,8 +110,7 @@ fn keep_best_ships_the_better_of_the_best_evaluation_and_the_final_weights() {
 fn warm_start_begins_from_the_source_run_and_resumes_without_it() {
     trainer::threads::set_compute_threads(1);
     let (src, dst) = (tmp("warm-src"), tmp("warm-dst"));
-    let mut source = ExpertTrainer::new(tiny(60)).unwrap();
-    expert::train(&mut source, &src, &mut |_| {}).unwrap();
+    let source = trained(tiny(60), &src);
     let actor = |run: &ExpertTrainer| {
         let (tensors, _) = run.sac.state_tensors().unwrap();
         tensors
@@ -172,8 +163,7 @@ fn warm_start_begins_from_the_source_run_and_resumes_without_it() {
 fn corrupt_or_foreign_checkpoint_is_a_clear_error() {
     trainer::threads::set_compute_threads(1);
     let d = tmp("corrupt");
-    let mut run = ExpertTrainer::new(tiny(40)).unwrap();
-    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    trained(tiny(40), &d);
     // A policy file is not a training checkpoint, and vice versa.
     let e = ExpertTrainer::resume(&d.join(trainer::checkpoint::POLICY_FILE), None)
         .err()
@@ -252,13 +242,12 @@ fn demos_round_trip_and_are_deterministic() {
 #[test]
 fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
     trainer::threads::set_compute_threads(1);
-    let d = tmp("ant-goal");
     let cfg = ExpertConfig {
         env: Family::AntGoal,
         ..tiny(60)
     };
-    let mut run = ExpertTrainer::new(cfg.clone()).unwrap();
-    expert::train(&mut run, &d, &mut |_| {}).unwrap();
+    let d = tmp("ant-goal");
+    trained(cfg.clone(), &d);
     let ex = Expert::load(&d).unwrap();
     assert_eq!(ex.family(), Family::AntGoal);
     let env = EnvConfig {

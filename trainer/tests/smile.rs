@@ -379,21 +379,7 @@ fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
 
     // Weight 0 with a decay set is still SMILe: identical weights after the same pairs.
     let (zero, _, _) = train(0.0, 50, 150);
-    let w = |r: &Smile| -> Vec<f32> {
-        r.sac
-            .actor
-            .net()
-            .vars()
-            .iter()
-            .flat_map(|v| {
-                v.as_tensor()
-                    .flatten_all()
-                    .unwrap()
-                    .to_vec1::<f32>()
-                    .unwrap()
-            })
-            .collect()
-    };
+    let w = |r: &Smile| common::flat_values(r.sac.actor.net().vars());
     assert_eq!(w(&zero), w(&plain), "weight 0 must be SMILe bit for bit");
 
     // Decayed over 40 pairs: the term acts before, and the run is plain SMILe after.

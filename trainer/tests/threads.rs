@@ -10,14 +10,8 @@ use trainer::meta_bc::{MetaBc, MetaBcConfig};
 use trainer::sac::SacConfig;
 
 fn bits(vars: &[candle_core::Var]) -> Vec<u32> {
-    vars.iter()
-        .flat_map(|v| {
-            v.as_tensor()
-                .flatten_all()
-                .unwrap()
-                .to_vec1::<f32>()
-                .unwrap()
-        })
+    common::flat_values(vars)
+        .into_iter()
         .map(f32::to_bits)
         .collect()
 }

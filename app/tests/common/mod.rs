@@ -117,3 +117,57 @@ pub fn meta_bc_args<'a>(train: &'a std::path::Path, run: &'a std::path::Path) ->
         s(run),
     ]
 }
+
+/// The arguments of `smile train --resume` of `run` on `train`; append the rest.
+pub fn resume_args<'a>(train: &'a std::path::Path, run: &'a std::path::Path) -> Vec<&'a str> {
+    vec!["train", "--resume", "--demos", s(train), "-o", s(run)]
+}
+
+/// The arguments of `smile eval` of `policy` on `contexts` into `out`, one rollout, quiet;
+/// append the rest.
+pub fn eval_args<'a>(
+    policy: &'a std::path::Path,
+    contexts: &'a std::path::Path,
+    out: &'a std::path::Path,
+) -> Vec<&'a str> {
+    vec![
+        "eval",
+        "--policy",
+        s(policy),
+        "--contexts",
+        s(contexts),
+        "-o",
+        s(out),
+        "--rollouts",
+        "1",
+        "--quiet",
+    ]
+}
+
+/// `smile expert --kind scripted-pd` for point-goal into `dir` (the scripted PD expert);
+/// returns `dir`.
+pub fn scripted_pd_expert(dir: std::path::PathBuf) -> std::path::PathBuf {
+    let kind = ["--env", "point-goal", "--kind", "scripted-pd"];
+    ok(&smile(&[&["expert"][..], &kind, &["-o", s(&dir)]].concat()));
+    dir
+}
+
+/// The arguments of `smile export` of `policy` at `quant` with `contexts`; append the rest.
+pub fn export_args<'a>(
+    policy: &'a std::path::Path,
+    quant: &'a str,
+    contexts: &'a std::path::Path,
+) -> Vec<&'a str> {
+    let policy = ["export", "--policy", s(policy)];
+    [&policy[..], &["--quant", quant, "--contexts", s(contexts)]].concat()
+}
+
+/// The arguments of `smile demos --env point-goal` with `options`, from `expert` into `out`.
+pub fn point_goal_demos_args<'a>(
+    options: &[&'a str],
+    expert: &'a str,
+    out: &'a str,
+) -> Vec<&'a str> {
+    let env = ["demos", "--env", "point-goal"];
+    [&env[..], options, &["--expert", expert, "-o", out]].concat()
+}

@@ -43,3 +43,15 @@ pub fn pd_demo(task: &Task, seed: u64) -> Trajectory {
     })
     .unwrap()
 }
+
+/// The arguments of `firmware-sim run` of `blob` on `env`'s task `task` taught by `context`;
+/// append the rest.
+pub fn run_args<'a>(
+    blob: &'a Path,
+    env: &'a str,
+    task: &'a str,
+    context: &'a Path,
+) -> Vec<&'a str> {
+    let blob = ["run", "--blob", s(blob), "--env", env];
+    [&blob[..], &["--task", task, "--context", s(context)]].concat()
+}

@@ -360,18 +360,21 @@ pub(crate) mod tests {
             let o: Vec<f32> = (0..od).map(|_| rng.random_range(-2.0..2.0)).collect();
             let a: Vec<f32> = (0..ad).map(|_| rng.random_range(-1.0..1.0)).collect();
             let n: Vec<f32> = (0..od).map(|_| rng.random_range(-2.0..2.0)).collect();
-            t.push(
-                s as u32,
-                sim::TransitionRef {
-                    obs: &o,
-                    action: &a,
-                    reward: 0.0,
-                    next_obs: &n,
-                    done: false,
-                },
-            );
+            push_step(&mut t, s as u32, &o, &a, &n);
         }
         t
+    }
+
+    /// Appends step `step` (obs `o`, action `a`, next obs `n`; no reward, not done) to `t`.
+    fn push_step(t: &mut Trajectory, step: u32, o: &[f32], a: &[f32], n: &[f32]) {
+        let transition = sim::TransitionRef {
+            obs: o,
+            action: a,
+            reward: 0.0,
+            next_obs: n,
+            done: false,
+        };
+        t.push(step, transition);
     }
 
     fn reversed(t: &Trajectory, od: usize, ad: usize) -> Trajectory {
@@ -440,16 +443,7 @@ pub(crate) mod tests {
                 last.action.to_vec(),
                 last.next_obs.to_vec(),
             );
-            moved[0].push(
-                9,
-                sim::TransitionRef {
-                    obs: &o,
-                    action: &a,
-                    reward: 0.0,
-                    next_obs: &n,
-                    done: false,
-                },
-            );
+            push_step(&mut moved[0], 9, &o, &a, &n);
             let moved_refs: Vec<&Trajectory> = moved.iter().collect();
             assert!(!close(&enc.latent(&norm, &moved_refs).unwrap(), &z0, 1e-4));
         }
