@@ -6,7 +6,7 @@
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
-use crate::render::{Frame, Role, Shape};
+use crate::render::{Frame, Shape};
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
@@ -108,18 +108,7 @@ impl Environment for AntGoalEnv {
     }
 
     fn frame(&self) -> Frame {
-        self.ant.frame(vec![
-            Shape::Ring {
-                center: [0.0, 0.0],
-                radius: crate::task::GOAL_RADIUS,
-                role: Role::Guide,
-            },
-            Shape::Circle {
-                center: self.goal,
-                radius: 0.1,
-                role: Role::Goal,
-            },
-        ])
+        self.ant.frame(Shape::goal_marks(self.goal).to_vec())
     }
 }
 

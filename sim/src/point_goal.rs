@@ -172,23 +172,14 @@ impl Environment for PointGoalEnv {
         Frame {
             view: View::Top,
             time: self.clock.step as f32 * CONTROL_DT,
-            shapes: vec![
-                Shape::Ring {
-                    center: [0.0, 0.0],
-                    radius: crate::task::GOAL_RADIUS,
-                    role: Role::Guide,
-                },
-                Shape::Circle {
-                    center: self.goal,
-                    radius: 0.1,
-                    role: Role::Goal,
-                },
-                Shape::Circle {
+            shapes: Shape::goal_marks(self.goal)
+                .into_iter()
+                .chain([Shape::Circle {
                     center: [self.obs[0], self.obs[1]],
                     radius: 0.08,
                     role: Role::Robot,
-                },
-            ],
+                }])
+                .collect(),
         }
     }
 }

@@ -1,6 +1,7 @@
 //! ant-goal: determinism, splits, controllability, reward and metric, errors, frames.
 
 use super::*;
+use crate::render::Role;
 use crate::ant::{ACT_DIM, OBS_DIM, obs};
 use crate::render::{View, frame_to_svg};
 use crate::{EpisodeMetric, make_env};
