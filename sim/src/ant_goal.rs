@@ -6,7 +6,7 @@
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
-use crate::render::{Frame, Shape};
+use crate::render::Frame;
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
@@ -108,7 +108,8 @@ impl Environment for AntGoalEnv {
     }
 
     fn frame(&self) -> Frame {
-        self.ant.frame(Shape::goal_marks(self.goal).to_vec())
+        self.ant
+            .frame(crate::point_goal::goal_marks(self.goal).to_vec())
     }
 }
 

@@ -12,6 +12,23 @@ use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::render::{Frame, Role, Shape, View};
 use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
 
+/// What a goal family (point-goal, ant-goal) draws under its robot (top view): the dashed
+/// circle the goals lie on and the goal at `goal`.
+pub(crate) fn goal_marks(goal: [f32; 2]) -> [Shape; 2] {
+    [
+        Shape::Ring {
+            center: [0.0, 0.0],
+            radius: crate::task::GOAL_RADIUS,
+            role: Role::Guide,
+        },
+        Shape::Circle {
+            center: goal,
+            radius: 0.1,
+            role: Role::Goal,
+        },
+    ]
+}
+
 /// Observation: position (x, y) and velocity (vx, vy). The goal is not observed.
 pub const OBS_DIM: usize = crate::task::POINT_GOAL_OBS_DIM;
 /// Action: force along x and y, in units of [`MAX_FORCE`].
@@ -172,7 +189,7 @@ impl Environment for PointGoalEnv {
         Frame {
             view: View::Top,
             time: self.clock.step as f32 * CONTROL_DT,
-            shapes: Shape::goal_marks(self.goal)
+            shapes: goal_marks(self.goal)
                 .into_iter()
                 .chain([Shape::Circle {
                     center: [self.obs[0], self.obs[1]],

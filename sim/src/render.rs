@@ -57,25 +57,6 @@ pub enum Shape {
     },
 }
 
-impl Shape {
-    /// What a goal family draws under its robot (top view): the dashed circle the goals lie on
-    /// and the goal at `goal`.
-    pub fn goal_marks(goal: [f32; 2]) -> [Shape; 2] {
-        [
-            Shape::Ring {
-                center: [0.0, 0.0],
-                radius: crate::task::GOAL_RADIUS,
-                role: Role::Guide,
-            },
-            Shape::Circle {
-                center: goal,
-                radius: 0.1,
-                role: Role::Goal,
-            },
-        ]
-    }
-}
-
 /// One drawable snapshot of an environment.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Frame {

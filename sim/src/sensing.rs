@@ -10,7 +10,6 @@
 //! ground-speed or optical-flow sensor) and passed through with the same noise and ADC as the
 //! positions.
 
-
 /// The physical meaning of one observation entry.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum ObsComponent {

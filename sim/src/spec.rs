@@ -14,6 +14,22 @@ use crate::sensing::{ANT, ANT_LINCLASS, PLANAR, POINT_GOAL};
 use crate::task::{WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE};
 use crate::{EnvConfig, Environment, MetricKind, ObsComponent, Physics, SimError, Task};
 
+impl crate::Family {
+    /// The family's spec: everything the workspace knows about it ([`FamilySpec`]). The one
+    /// place that maps a family to its data; everything else reads the spec's fields. It lives
+    /// here, above the families' modules, so that `task.rs` imports none of them back.
+    pub fn spec(self) -> &'static FamilySpec {
+        use crate::Family;
+        match self {
+            Family::PointGoal => &POINT_GOAL_SPEC,
+            Family::CheetahVel => &CHEETAH_VEL_SPEC,
+            Family::WalkerDyn => &WALKER_DYN_SPEC,
+            Family::AntGoal => &ANT_GOAL_SPEC,
+            Family::AntLinClass => &ANT_LINCLASS_SPEC,
+        }
+    }
+}
+
 /// What the workspace knows about one family. Plain data and plain functions: read a field,
 /// never match on the family.
 #[derive(Debug)]
@@ -151,7 +167,11 @@ pub(crate) const CHEETAH_VEL_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::MeanVelocityError,
     value_name: "target velocity (m/s)",
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
-    train_tasks: || (0..=30).map(|k| Task::cheetah_vel(k as f32 * 0.1)).collect(),
+    train_tasks: || {
+        (0..=30)
+            .map(|k| Task::cheetah_vel(k as f32 * 0.1))
+            .collect()
+    },
     test_tasks: || {
         (0..30)
             .map(|k| Task::cheetah_vel(0.05 + k as f32 * 0.1))

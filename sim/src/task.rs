@@ -4,9 +4,8 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::ant_linclass as linclass;
-use crate::spec::{self, FamilySpec};
-use crate::{ObsComponent, SimError};
 use crate::dynamics::WalkerDynamics;
+use crate::{ObsComponent, SimError};
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
 pub(crate) const POINT_GOAL_OBS_DIM: usize = 4;
@@ -16,7 +15,7 @@ pub(crate) const POINT_GOAL_ACT_DIM: usize = 2;
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
 /// `walker-dyn`, `ant-goal`, `ant-linclass`.
 ///
-/// What the workspace knows about each family is its [`FamilySpec`] ([`Family::spec`]), one
+/// What the workspace knows about each family is its [`crate::FamilySpec`] ([`Family::spec`]), one
 /// declarative block per family in `spec.rs`. Deliberately not `#[non_exhaustive]`: a new
 /// family fails to compile at [`Family::spec`] (and the app's per-family recipes) instead of
 /// falling silently into a catch-all arm.
@@ -102,18 +101,6 @@ impl Family {
         Family::AntGoal,
         Family::AntLinClass,
     ];
-
-    /// The family's spec: everything the workspace knows about it ([`FamilySpec`]). The one
-    /// place that maps a family to its data; everything else reads the spec's fields.
-    pub fn spec(self) -> &'static FamilySpec {
-        match self {
-            Family::PointGoal => &spec::POINT_GOAL_SPEC,
-            Family::CheetahVel => &spec::CHEETAH_VEL_SPEC,
-            Family::WalkerDyn => &spec::WALKER_DYN_SPEC,
-            Family::AntGoal => &spec::ANT_GOAL_SPEC,
-            Family::AntLinClass => &spec::ANT_LINCLASS_SPEC,
-        }
-    }
 
     /// The CLI name of the family.
     pub fn name(self) -> &'static str {

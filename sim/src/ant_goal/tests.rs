@@ -1,8 +1,8 @@
 //! ant-goal: determinism, splits, controllability, reward and metric, errors, frames.
 
 use super::*;
-use crate::render::Role;
 use crate::ant::{ACT_DIM, OBS_DIM, obs};
+use crate::render::{Role, Shape};
 use crate::render::{View, frame_to_svg};
 use crate::{EpisodeMetric, make_env};
 use std::f32::consts::PI;
