@@ -25,8 +25,10 @@ use trainer::{Error, Result};
 use trainer::{MetaLearner, Progress};
 
 mod device;
+mod recipe;
 mod report;
 
+use recipe::{ExpertSource, Preset, Recipe, recipe};
 pub use report::Summary;
 use report::report_markdown;
 
@@ -141,10 +143,12 @@ fn stage(n: usize, what: &str) {
     eprintln!("\n[{n}/6] {what}");
 }
 
-/// A quickstart's arguments with what they resolve to, decided once: the shipped assets it
-/// starts from, hence its episode length and its training presets.
+/// A quickstart's arguments with what they resolve to, decided once: the family's recipe and
+/// the shipped assets it starts from, hence its episode length and its training presets.
 pub(crate) struct Quickstart<'a> {
     args: &'a QuickstartConfig,
+    /// The family's choices ([`recipe`]).
+    recipe: Recipe,
     /// The shipped expert and demos of the family (`assets/experts/<family>/`), used by every
     /// budget but `tiny` on the families without a scripted expert.
     shipped: Option<PathBuf>,
@@ -161,7 +165,8 @@ impl std::ops::Deref for Quickstart<'_> {
 impl<'a> Quickstart<'a> {
     /// Looks for the shipped assets once.
     pub(crate) fn resolve(args: &'a QuickstartConfig) -> Self {
-        let shipped = (args.env != Family::PointGoal && args.budget != Budget::Tiny)
+        let recipe = recipe(args.env);
+        let shipped = (recipe.expert != ExpertSource::Scripted && args.budget != Budget::Tiny)
             .then(|| {
                 let root = args.assets.clone().unwrap_or_else(|| {
                     Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts")
@@ -169,19 +174,33 @@ impl<'a> Quickstart<'a> {
                 root.join(args.env.name())
             })
             .filter(|dir| {
-                let (train, test) = shipped_demos(args.env);
+                let (train, test) = recipe.shipped_demos;
                 [trainer::checkpoint::POLICY_FILE, train, test]
                     .iter()
                     .all(|f| dir.join(f).exists())
             });
-        Self { args, shipped }
+        Self {
+            args,
+            recipe,
+            shipped,
+        }
+    }
+
+    /// The recipe's shorter episode and presets when the quickstart trains its own expert.
+    fn own_expert(&self) -> Option<(usize, [Preset; 2])> {
+        self.recipe.own_expert.filter(|_| self.shipped.is_none())
     }
 
     /// Episode length: the family's own (cheetah-vel: the paper's 1000 steps) with shipped
-    /// assets; without them cheetah-vel runs 200-step episodes (as the reference's section 7
-    /// prototype) to keep training its own expert affordable.
+    /// assets; without them the recipe's shorter one, if it has one.
     fn horizon(&self) -> Option<usize> {
-        (self.env == Family::CheetahVel && self.shipped.is_none()).then_some(200)
+        self.own_expert().map(|(horizon, _)| horizon)
+    }
+
+    /// The (SMILe, Meta-BC) configuration files the quickstart trains with.
+    fn presets(&self) -> [Preset; 2] {
+        self.own_expert()
+            .map_or(self.recipe.presets, |(_, presets)| presets)
     }
 
     fn env_config(&self) -> EnvConfig {
@@ -192,22 +211,10 @@ impl<'a> Quickstart<'a> {
     }
 }
 
-fn shipped_demos(family: Family) -> (&'static str, &'static str) {
-    match family {
-        Family::AntLinClass => (
-            "demos-train-16x-sub5.safetensors",
-            "demos-test-16x-sub5.safetensors",
-        ),
-        Family::PointGoal | Family::CheetahVel | Family::WalkerDyn | Family::AntGoal => (
-            "demos-train-4x-sub20.safetensors",
-            "demos-test-4x-sub20.safetensors",
-        ),
-    }
-}
-
 /// Refuses, before any work, a budget that cannot do what it promises on this family.
 fn check_budget(args: &Quickstart<'_>) -> Result<()> {
-    if args.env != Family::PointGoal && args.budget == Budget::Short && args.shipped.is_none() {
+    let scripted = args.recipe.expert == ExpertSource::Scripted;
+    if !scripted && args.budget == Budget::Short && args.shipped.is_none() {
         return Err(Error::Usage(format!(
             "{0} has no scripted expert and no shipped one (assets/experts/{0}): the quickstart \
              would train an SAC expert (about 1-2 hours on 2 cores) and then SMILe (about 1 \
@@ -217,22 +224,21 @@ fn check_budget(args: &Quickstart<'_>) -> Result<()> {
             args.env
         )));
     }
-    if args.env == Family::AntLinClass && args.budget == Budget::Long && args.shipped.is_none() {
-        // Its expert is scripted over an ant-goal expert; SAC on the sparse classification
-        // reward would burn hours for nothing.
-        return Err(Error::Usage(
-            "ant-linclass's expert is scripted over the ant-goal expert: make it with `smile \
-             expert --kind scripted-linclass --goal-expert assets/experts/ant-goal` and use \
-             `smile demos` / `smile train`, or restore assets/experts/ant-linclass (the \
-             quickstart's shipped files)"
-                .into(),
-        ));
+    if let ExpertSource::ScriptedOver { make } = args.recipe.expert
+        && args.budget == Budget::Long
+        && args.shipped.is_none()
+    {
+        return Err(Error::Usage(format!(
+            "{0}'s expert is scripted over another family's expert: {make}, or restore \
+             assets/experts/{0} (the quickstart's shipped files)",
+            args.env
+        )));
     }
     Ok(())
 }
 
 fn train_expert(args: &Quickstart<'_>, dir: &Path) -> Result<(Expert, String)> {
-    if args.env == Family::PointGoal {
+    if args.recipe.expert == ExpertSource::Scripted {
         expert::export_scripted_pd(dir)?;
         let note =
             "scripted PD controller (point-goal's documented expert; nothing trained)".to_string();
@@ -301,7 +307,7 @@ fn demos(
     };
     let ds = match &args.shipped {
         Some(assets) => {
-            let (train, test) = shipped_demos(args.env);
+            let (train, test) = args.recipe.shipped_demos;
             let src = assets.join(if split == Split::Train { train } else { test });
             std::fs::copy(&src, path).map_err(io(path))?;
             eprintln!("  shipped demos {}", src.display());
@@ -320,42 +326,6 @@ fn demos(
         path.display()
     );
     Ok(ds)
-}
-
-/// The configuration files behind docs/RESULTS.md's rows (and the sweeps' plans), compiled in:
-/// the quickstart trains with these files, not with a restatement of them.
-mod presets {
-    pub const PG_SMILE: &str = include_str!("../../docs/configs/pg-smile-2threads.toml");
-    pub const CV_SMILE: &str = include_str!("../../docs/configs/cv-smile.toml");
-    pub const CV1000_SMILE: &str = include_str!("../../docs/configs/cv1000-smile.toml");
-    pub const WD_SMILE: &str = include_str!("../../docs/configs/wd-smile.toml");
-    pub const AG_SMILE: &str = include_str!("../../docs/configs/ag-smile-rs1.toml");
-    pub const ALC_SMILE: &str = include_str!("../../docs/configs/alc-smile.toml");
-    pub const CV_BC: &str = include_str!("../../docs/configs/cv-bc-roll.toml");
-    pub const CV1000_BC: &str = include_str!("../../docs/configs/cv1000-bc-roll.toml");
-    pub const WD_BC: &str = include_str!("../../docs/configs/wd-bc-roll.toml");
-    pub const AG_BC: &str = include_str!("../../docs/configs/ag-bc-roll.toml");
-    pub const ALC_BC: &str = include_str!("../../docs/configs/alc-bc-roll.toml");
-}
-
-/// The (SMILe, Meta-BC) files the quickstart trains with: `(name, text)`, an empty text for
-/// the algorithm's defaults (Meta-BC on point-goal).
-fn preset_files(args: &Quickstart<'_>) -> [(&'static str, &'static str); 2] {
-    use presets::*;
-    match args.env {
-        Family::PointGoal => [("pg-smile-2threads.toml", PG_SMILE), ("defaults", "")],
-        // Without the shipped expert's demos, cheetah-vel runs 200-step episodes.
-        Family::CheetahVel if args.horizon().is_some() => {
-            [("cv-smile.toml", CV_SMILE), ("cv-bc-roll.toml", CV_BC)]
-        }
-        Family::CheetahVel => [
-            ("cv1000-smile.toml", CV1000_SMILE),
-            ("cv1000-bc-roll.toml", CV1000_BC),
-        ],
-        Family::WalkerDyn => [("wd-smile.toml", WD_SMILE), ("wd-bc-roll.toml", WD_BC)],
-        Family::AntGoal => [("ag-smile-rs1.toml", AG_SMILE), ("ag-bc-roll.toml", AG_BC)],
-        Family::AntLinClass => [("alc-smile.toml", ALC_SMILE), ("alc-bc-roll.toml", ALC_BC)],
-    }
 }
 
 /// A learner's configuration: its preset file under the quickstart's own settings (family,
@@ -393,9 +363,9 @@ fn smile_config(args: &Quickstart<'_>) -> Result<SmileConfig> {
     }
     // Two learner threads: the discriminator step beside the SAC step (docs/BENCHMARKS.md
     // "Threads"); Meta-BC shares the cores for its first minute or so.
-    let mut cfg: SmileConfig = preset::<Smile>(preset_files(args)[0], args, &extra)?;
-    if args.budget == Budget::Long && args.env == Family::PointGoal {
-        cfg.total_updates *= 2;
+    let mut cfg: SmileConfig = preset::<Smile>(args.presets()[0], args, &extra)?;
+    if args.budget == Budget::Long {
+        cfg.total_updates *= args.recipe.long_updates;
     }
     Ok(cfg)
 }
@@ -410,7 +380,7 @@ fn meta_bc_config(args: &Quickstart<'_>) -> Result<MetaBcConfig> {
             ("eval_every", 100.into()),
         ]);
     }
-    preset::<MetaBc>(preset_files(args)[1], args, &extra)
+    preset::<MetaBc>(args.presets()[1], args, &extra)
 }
 
 fn train_smile(
@@ -533,7 +503,8 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         args.seed,
         out.display()
     );
-    if args.budget == Budget::Short && args.env == Family::PointGoal {
+    let scripted = args.recipe.expert == ExpertSource::Scripted;
+    if args.budget == Budget::Short && scripted {
         eprintln!("expected time on 2 cores: 2-4 minutes");
     } else if let Some(assets) = &args.shipped {
         eprintln!(
@@ -545,7 +516,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
                 || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
             )
         );
-    } else if args.budget == Budget::Long && args.env != Family::PointGoal {
+    } else if args.budget == Budget::Long && !scripted {
         eprintln!(
             "expected time on 2 cores: 2-4 hours (SAC expert, then SMILe); checkpoints are in the run directory"
         );

@@ -32,6 +32,12 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
         let other = Quickstart::resolve(&other);
         assert_eq!(other.shipped, None);
         assert_eq!(other.horizon(), Some(200));
+        let presets = other.presets().map(|(file, _)| file);
+        assert_eq!(
+            presets,
+            ["cv-smile.toml", "cv-bc-roll.toml"],
+            "200-step files"
+        );
     }
     let no_assets = QuickstartConfig {
         assets: Some(PathBuf::from("/nonexistent")),
@@ -60,7 +66,7 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
         .clone()
         .expect("assets/experts/ant-linclass is in the repository");
     assert!(dir.ends_with("assets/experts/ant-linclass"));
-    let (train, test) = shipped_demos(Family::AntLinClass);
+    let (train, test) = recipe(Family::AntLinClass).shipped_demos;
     assert!(dir.join(train).exists() && dir.join(test).exists());
     let cfg = smile_config(&resolved).unwrap();
     assert_eq!((cfg.max_context, cfg.eval_context_size), (8, 4));
@@ -136,4 +142,19 @@ fn its_configs_are_the_documented_files() {
         (200, vec![32, 32])
     );
     assert_eq!(cfg.sac.reward_scale, 1.0, "ag-smile-rs1.toml's scale stays");
+    // Point-goal's long budget doubles its file's update pairs; the other families' long
+    // budget pays for their own expert, not for more SMILe.
+    for (family, factor) in [(Family::PointGoal, 2), (Family::AntGoal, 1)] {
+        let [short, long] = [Budget::Short, Budget::Long].map(|budget| {
+            let args = QuickstartConfig {
+                env: family,
+                budget,
+                ..QuickstartConfig::default()
+            };
+            smile_config(&Quickstart::resolve(&args))
+                .unwrap()
+                .total_updates
+        });
+        assert_eq!(long, factor * short, "{family}");
+    }
 }
