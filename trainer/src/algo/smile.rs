@@ -3,7 +3,7 @@
 //! A context-conditioned AIRL discriminator `D(x, z)` with `x = [norm(s), a]` (or
 //! `[norm(s), norm(s')]` state-only) and `z ~ q(z | c)` from the context encoder of
 //! [`crate::model::ContextEncoder`]; a SAC policy `pi(a | [norm(s), z])` trained on the reward the
-//! discriminator gives. Schedule and batches follow the reference (`smile-reference.md` §1-2):
+//! discriminator gives. Schedule and batches follow the reference (`docs/reference/smile-reference.md` §1-2):
 //!
 //! * warm start: one rollout of the untrained policy in every training task;
 //! * each iteration (section 3.5, Algorithm 1): `m = rollouts_per_iter` rollouts (a uniform
