@@ -108,7 +108,7 @@ fn bad_plans_are_refused_before_anything_runs() {
                 "rollouts = 2",
                 "rollouts = 2\nbase = \"b\"\nexperts = [\"e\"]",
             ),
-            "normalised metric, not point-goal",
+            "point-goal has none",
         ),
     ];
     for (plan, want) in cases {

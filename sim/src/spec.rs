@@ -84,6 +84,9 @@ pub struct EvalDefaults {
     pub draws: usize,
     /// Rollouts per draw.
     pub rollouts: usize,
+    /// Whether the robot can fall and a fall ends the episode (walker-dyn; the SMILe authors'
+    /// evaluation runs through falls instead, `Protocol::run_through_falls` in the trainer).
+    pub falls_end_episodes: bool,
 }
 
 /// How a run's plot shows what the task asked for. Not `#[non_exhaustive]`: a new kind of view
@@ -139,6 +142,7 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
         context_sizes: &[1],
         draws: 3,
         rollouts: 10,
+        falls_end_episodes: false,
     },
     estimator_accel_std: 2.0,
     view: RunView::GoalPath { xy: 0 },
@@ -184,6 +188,7 @@ pub(crate) const CHEETAH_VEL_SPEC: FamilySpec = FamilySpec {
         context_sizes: &[1, 2, 3, 4],
         draws: 3,
         rollouts: 5,
+        falls_end_episodes: false,
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: true },
@@ -222,6 +227,7 @@ pub(crate) const WALKER_DYN_SPEC: FamilySpec = FamilySpec {
         context_sizes: &[1],
         draws: 3,
         rollouts: 1,
+        falls_end_episodes: true,
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: false },
@@ -246,6 +252,7 @@ pub(crate) const ANT_GOAL_SPEC: FamilySpec = FamilySpec {
         context_sizes: &[1],
         draws: 3,
         rollouts: 10,
+        falls_end_episodes: false,
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::GoalPath {
@@ -285,6 +292,7 @@ pub(crate) const ANT_LINCLASS_SPEC: FamilySpec = FamilySpec {
         context_sizes: &[1, 2, 4, 8],
         draws: 3,
         rollouts: 5,
+        falls_end_episodes: false,
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: false },

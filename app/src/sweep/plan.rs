@@ -293,10 +293,12 @@ impl Sweep {
                 "[eval] `base` and `experts` go together (the walker-dyn normalised metric)".into(),
             ));
         }
-        if plan.eval.base.is_some() && family != Family::WalkerDyn {
+        if plan.eval.base.is_some() && family.spec().nominal_task.is_none() {
             return Err(err(
                 Some("base"),
-                format!("[eval] `base` is for walker-dyn's normalised metric, not {family}"),
+                format!(
+                    "[eval] `base` is for a normalised metric (walker-dyn's); {family} has none"
+                ),
             ));
         }
         for p in plan.eval.base.iter().chain(&plan.eval.experts) {

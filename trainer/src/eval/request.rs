@@ -116,9 +116,10 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
     protocol.horizon = req.horizon;
     protocol.action_noise = req.action_noise;
     if req.run_through_falls {
-        if family != Family::WalkerDyn {
+        if !family.spec().eval.falls_end_episodes {
             return Err(Error::Usage(format!(
-                "--walker-protocol authors is walker-dyn's evaluation, not {family}'s"
+                "--walker-protocol authors runs episodes through falls (walker-dyn's authors' \
+                 evaluation); {family}'s episodes have no falls to run through"
             )));
         }
         protocol.run_through_falls = true;

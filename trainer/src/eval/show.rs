@@ -23,7 +23,7 @@ impl EvalReport {
             self.protocol.context_sizes,
             self.protocol.draws,
             self.protocol.rollouts,
-            if self.env == sim::Family::WalkerDyn {
+            if self.env.spec().eval.falls_end_episodes {
                 format!("; walker protocol: {}", self.protocol.label())
             } else {
                 String::new()

@@ -259,4 +259,19 @@ fn the_authors_walker_protocol_runs_through_falls() {
         !old.run_through_falls,
         "an older eval.json is this project's protocol"
     );
+    // A family whose episodes have no falls refuses the protocol before any rollout (its
+    // spec says so: `falls_end_episodes`).
+    let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts/point-goal");
+    let mut req = super::request::EvalRequest::new(
+        vec![assets.join("no-policy-needed")],
+        Family::PointGoal,
+        Split::Test,
+        assets.join("demos-test-4x-sub20.safetensors"),
+        std::env::temp_dir().join("never-written"),
+    );
+    req.run_through_falls = true;
+    let err = super::request::evaluate_to_dir(&req, &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("no falls to run through"), "{err}");
 }
