@@ -47,6 +47,13 @@ pub struct FamilySpec {
     pub metric: MetricKind,
     /// What a task value is, for messages: `goal angle (rad)`, ...
     pub value_name: &'static str,
+    /// The value's key in a task's label (`goal_angle` in `goal_angle=0.4909`).
+    pub value_key: &'static str,
+    /// Decimals a label prints the value with (0: a seed).
+    pub value_decimals: usize,
+    /// Writes a task's parameter vector (`task_dim` long; the caller checked the length),
+    /// the oracle observation's tail.
+    pub write_parameter: fn(&Task, &mut [f32]),
     /// How far a number may be from a task's value and still name it
     /// ([`crate::TASK_VALUE_TOLERANCE`] for continuous values, 0 for seeds).
     pub value_tolerance: f64,
@@ -133,6 +140,9 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::MinGoalDistance,
     value_name: "goal angle (rad)",
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_key: "goal_angle",
+    value_decimals: 4,
+    write_parameter: |task, out| out.copy_from_slice(&task.goal().unwrap_or_default()),
     train_tasks: || goal_train_angles().map(Task::point_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::point_goal).collect(),
     task_from_value: |v| Ok(Task::point_goal(v as f32)),
@@ -171,6 +181,9 @@ pub(crate) const CHEETAH_VEL_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::MeanVelocityError,
     value_name: "target velocity (m/s)",
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_key: "target_velocity",
+    value_decimals: 2,
+    write_parameter: |task, out| out[0] = task.value() as f32,
     train_tasks: || {
         (0..=30)
             .map(|k| Task::cheetah_vel(k as f32 * 0.1))
@@ -204,6 +217,14 @@ pub(crate) const WALKER_DYN_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::Return,
     value_name: "dynamics seed",
     value_tolerance: 0.0,
+    value_key: "dynamics_seed",
+    value_decimals: 0,
+    write_parameter: |task, out| {
+        let dynamics = task.walker_dynamics();
+        dynamics
+            .unwrap_or_else(WalkerDynamics::nominal)
+            .write_log_factors(out)
+    },
     train_tasks: || {
         (0..50)
             .map(|i| Task::walker_dyn(WALKER_TRAIN_SEED_BASE + i))
@@ -243,6 +264,9 @@ pub(crate) const ANT_GOAL_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::MinGoalDistance,
     value_name: "goal angle (rad)",
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_key: "goal_angle",
+    value_decimals: 4,
+    write_parameter: |task, out| out.copy_from_slice(&task.goal().unwrap_or_default()),
     train_tasks: || goal_train_angles().map(Task::ant_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::ant_goal).collect(),
     task_from_value: |v| Ok(Task::ant_goal(v as f32)),
@@ -271,6 +295,9 @@ pub(crate) const ANT_LINCLASS_SPEC: FamilySpec = FamilySpec {
     metric: MetricKind::ClassificationSuccess,
     value_name: "hyperplane seed",
     value_tolerance: 0.0,
+    value_key: "hyperplane_seed",
+    value_decimals: 0,
+    write_parameter: |task, out| out.copy_from_slice(&task.linclass_normal().unwrap_or_default()),
     train_tasks: || {
         (0..linclass::TRAIN_TASKS)
             .map(|i| Task::ant_linclass(linclass::TRAIN_SEED_BASE + i))

@@ -429,44 +429,24 @@ impl Task {
         self.family() == other.family() && self.is_named_by(other.value())
     }
 
-    /// The value as a label prints it (`0.4909`, `1.25`, `10003`).
+    /// The value as a label prints it (`0.4909`, `1.25`, `10003`): the spec's decimals.
     fn short_value(&self) -> String {
-        match *self {
-            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => {
-                format!("{goal_angle:.4}")
-            }
-            Task::CheetahVel { target_velocity } => format!("{target_velocity:.2}"),
-            Task::WalkerDyn { dynamics_seed } => dynamics_seed.to_string(),
-            Task::AntLinClass { hyperplane_seed } => hyperplane_seed.to_string(),
-        }
+        format!("{:.*}", self.family().spec().value_decimals, self.value())
     }
 
     /// Writes the task parameter vector (length `family().task_dim()`) that the oracle
     /// observation appends: goal (x, y) (point-goal, ant-goal); v*; or the walker's log-scale
-    /// dynamics factors; the hyperplane's unit normal (ant-linclass).
+    /// dynamics factors; the hyperplane's unit normal (ant-linclass). The family's spec writes
+    /// it ([`crate::FamilySpec::write_parameter`]).
     pub fn write_parameter(&self, out: &mut [f32]) -> Result<(), SimError> {
-        let expected = self.family().task_dim();
-        if out.len() != expected {
+        let spec = self.family().spec();
+        if out.len() != spec.task_dim {
             return Err(SimError::BufferLength {
-                expected,
+                expected: spec.task_dim,
                 got: out.len(),
             });
         }
-        match *self {
-            Task::PointGoal { .. } | Task::AntGoal { .. } => {
-                out.copy_from_slice(&self.goal().unwrap_or_default());
-            }
-            Task::CheetahVel { target_velocity } => out[0] = target_velocity,
-            Task::WalkerDyn { .. } => {
-                let dynamics = self
-                    .walker_dynamics()
-                    .unwrap_or_else(WalkerDynamics::nominal);
-                dynamics.write_log_factors(out)
-            }
-            Task::AntLinClass { .. } => {
-                out.copy_from_slice(&self.linclass_normal().unwrap_or_default());
-            }
-        }
+        (spec.write_parameter)(self, out);
         Ok(())
     }
 
@@ -478,19 +458,16 @@ impl Task {
         out
     }
 
-    /// A short human-readable label, e.g. `goal_angle=0.1963`.
+    /// A short human-readable label, e.g. `goal_angle=0.1963`; the family's nominal task (the
+    /// unmodified walker) says so.
     pub fn label(&self) -> String {
-        match *self {
-            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => {
-                format!("goal_angle={goal_angle:.4}")
-            }
-            Task::CheetahVel { target_velocity } => format!("target_velocity={target_velocity:.2}"),
-            Task::WalkerDyn {
-                dynamics_seed: WALKER_NOMINAL_SEED,
-            } => format!("dynamics_seed={WALKER_NOMINAL_SEED} (nominal)"),
-            Task::WalkerDyn { dynamics_seed } => format!("dynamics_seed={dynamics_seed}"),
-            Task::AntLinClass { hyperplane_seed } => format!("hyperplane_seed={hyperplane_seed}"),
-        }
+        let spec = self.family().spec();
+        let nominal = if spec.nominal_task == Some(*self) {
+            " (nominal)"
+        } else {
+            ""
+        };
+        format!("{}={}{nominal}", spec.value_key, self.short_value())
     }
 }
 
