@@ -155,6 +155,19 @@ fn errors_are_one_line_that_says_what_to_do() {
         line.starts_with("error: invalid config: sac.batch_size"),
         "{line}"
     );
+    // A flag of one family on another: refused before any training.
+    let line = one_line_error(&smile_env(
+        &[
+            "expert",
+            "--env",
+            "cheetah-vel",
+            "--nominal",
+            "-o",
+            s(&dir.join("nominal")),
+        ],
+        &[],
+    ));
+    assert!(line.contains("cheetah-vel has none"), "{line}");
 
     // RUST_BACKTRACE asks for the whole chain.
     let out = smile_env(

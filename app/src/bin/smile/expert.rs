@@ -173,12 +173,16 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         bail!("--keep-best needs evaluations: set --eval-every above 0");
     }
     if a.nominal {
-        if cfg.env != Family::WalkerDyn {
-            bail!("--nominal exists only for walker-dyn, not {}", cfg.env);
-        }
+        let Some(nominal) = cfg.env.spec().nominal_task else {
+            bail!(
+                "--nominal trains on a family's nominal task (walker-dyn's unmodified walker); {} \
+                 has none",
+                cfg.env
+            );
+        };
         // A config file's task_index would silently win over the flag otherwise.
         cfg.task_index = None;
-        cfg.task_value = Some(sim::WALKER_NOMINAL_SEED as f64);
+        cfg.task_value = Some(nominal.value());
     }
     cfg.sac.validate()?;
     Ok(cfg)
