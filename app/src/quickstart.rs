@@ -61,7 +61,7 @@ pub enum Budget {
     /// Seconds (2-15 s on 2 cores): tiny nets and a few hundred updates. Proves the plumbing,
     /// not the learning.
     Tiny,
-    /// The default: about 10 minutes on 2 cores for point-goal.
+    /// The default: about 2 minutes on 2 cores for point-goal (docs/BENCHMARKS.md).
     Short,
     /// Longer training (point-goal: 2x the updates); required for the slow families.
     Long,

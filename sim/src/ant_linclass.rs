@@ -25,7 +25,6 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
@@ -34,8 +33,9 @@ use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
 pub const HORIZON: usize = 50;
-/// Dimension of the points to classify.
-pub const POINT_DIM: usize = 4;
+/// Dimension of the points to classify, and the task's hyperplane from its seed (in their own
+/// module so that `task.rs` needs nothing of this environment).
+pub use crate::hyperplane::{POINT_DIM, hyperplane_normal};
 /// Observation: the ant's 29 entries ([`crate::ant::obs`]), then the first point, then the
 /// second point.
 pub const OBS_DIM: usize = crate::ant::OBS_DIM + 2 * POINT_DIM;
@@ -58,20 +58,6 @@ pub const TEST_TASKS: u64 = 32;
 
 /// The latched decision, defined beside the metric that decodes it.
 pub use crate::env::Decision;
-
-/// The unit normal of hyperplane `seed`: a standard normal 4-vector, normalised (uniform on the
-/// sphere, so every orientation is equally likely).
-pub fn hyperplane_normal(seed: u64) -> [f32; POINT_DIM] {
-    let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x4c49_4e43_4c41_5353); // "LINCLASS"
-    loop {
-        let w: [f32; POINT_DIM] = std::array::from_fn(|_| StandardNormal.sample(&mut rng));
-        let norm = w.iter().map(|x| x * x).sum::<f32>().sqrt();
-        // A draw this close to 0 has no direction worth normalising; draw again.
-        if norm > 1e-3 {
-            return w.map(|x| x / norm);
-        }
-    }
-}
 
 fn dot(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()

@@ -37,6 +37,7 @@ mod error;
 mod export_report;
 pub mod fidelity;
 mod fsio;
+mod hyperplane;
 pub mod legged;
 #[cfg(feature = "mujoco")]
 pub mod mujoco;

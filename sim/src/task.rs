@@ -3,8 +3,8 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::ant_linclass as linclass;
 use crate::dynamics::WalkerDynamics;
+use crate::hyperplane as linclass;
 use crate::{ObsComponent, SimError};
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).

@@ -19,7 +19,7 @@ pub struct QuickstartArgs {
     /// Seed of the whole pipeline.
     #[arg(long, default_value_t = 0)]
     seed: u64,
-    /// Compute budget: tiny (2-15 s, plumbing only), short (point-goal: 4-6 min), long.
+    /// Compute budget: tiny (2-15 s, plumbing only), short (point-goal: about 2 min), long.
     #[arg(long, value_enum, default_value_t = Budget::Short)]
     budget: Budget,
     /// Demos per meta-train task.
