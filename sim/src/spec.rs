@@ -126,6 +126,11 @@ fn goal_test_angles() -> impl Iterator<Item = f32> {
     (0..GOAL_TEST).map(|n| 2.0 * n as f32 * PI / 16.0 + PI / 32.0)
 }
 
+/// The goal families' task parameter: the goal's (x, y).
+fn write_goal(task: &Task, out: &mut [f32]) {
+    out.copy_from_slice(&task.goal().unwrap_or_default());
+}
+
 /// A seed from a number: a non-negative integer within `u32`.
 fn seed_of(value: f64) -> Option<u64> {
     (value >= 0.0 && value.fract() == 0.0 && value <= u32::MAX as f64).then_some(value as u64)
@@ -142,7 +147,7 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
     value_key: "goal_angle",
     value_decimals: 4,
-    write_parameter: |task, out| out.copy_from_slice(&task.goal().unwrap_or_default()),
+    write_parameter: write_goal,
     train_tasks: || goal_train_angles().map(Task::point_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::point_goal).collect(),
     task_from_value: |v| Ok(Task::point_goal(v as f32)),
@@ -266,7 +271,7 @@ pub(crate) const ANT_GOAL_SPEC: FamilySpec = FamilySpec {
     value_tolerance: crate::TASK_VALUE_TOLERANCE,
     value_key: "goal_angle",
     value_decimals: 4,
-    write_parameter: |task, out| out.copy_from_slice(&task.goal().unwrap_or_default()),
+    write_parameter: write_goal,
     train_tasks: || goal_train_angles().map(Task::ant_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::ant_goal).collect(),
     task_from_value: |v| Ok(Task::ant_goal(v as f32)),
