@@ -156,6 +156,18 @@ fn warm_start_begins_from_the_source_run_and_resumes_without_it() {
     };
     let e = ExpertTrainer::new(wide).err().unwrap().to_string();
     assert!(e.contains("hidden [16, 16]") && e.contains("[8, 8]"), "{e}");
+    // So is a source trained on another physics backend (checked before the plant is built,
+    // so this holds in a build without MuJoCo too).
+    let other_plant = ExpertConfig {
+        physics: sim::Physics::Mujoco,
+        init_from: Some(dst.clone()),
+        ..tiny(40)
+    };
+    let e = ExpertTrainer::new(other_plant).err().unwrap().to_string();
+    assert!(
+        e.contains("trained on rapier cannot start one on mujoco"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dst).ok();
 }
 

@@ -193,43 +193,63 @@ pub struct BestEval {
 /// File the best-evaluated weights of a `keep_best` run are written to.
 pub const BEST_POLICY_FILE: &str = "policy-best.safetensors";
 
+/// Loads the checkpoint of another expert run that `cfg` warm-starts from (see
+/// `ExpertConfig::init_from`), refusing one of another family, width or physics backend.
+fn warm_start_source(dir: &Path, cfg: &ExpertConfig) -> Result<checkpoint::Loaded> {
+    let ck = checkpoint::load(dir)?;
+    let foreign = |reason: String| Error::CheckpointState {
+        path: ck.path().to_path_buf(),
+        reason,
+    };
+    if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-run") {
+        return Err(foreign(
+            "--init-from needs an expert training checkpoint (`smile expert -o DIR`)".into(),
+        ));
+    }
+    let source: ExpertConfig = ck.meta_field("config")?;
+    if source.env != cfg.env
+        || source.sac.hidden != cfg.sac.hidden
+        || source.sac.actor_hidden != cfg.sac.actor_hidden
+    {
+        return Err(foreign(format!(
+            "a {} expert with hidden {:?} cannot start a {} expert with hidden {:?}",
+            source.env, source.sac.hidden, cfg.env, cfg.sac.hidden
+        )));
+    }
+    if source.physics != cfg.physics {
+        // Its critics value another plant's states: fine-tuning would silently start from a
+        // policy of the wrong robot (e.g. a MuJoCo base for experts that forgot `--physics`).
+        return Err(foreign(format!(
+            "an expert trained on {} cannot start one on {} (set the same physics backend)",
+            source.physics.name(),
+            cfg.physics.name()
+        )));
+    }
+    Ok(ck)
+}
+
 impl ExpertTrainer {
     /// A fresh run (warm-started from `cfg.init_from` if set).
     pub fn new(cfg: ExpertConfig) -> Result<Self> {
-        let init = cfg.init_from.clone();
+        // The warm start's source is checked before anything is built, so a mismatch (another
+        // family, width or plant) is refused at once, by name.
+        let source = cfg
+            .init_from
+            .as_deref()
+            .map(|dir| warm_start_source(dir, &cfg))
+            .transpose()?;
         let mut run = Self::build(cfg)?;
-        if let Some(dir) = init {
-            run.warm_start(&dir)?;
+        if let Some(ck) = source {
+            let counters: SacCounters = ck.meta_field("sac_counters")?;
+            let path = ck.path().to_path_buf();
+            run.sac
+                .load_state(&|n| ck.get(n), counters)
+                .map_err(|e| Error::CheckpointState {
+                    path,
+                    reason: format!("does not match this configuration: {e}"),
+                })?;
         }
         Ok(run)
-    }
-
-    /// Load the SAC state of another expert run's checkpoint (see `ExpertConfig::init_from`).
-    fn warm_start(&mut self, dir: &Path) -> Result<()> {
-        let ck = checkpoint::load(dir)?;
-        let foreign = |reason: String| Error::CheckpointState {
-            path: ck.path().to_path_buf(),
-            reason,
-        };
-        if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-run") {
-            return Err(foreign(
-                "--init-from needs an expert training checkpoint (`smile expert -o DIR`)".into(),
-            ));
-        }
-        let source: ExpertConfig = ck.meta_field("config")?;
-        if source.env != self.cfg.env
-            || source.sac.hidden != self.cfg.sac.hidden
-            || source.sac.actor_hidden != self.cfg.sac.actor_hidden
-        {
-            return Err(foreign(format!(
-                "a {} expert with hidden {:?} cannot start a {} expert with hidden {:?}",
-                source.env, source.sac.hidden, self.cfg.env, self.cfg.sac.hidden
-            )));
-        }
-        let counters: SacCounters = ck.meta_field("sac_counters")?;
-        self.sac
-            .load_state(&|n| ck.get(n), counters)
-            .map_err(|e| foreign(format!("does not match this configuration: {e}")))
     }
 
     fn build(cfg: ExpertConfig) -> Result<Self> {
