@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
-# Carry in $DEV (an ignored folder): smile.xz (a stripped `--features mujoco` build, xz) and
-# mujoco-lib.txz (.mujoco/lib from scripts/fetch-mujoco.sh, tar cJ); the tracked tree is about
-# 57 MiB, so the carry must stay under 7 MiB. Usage: DEV=runs/dev2 bash docs/scripts/device-walker-base.sh 480
 # Device run: the walker-dyn base expert (assets/experts/walker-dyn/README.md step 1) on the
 # MuJoCo plant, seeds 0-5, beside the Rapier recipe's seed 0 for a same-machine speed ratio.
 # Stopped at T seconds; metrics, evals and the exported policy come back (not the checkpoints).
+# Carry in $DEV (an ignored folder): smile.xz (a stripped `--features mujoco` build, xz) and
+# mujoco-lib.txz (.mujoco/lib from scripts/fetch-mujoco.sh, tar cJ); the tracked tree is about
+# 57 MiB, so the carry must stay under 7 MiB. Usage: DEV=runs/dev2 bash docs/scripts/device-walker-base.sh 480
 set -u
 D=${DEV:-runs/dev2}; mkdir -p /tmp/mj && tar xJf $D/mujoco-lib.txz -C /tmp/mj
 xz -dc $D/smile.xz > /tmp/smile && chmod +x /tmp/smile
