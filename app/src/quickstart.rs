@@ -481,6 +481,49 @@ fn evaluate(
     Ok(r)
 }
 
+/// The point-goal short budget's wall clock on 2 cores, by what this CPU has: measured at 96 s
+/// on a 2-vCPU Intel Xeon with AVX-512 and 392 s on a 2-vCPU AMD EPYC with AVX2 only
+/// (2026-12-04, docs/BENCHMARKS.md): the learner's matrix kernels set the pace.
+fn short_budget_estimate() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        return "about 2 minutes (this CPU has AVX-512)";
+    } else if std::arch::is_x86_feature_detected!("avx2") {
+        return "about 6-7 minutes (this CPU has AVX2 but not AVX-512)";
+    }
+    "2-7 minutes on x86-64 with AVX2 or AVX-512; more without them"
+}
+
+/// What the quickstart's last stages write: a directory holding any of them looks finished.
+const RESULT_FILES: [&str; 8] = [
+    "summary.json",
+    "report.md",
+    "eval.json",
+    "eval.md",
+    "eval.svg",
+    "policy.blob",
+    "policy.blob.json",
+    "device",
+];
+
+/// Removes an earlier quickstart's results from `out` (the caller holds its lock), so that a
+/// run interrupted before its own are written never sits beside them looking complete.
+fn clear_results(out: &Path) -> Result<()> {
+    for name in RESULT_FILES {
+        let path = out.join(name);
+        let gone = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+        match gone {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&path)(e)),
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Runs the whole pipeline; returns what it measured (also in `out/summary.json`).
 pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
@@ -489,6 +532,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let out = &args.out;
     // One quickstart per directory at a time: a second is refused with this one's pid.
     let _lock = trainer::DirLock::acquire(out)?;
+    clear_results(out)?;
     write(
         &out.join("quickstart.toml"),
         toml::to_string(args.args).map_err(|e| Error::Serialise {
@@ -505,7 +549,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     );
     let scripted = args.recipe.expert == ExpertSource::Scripted;
     if args.budget == Budget::Short && scripted {
-        eprintln!("expected time on 2 cores: 2-4 minutes");
+        eprintln!("expected time on 2 cores: {}", short_budget_estimate());
     } else if let Some(assets) = &args.shipped {
         eprintln!(
             "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \

@@ -374,6 +374,7 @@ fn read_reference(path: &Path, meta: &onnx::OnnxMeta) -> Reference {
         obs_dim: meta.obs_dim,
         act_dim: meta.act_dim,
         z_dim: meta.z_dim,
+        physics: meta.physics,
         contexts,
     }
 }

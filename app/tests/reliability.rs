@@ -125,6 +125,96 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Starts a Meta-BC run whose first checkpoint never comes (`checkpoint_every` past its
+/// budget) and kills it with SIGKILL once it has kept a policy: the state a run killed in its
+/// first window leaves (issue 57, item 1).
+fn killed_before_first_checkpoint(train: &Path, run: &Path, seed: &str) {
+    let cfg = run.with_extension("toml");
+    std::fs::write(&cfg, "patience = 0\ncheckpoint_every = 1000000000\n").unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_smile"))
+        .args(common::meta_bc_args(train, run))
+        .args([
+            "--config",
+            s(&cfg),
+            "--updates",
+            "100000000",
+            "--seed",
+            seed,
+        ])
+        .args(["--eval-every", "20", "--hidden", "8,8", "--quiet"])
+        .env("RAYON_NUM_THREADS", "1")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    while !run.join(trainer::META_POLICY_FILE).exists() {
+        assert!(t0.elapsed() < Duration::from_secs(60), "no policy written");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(!run.join(trainer::checkpoint::CHECKPOINT_FILE).exists());
+}
+
+/// The metrics log's rows at step 0 and the number of TensorBoard event files in `run`.
+fn step0_rows_and_event_files(run: &Path) -> (usize, usize) {
+    let log = std::fs::read_to_string(run.join("metrics.jsonl")).unwrap();
+    let rows = log
+        .lines()
+        .filter(|l| serde_json::from_str::<serde_json::Value>(l).unwrap()["step"] == 0)
+        .count();
+    let events = std::fs::read_dir(run.join("tb")).unwrap().count();
+    (rows, events)
+}
+
+/// Issue 57, items 1 and 2: a run killed after its first kept policy but before its first
+/// checkpoint is neither stuck nor mixed into the next run: `--resume` starts it over with its
+/// recorded configuration, a fresh start into the directory clears the dead run's log and
+/// event files first, and either way the finished run's log holds one start.
+#[test]
+fn a_run_killed_before_its_first_checkpoint_restarts_cleanly() {
+    let (dir, train, _) = with_demos("first-window");
+    let run = dir.join("bc");
+    killed_before_first_checkpoint(&train, &run, "0");
+    let (rows0, _) = step0_rows_and_event_files(&run);
+    let resumed = ok(&smile(
+        &[&resume_args(&train, &run)[..], &["--updates", "40"]].concat(),
+    ));
+    assert!(resumed.contains("no checkpoint yet"), "{resumed}");
+    let (rows, events) = step0_rows_and_event_files(&run);
+    assert_eq!((rows, events), (rows0, 1), "one start in the log");
+    let mark = trainer::MetaPolicy::training_mark(&run).unwrap().unwrap();
+    assert!(mark.finished && mark.total_updates == 40, "{mark:?}");
+    // A fresh run (another seed) into a directory left the same way.
+    std::fs::remove_dir_all(&run).unwrap();
+    killed_before_first_checkpoint(&train, &run, "0");
+    let fresh = ok(&smile(
+        &[
+            &common::meta_bc_args(&train, &run)[..],
+            &[
+                "--updates",
+                "40",
+                "--eval-every",
+                "20",
+                "--hidden",
+                "8,8",
+                "--seed",
+                "1",
+            ],
+        ]
+        .concat(),
+    ));
+    assert!(
+        fresh.contains("interrupted before its first checkpoint"),
+        "{fresh}"
+    );
+    assert_eq!(step0_rows_and_event_files(&run), (rows0, 1));
+    let cfg = std::fs::read_to_string(run.join("config.toml")).unwrap();
+    assert!(cfg.contains("seed = 1"), "{cfg}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Item 7: --resume refuses flags it would ignore, an edited config.toml, and other demos.
 #[test]
 fn resume_refuses_changed_flags_edited_config_and_other_demos() {
@@ -381,5 +471,104 @@ fn messages_name_the_path_and_the_fix() {
         e.contains("unfinished `smile expert` run") && e.contains("--resume"),
         "{e}"
     );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 57, items 6-8 and 10: a zero a flag refuses is refused from a config file too (no
+/// untrained policy marked finished), and so are a config naming another family than the
+/// demos', a zero-step expert, a zero subsample, the same evaluation counted twice, latents of
+/// one plant's policy on the other plant's contexts, and a quantized ONNX export.
+#[test]
+fn values_a_flag_refuses_are_refused_from_files_and_every_command() {
+    let (dir, train, test) = with_demos("zeros");
+    common::tiny_bc(&train, &dir.join("bc"));
+    let run = dir.join("r");
+    let cfg = dir.join("c.toml");
+    for (algo, text) in [
+        ("smile", "total_updates = 0"),
+        ("smile", "horizon = 0"),
+        ("smile", "rollouts_per_iter = 0"),
+        ("meta-bc", "total_steps = 0"),
+        ("meta-bc", "env = \"cheetah-vel\""),
+    ] {
+        std::fs::write(&cfg, text).unwrap();
+        let e = err_of(&smile(&[
+            "train",
+            "--algo",
+            algo,
+            "--demos",
+            s(&train),
+            "--config",
+            s(&cfg),
+            "-o",
+            s(&run),
+            "--quiet",
+        ]));
+        let key = text.split(' ').next().unwrap();
+        assert!(e.contains(key), "{text}: {e}");
+        assert!(!run.join(trainer::META_POLICY_FILE).exists(), "{text}");
+    }
+    let e = err_of(&smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--total-steps",
+        "0",
+        "-o",
+        s(&dir.join("x")),
+        "--quiet",
+    ]));
+    assert!(e.contains("total_steps"), "{e}");
+    let e = err_of(&smile(&[
+        "quickstart",
+        "--subsample",
+        "0",
+        "--out",
+        s(&dir.join("q")),
+    ]));
+    assert!(e.contains("--subsample"), "{e}");
+    // The same evaluation twice is one seed, not two with a std of 0.
+    let ev = dir.join("eval");
+    ok(&smile(&eval_args(&dir.join("bc"), &test, &ev)));
+    let json = ev.join("eval.json");
+    let e = err_of(&smile(&[
+        "report",
+        s(&json),
+        s(&json),
+        "-o",
+        s(&dir.join("rep")),
+    ]));
+    assert!(e.contains("same evaluation"), "{e}");
+    // Latents of a Rapier policy on contexts said to be MuJoCo's.
+    let mut mujoco = sim::DemoDataset::read(&test).unwrap();
+    mujoco.physics = sim::Physics::Mujoco;
+    let mj = dir.join("mj.safetensors");
+    mujoco.write(&mj).unwrap();
+    let e = err_of(&smile(&[
+        "latents",
+        "--policy",
+        s(&dir.join("bc")),
+        "--env",
+        "point-goal",
+        "--contexts",
+        s(&mj),
+        "-o",
+        s(&dir.join("z.csv")),
+    ]));
+    assert!(e.contains("mujoco"), "{e}");
+    let e = err_of(&smile(&[
+        "export",
+        "--policy",
+        s(&dir.join("bc")),
+        "--format",
+        "onnx",
+        "--quant",
+        "w8a8",
+        "--contexts",
+        s(&test),
+        "-o",
+        s(&dir.join("onnx")),
+    ]));
+    assert!(e.contains("--quant w8a8") && e.contains("float32"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }

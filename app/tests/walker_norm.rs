@@ -114,6 +114,7 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
         ]));
     }
     let mut bc = MetaBcConfig {
+        env: Family::WalkerDyn,
         policy_hidden: vec![16, 16],
         tasks_per_batch: 4,
         per_task: 16,

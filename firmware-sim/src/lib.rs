@@ -29,6 +29,10 @@ pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_
 pub use estimation::Sensing;
 pub use session::{Session, SessionConfig, SessionError, run_session};
 
-/// The workspace's one atomic write (temporary sibling, fsync, rename; the temporary removed
-/// on failure), owned by `sim`, the lowest crate with files.
-pub use sim::write_atomic;
+/// Writes `bytes` to `path` atomically with the workspace's one atomic write
+/// ([`sim::write_atomic`]: temporary sibling, fsync, rename), the error naming the file (a full
+/// disk says which output it could not write).
+pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    sim::write_atomic(path, bytes)
+        .map_err(|e| std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display())))
+}

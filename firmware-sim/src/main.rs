@@ -37,6 +37,15 @@ enum Cmd {
     Compare(CompareArgs),
 }
 
+/// A count of at least 1 (`--horizon`).
+fn positive_count(text: &str) -> std::result::Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(0) => Err("0: expected a count of at least 1".into()),
+        Ok(n) => Ok(n),
+        Err(e) => Err(format!("`{text}` is not a count: {e}")),
+    }
+}
+
 /// A finite number > 0 (`--adc-range`).
 fn positive_finite(text: &str) -> std::result::Result<f32, String> {
     match text.parse::<f32>() {
@@ -60,7 +69,7 @@ struct RunArgs {
     /// The policy blob (from `smile export`).
     #[arg(long)]
     blob: PathBuf,
-    /// Task family of the plant: point-goal, cheetah-vel, walker-dyn or ant-goal.
+    /// Task family of the plant: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long)]
     env: Family,
     /// Physics of the plant, rapier or mujoco (a `--features mujoco` build) [default: the
@@ -83,8 +92,8 @@ struct RunArgs {
     /// Ticks to run, 1 to one plant episode (default: one plant episode).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
     ticks: Option<u64>,
-    /// Plant episode length in plant steps (default: the family's).
-    #[arg(long)]
+    /// Plant episode length in plant steps, at least 1 (default: the family's).
+    #[arg(long, value_parser = positive_count)]
     horizon: Option<usize>,
     /// Std of Gaussian sensor noise.
     #[arg(long, default_value_t = 0.0)]
@@ -232,13 +241,72 @@ fn demos_of<'d>(
     Ok(found)
 }
 
-/// The plant the export report beside `blob` (`<blob>.json`) names, if there is one.
-fn report_physics(blob: &std::path::Path) -> Result<Option<sim::Physics>> {
-    let path = ExportReport::path_beside(blob);
-    if !path.exists() {
-        return Ok(None);
+/// The export report that describes `blob` (`report`, else `<blob>.json` beside it), checked
+/// against what the blob is flashed to: the one place `run` and `compare` check a blob's
+/// provenance. The report must name this very blob (its SHA-256: an interrupted re-export can
+/// leave a new blob beside the previous export's report), the family `--env` gives (a blob of
+/// another family with the same dimensions would run, meaninglessly) and the plant `--physics`
+/// gives, if any. Returns the report (or, without one and not `required`, the warning to print
+/// once the other inputs are accepted: nothing can be checked) and the plant to run on.
+fn checked_provenance(
+    blob_path: &std::path::Path,
+    blob: &[u8],
+    report: Option<&std::path::Path>,
+    required: bool,
+    env: Family,
+    physics: Option<sim::Physics>,
+) -> Result<(std::result::Result<ExportReport, String>, sim::Physics)> {
+    let path = report.map_or_else(|| ExportReport::path_beside(blob_path), Into::into);
+    if !path.exists() && !required {
+        let plant = physics.unwrap_or_default();
+        let warning = format!(
+            "warning: no export report beside {} ({} is missing): its family and plant cannot \
+             be checked; flashing it as {env} on the {plant} plant",
+            blob_path.display(),
+            path.display(),
+        );
+        return Ok((Err(warning), plant));
     }
-    Ok(Some(ExportReport::read(&path)?.physics))
+    let rep = ExportReport::read(&path)?;
+    match Some(rep.blob_sha256.as_str()).filter(|s| !s.is_empty()) {
+        Some(sha) => {
+            let here = sim::sha256_hex(blob);
+            if sha != here {
+                bail!(
+                    "{} describes another blob (SHA-256 {}), not {} ({}): run `smile export` \
+                     again to write the blob and its report together",
+                    path.display(),
+                    &sha[..sha.len().min(12)],
+                    blob_path.display(),
+                    &here[..12]
+                );
+            }
+        }
+        None => eprintln!(
+            "warning: {} names no blob checksum (written before that field); cannot check it \
+             describes {}",
+            path.display(),
+            blob_path.display()
+        ),
+    }
+    if rep.env != env {
+        bail!(
+            "{} is a {} policy ({} says so), but --env is {env}; pass --env {} or a {env} blob",
+            blob_path.display(),
+            rep.env,
+            path.display(),
+            rep.env
+        );
+    }
+    if let Some(asked) = physics.filter(|p| *p != rep.physics) {
+        bail!(
+            "--physics {asked}, but {} says the blob was trained on the {} plant",
+            path.display(),
+            rep.physics
+        );
+    }
+    let plant = rep.physics;
+    Ok((Ok(rep), plant))
 }
 
 /// Reads a demo file given with `flag`, checking it holds demos of `family` recorded on
@@ -280,13 +348,8 @@ fn run_cmd(args: RunArgs) -> Result<()> {
     }
     let spec = parse_task(args.env, &args.task)?;
     let blob = read_blob(&args.blob)?;
-    let physics = match (args.physics, report_physics(&args.blob)?) {
-        (Some(asked), Some(made)) if asked != made => bail!(
-            "--physics {asked}, but {}.json says the blob was trained on the {made} plant",
-            args.blob.display()
-        ),
-        (asked, made) => asked.or(made).unwrap_or_default(),
-    };
+    let (provenance, physics) =
+        checked_provenance(&args.blob, &blob, None, false, args.env, args.physics)?;
     let demos = read_demos(&args.context, "--context", args.env, physics)?;
     let value = match spec {
         TaskSpec::Index(task) => task.value(),
@@ -304,6 +367,16 @@ fn run_cmd(args: RunArgs) -> Result<()> {
         task.value(),
         args.context.display()
     );
+    let available = found.trajectories.len();
+    if args.trajectories as usize > available {
+        bail!(
+            "--trajectories {}: --context {} holds {available} demo(s) of {}; pass \
+             --trajectories 1..={available} or a file with more",
+            args.trajectories,
+            args.context.display(),
+            task.label()
+        );
+    }
     let context: Vec<_> = found
         .trajectories
         .iter()
@@ -311,6 +384,10 @@ fn run_cmd(args: RunArgs) -> Result<()> {
         .collect();
     let config = session_config(&args, physics);
     let session = run_session(&blob, &task, &context, &config)?;
+    // Only now: a blob the device refuses gets that one error, not a warning before it.
+    if let Err(warning) = provenance {
+        eprintln!("{warning}");
+    }
     let report = &session.report;
 
     std::fs::create_dir_all(&args.out)
@@ -364,7 +441,7 @@ struct CompareArgs {
     /// `<blob>.json`; default: that file).
     #[arg(long)]
     reference: Option<PathBuf>,
-    /// Task family: point-goal, cheetah-vel, walker-dyn or ant-goal.
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
     #[arg(long)]
     env: Family,
     /// Demos of the reference's tasks (the `--contexts` file given to `smile export`).
@@ -400,37 +477,17 @@ struct CompareReport {
 }
 
 fn compare_cmd(args: CompareArgs) -> Result<()> {
-    let reference_path = args
-        .reference
-        .clone()
-        .unwrap_or_else(|| ExportReport::path_beside(&args.blob));
-    let reference = ExportReport::read(&reference_path)?;
     let blob = read_blob(&args.blob)?;
-    // The report must describe this blob: an interrupted re-export can leave a new blob
-    // beside the previous export's report.
-    match Some(reference.blob_sha256.as_str()).filter(|s| !s.is_empty()) {
-        Some(sha) => {
-            let here = sim::sha256_hex(&blob);
-            if sha != here {
-                bail!(
-                    "{} describes another blob (SHA-256 {}), not {} ({}): run `smile export` \
-                     again to write the blob and its report together",
-                    reference_path.display(),
-                    &sha[..sha.len().min(12)],
-                    args.blob.display(),
-                    &here[..12]
-                );
-            }
-        }
-        None => eprintln!(
-            "warning: {} names no blob checksum (written before that field); cannot check it \
-             describes {}",
-            reference_path.display(),
-            args.blob.display()
-        ),
-    }
     // The device runs the plant the policy was trained and verified on.
-    let physics = reference.physics;
+    let (reference, physics) = checked_provenance(
+        &args.blob,
+        &blob,
+        args.reference.as_deref(),
+        true,
+        args.env,
+        None,
+    )?;
+    let reference = reference.map_err(anyhow::Error::msg)?;
     let demos = read_demos(&args.contexts, "--contexts", args.env, physics)?;
     let config = SessionConfig {
         plant: EnvConfig {

@@ -303,3 +303,45 @@ fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
     let err = fails(&run(&["--physics", "mujoco"]));
     assert!(err.contains("no MuJoCo model"), "{err}");
 }
+
+/// Issue 57, items 5, 7 and 10: a blob whose report names another family is refused by `run`
+/// and `compare` alike, with the family it is; `--horizon 0` and more `--trajectories` than
+/// the context file holds are refused by name, not run as one tick or clamped.
+#[test]
+fn a_blob_of_another_family_and_counts_that_cannot_run_are_refused() {
+    let (dir, blob, demos) = blob_and_demos("family", 1);
+    let task = Family::PointGoal.test_tasks()[0];
+    let sha = sim::sha256_hex(&std::fs::read(&blob).unwrap());
+    std::fs::write(
+        dir.join("pd.blob.json"),
+        export_report(&[(task.value(), 0.5)], &sha),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let mut args = run_args(&blob, "cheetah-vel", "0", &demos);
+    args.extend(["-o", s(&out)]);
+    let err = fails(&firmware_sim(&args));
+    assert!(
+        err.contains("is a point-goal policy") && err.contains("--env is cheetah-vel"),
+        "{err}"
+    );
+    let mut cmp = compare_args(&blob, &demos);
+    cmp[4] = "cheetah-vel";
+    let err = fails(&firmware_sim(&[&cmp[..], &["-o", s(&out)]].concat()));
+    assert!(err.contains("is a point-goal policy"), "{err}");
+    let run = |extra: &[&str]| {
+        let mut args = run_args(&blob, "point-goal", "0", &demos);
+        args.extend(["-o", s(&out)]);
+        args.extend_from_slice(extra);
+        firmware_sim(&args)
+    };
+    let e = String::from_utf8_lossy(&run(&["--horizon", "0"]).stderr).into_owned();
+    assert!(e.contains("--horizon") && !e.contains("panicked"), "{e}");
+    let e = fails(&run(&["--trajectories", "5"]));
+    assert!(
+        e.contains("--trajectories 5") && e.contains("holds 1 demo"),
+        "{e}"
+    );
+    ok(&run(&["--ticks", "3"]));
+    std::fs::remove_dir_all(&dir).ok();
+}

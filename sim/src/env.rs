@@ -146,6 +146,9 @@ pub trait Environment: Send {
 /// task. Errors if the backend is not in this build ([`SimError::PhysicsUnavailable`]) or the
 /// family has no robot on it (point-goal is Rapier's only).
 pub fn make_env(family: Family, config: EnvConfig) -> Result<Box<dyn Environment>, SimError> {
+    if config.horizon == Some(0) {
+        return Err(SimError::ZeroHorizon);
+    }
     (family.spec().make_env)(config)
 }
 

@@ -86,6 +86,10 @@ pub enum SimError {
          ant-goal, ant-linclass"
     )]
     UnknownFamily(String),
+    /// An episode-length override of zero steps (every command's `horizon` reaches the plant
+    /// through [`make_env`](crate::make_env), which refuses it).
+    #[error("horizon must be at least 1 step (leave it out for the family's own), not 0")]
+    ZeroHorizon,
     /// A split name that is neither `train` nor `test`.
     #[error("unknown split {0:?}; expected train or test")]
     UnknownSplit(String),

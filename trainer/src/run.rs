@@ -274,6 +274,26 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     let demos_sha = checkpoint::sha256_file(&req.demos)?;
     let algo = algo_of(req)?;
     let mut expert = req.expert.clone();
+    // A run killed before its first checkpoint left nothing to continue: `--resume` starts it
+    // over with its recorded configuration (a sweep's rerun does the same without the flag).
+    let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
+    if restart {
+        let cfg = req.out.join("config.toml");
+        if !cfg.exists() {
+            return Err(Error::Usage(format!(
+                "{} holds no checkpoint and no config.toml: its run was interrupted before it \
+                 recorded its configuration, so there is nothing to resume; start it again \
+                 without --resume (its partial files are replaced)",
+                req.out.display()
+            )));
+        }
+        on(RunEvent::Note(format!(
+            "{} has no checkpoint yet (its run was interrupted before the first one): starting \
+             it over from update 0 with its recorded configuration ({})",
+            req.out.display(),
+            cfg.display()
+        )));
+    }
     if req.resume {
         let rec = RunInfo::read(&req.out)?;
         match &rec.demos_sha256 {
@@ -302,6 +322,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     }
     let run = Run {
         req,
+        restart,
         algo,
         family,
         ds: &ds,
@@ -321,6 +342,8 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
 /// A request with its inputs read.
 struct Run<'a> {
     req: &'a TrainRequest,
+    /// A `--resume` of a run that has no checkpoint: started over with its configuration.
+    restart: bool,
     algo: Algo,
     family: Family,
     ds: &'a DemoDataset,
@@ -355,10 +378,23 @@ impl Run<'_> {
             (None, _) => "reading the flags".into(),
         };
         let mut set = req.set.clone();
+        let table = text.parse::<toml::Table>().unwrap_or_default();
+        // The family comes from the demos; a file naming another would be silently ignored.
+        if let Some(env) = table.get("env").or(set.get("env"))
+            && env.as_str() != Some(self.family.name())
+        {
+            let whose = file
+                .as_ref()
+                .map_or("the flags".into(), |p| p.display().to_string());
+            return Err(Error::Config(format!(
+                "{whose} sets env = {env} but the run is on {} (its demos, {}); remove the \
+                 key or give {env} demos",
+                self.family,
+                req.demos.display()
+            )));
+        }
         // A new run on MuJoCo demos runs on MuJoCo without being told twice.
-        let in_file = text
-            .parse::<toml::Table>()
-            .is_ok_and(|t| t.contains_key("physics"));
+        let in_file = table.contains_key("physics");
         if let Some(p) = req.physics.or((!in_file).then_some(self.ds.physics)) {
             set.insert("physics".into(), p.name().into());
         }
@@ -420,9 +456,26 @@ impl Run<'_> {
     /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
     /// nothing behind) and records the run. The returned lock is held for the whole
     /// training: a second writer is refused.
-    fn start_dir(&self, physics: Physics) -> Result<crate::io::DirLock> {
+    fn start_dir(
+        &self,
+        physics: Physics,
+        on: &mut dyn FnMut(RunEvent),
+    ) -> Result<crate::io::DirLock> {
         let out = &self.req.out;
         let lock = crate::io::DirLock::acquire(out)?;
+        if !self.resumes() {
+            // Checked again under the lock: the directory may have changed since the request
+            // was read (another process finishing its first checkpoint there).
+            let removed = checkpoint::clear_interrupted_run(out)?;
+            if !removed.is_empty() && !self.restart {
+                on(RunEvent::Note(format!(
+                    "{} held a run interrupted before its first checkpoint (nothing to resume); \
+                     starting over: removed {}",
+                    out.display(),
+                    removed.join(", ")
+                )));
+            }
+        }
         let expert = self.expert_record();
         let info = RunInfo {
             algo: self.algo.name().into(),
@@ -442,6 +495,11 @@ impl Run<'_> {
         Ok(lock)
     }
 
+    /// Whether the run continues from its checkpoint.
+    fn resumes(&self) -> bool {
+        self.req.resume && !self.restart
+    }
+
     fn train<L: MetaLearner>(&self, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         let req = self.req;
         let cfg = self.config::<L>()?;
@@ -449,7 +507,7 @@ impl Run<'_> {
         let data = MetaData::from_dataset(self.ds, self.family, L::holdout_every(&cfg))
             .map_err(|e| Error::Usage(format!("--demos {}: {e}", req.demos.display())))?;
         let (train_tasks, held_out) = (data.train.len(), data.val.len());
-        let mut run = if req.resume {
+        let mut run = if self.resumes() {
             let run = L::resume_from(&req.out, data, expert, &cfg)?;
             check_resume(&req.out, &cfg, run.settings(), L::RESUMABLE)?;
             run
@@ -457,7 +515,7 @@ impl Run<'_> {
             L::start(cfg, data, expert)?
         };
         let cfg = run.settings().clone();
-        let _lock = self.start_dir(self.ds.physics)?;
+        let _lock = self.start_dir(self.ds.physics, on)?;
         let text = toml::to_string(&cfg).map_err(|e| Error::Serialise {
             what: "config.toml",
             reason: e.to_string(),
@@ -471,7 +529,7 @@ impl Run<'_> {
             done: run.done(),
             unit: L::STEP_NAME,
             word: L::STEP_WORD,
-            resumed: req.resume,
+            resumed: self.resumes(),
         });
         run.run(&req.out, &mut |p| on(RunEvent::Progress(p, L::STEP_WORD)))
     }

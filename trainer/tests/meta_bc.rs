@@ -96,7 +96,7 @@ fn early_stopping_and_dagger_relabelling() {
     assert_eq!(run.dataset_size(), before + 30 * (s as usize).div_ceil(50));
     let err = MetaBc::new(tiny(true), run_data(), None).err().unwrap();
     assert!(
-        matches!(&err, trainer::Error::Config(m) if m.contains("meta-dagger needs an expert")),
+        matches!(&err, trainer::Error::Config(m) if m.contains("meta-dagger needs a relabelling expert")),
         "{err:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();

@@ -142,7 +142,24 @@ impl Report {
         let mut entries = Vec::new();
         let mut left_out = Vec::new();
         let mut head: Option<EvalReport> = None;
+        // Each evaluation counts once: the same file given twice (or a copy of it) would
+        // count as two seeds with a std of 0.
+        let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
         let mut take = |rep: EvalReport, origin: &Path| -> Result<Vec<MethodResult>> {
+            let file = if origin.is_dir() {
+                origin.join("eval.json")
+            } else {
+                origin.to_path_buf()
+            };
+            let sha = trainer::checkpoint::sha256_file(&file)?;
+            if let Some(first) = seen.insert(sha, origin.to_path_buf()) {
+                return Err(Error::Data(format!(
+                    "{} and {} are the same evaluation (the same eval.json, byte for byte): \
+                     each seed counts once; give each evaluation one time",
+                    first.display(),
+                    origin.display()
+                )));
+            }
             if let Some(h) = &head {
                 if h.protocol.run_through_falls != rep.protocol.run_through_falls {
                     return Err(Error::Data(format!(

@@ -99,5 +99,13 @@ pub fn run_local(
         .iter()
         .filter(|c| c.status == Status::Done)
         .count();
+    // A cell another process held when this one tried it may have finished since: it is done,
+    // not running elsewhere.
+    sum.busy.retain(|name| {
+        manifest
+            .cells
+            .iter()
+            .any(|c| c.cell.name == *name && c.status != Status::Done)
+    });
     Ok(sum)
 }

@@ -289,6 +289,17 @@ impl DemoDataset {
         }
         let mut trajectory_index = 0;
         for (task_index, demos) in self.tasks.iter().enumerate() {
+            // One entry per task: a repeated one would be drawn twice as often in training
+            // and scored twice in an evaluation.
+            if let Some(first) = self.tasks[..task_index]
+                .iter()
+                .position(|t| t.task == demos.task)
+            {
+                return Err(DatasetError::Inconsistent(format!(
+                    "task {} appears twice (entries {first} and {task_index})",
+                    demos.task.label()
+                )));
+            }
             if demos.task.family() != self.family {
                 return Err(DatasetError::FamilyMismatch {
                     expected: self.family,

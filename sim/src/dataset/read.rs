@@ -243,6 +243,14 @@ impl DemoDataset {
         let actions = f32s(tensor(&file, names::ACTIONS, Dtype::F32, &[Some(n), Some(act_dim)])?.0);
         let rewards = f32s(rewards);
         let dones = tensor(&file, names::DONES, Dtype::U8, &[Some(n)])?.0;
+        // A flag is 0 or 1: any other byte is a corrupt or foreign file, not "done".
+        if let Some(i) = dones.iter().position(|&d| d > 1) {
+            return Err(DatasetError::Inconsistent(format!(
+                "`{}` row {i} holds {}, not a flag (0 or 1)",
+                names::DONES,
+                dones[i]
+            )));
+        }
         let time_steps = indices(
             tensor(&file, names::TIME_STEPS, Dtype::I64, &[Some(n)])?.0,
             names::TIME_STEPS,

@@ -116,6 +116,20 @@ impl Default for ExpertConfig {
 }
 
 impl ExpertConfig {
+    /// Rejects values that cannot train: a positive step budget, replay, update rate and
+    /// evaluation, an episode of at least one step, valid SAC settings and thread count.
+    pub fn validate(&self) -> Result<()> {
+        crate::io::require_positive(&[
+            ("total_steps", self.total_steps),
+            ("updates_per_step", self.updates_per_step as u64),
+            ("buffer_capacity", self.buffer_capacity as u64),
+            ("eval_episodes", self.eval_episodes as u64),
+        ])?;
+        crate::io::require_horizon(self.horizon)?;
+        crate::threads::check_learner_threads(self.learner_threads)?;
+        self.sac.validate()
+    }
+
     fn env_config(&self) -> EnvConfig {
         EnvConfig {
             horizon: self.horizon,
@@ -190,8 +204,7 @@ pub struct BestEval {
     pub env_steps: u64,
 }
 
-/// File the best-evaluated weights of a `keep_best` run are written to.
-pub const BEST_POLICY_FILE: &str = "policy-best.safetensors";
+pub use crate::io::checkpoint::BEST_POLICY_FILE;
 
 /// Loads the checkpoint of another expert run that `cfg` warm-starts from (see
 /// `ExpertConfig::init_from`), refusing one of another family, width or physics backend.
@@ -253,7 +266,7 @@ impl ExpertTrainer {
     }
 
     fn build(cfg: ExpertConfig) -> Result<Self> {
-        crate::threads::check_learner_threads(cfg.learner_threads)?;
+        cfg.validate()?;
         let pool = LearnerPool::new(cfg.learner_threads)?;
         let family = cfg.env;
         let tasks = cfg.tasks()?;

@@ -81,10 +81,23 @@ impl MetaBc {
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
         let family = cfg.env;
         data.ensure_fits(family, cfg.physics)?;
-        if cfg.dagger && expert.as_ref().is_none_or(|e| e.family() != family) {
-            return Err(Error::Config(format!(
-                "meta-dagger needs an expert for {family}"
-            )));
+        if cfg.dagger {
+            match &expert {
+                None => {
+                    return Err(Error::Config(format!(
+                        "meta-dagger needs a relabelling expert for {family}"
+                    )));
+                }
+                Some(e) if e.family() != family => {
+                    return Err(Error::Config(format!(
+                        "meta-dagger on {family} demos needs a {family} expert; the expert \
+                         given ({}) is a {} expert",
+                        e.name(),
+                        e.family()
+                    )));
+                }
+                Some(_) => {}
+            }
         }
         if let Some(set) = expert
             .as_ref()

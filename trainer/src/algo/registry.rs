@@ -38,6 +38,15 @@ impl Algo {
         impl WithLearner for Check<'_> {
             type Output = Result<()>;
             fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
+                let table = self.0.parse::<toml::Table>().unwrap_or_default();
+                if let Some(env) = table.get("env")
+                    && env.as_str() != Some(self.1.name())
+                {
+                    return Err(crate::Error::Config(format!(
+                        "env = {env} contradicts the plan's family {}",
+                        self.1
+                    )));
+                }
                 let mut cfg = L::read_config(self.0)?;
                 L::configure(&mut cfg, algo, self.1);
                 L::validate(&cfg)
@@ -69,6 +78,21 @@ mod tests {
     fn configs_are_checked_against_their_algorithm() {
         let pg = Family::PointGoal;
         Algo::Smile.check_config("gp_weight = 10.0", pg).unwrap();
+        // Counts a flag refuses are refused from a file too (issue 57, item 7), and so is a
+        // family the plan does not run.
+        for bad in ["total_updates = 0", "horizon = 0", "rollouts_per_iter = 0"] {
+            let e = Algo::Smile.check_config(bad, pg).unwrap_err().to_string();
+            assert!(e.contains(bad.split(' ').next().unwrap()), "{e}");
+        }
+        assert!(Algo::MetaBc.check_config("total_steps = 0", pg).is_err());
+        assert!(
+            Algo::MetaBc
+                .check_config("env = \"cheetah-vel\"", pg)
+                .is_err()
+        );
+        Algo::MetaBc
+            .check_config("env = \"point-goal\"", pg)
+            .unwrap();
         // A SMILe key is unknown to Meta-BC, and an invalid value is refused by its own type.
         assert!(Algo::MetaBc.check_config("gp_weight = 10.0", pg).is_err());
         assert!(Algo::Smile.check_config("gp_weight = -1.0", pg).is_err());

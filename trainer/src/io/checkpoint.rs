@@ -22,29 +22,113 @@ pub const CHECKPOINT_FILE: &str = "checkpoint.safetensors";
 
 /// File name of an exported expert policy (`smile expert`) inside its run directory.
 pub const POLICY_FILE: &str = "policy.safetensors";
+
+/// File name of an expert run's best periodically evaluated policy (with `keep_best`).
+pub const BEST_POLICY_FILE: &str = "policy-best.safetensors";
 /// Metadata key holding the JSON document.
 const META_KEY: &str = "smile";
 /// Format tag stored in the metadata, checked on load.
 pub const CHECKPOINT_FORMAT: &str = "smile-checkpoint-v1";
 
-/// Files whose presence means a directory already holds a run (a checkpoint, a trained
-/// meta-policy, a trained expert).
-const RUN_MARKERS: [&str; 3] = [CHECKPOINT_FILE, crate::model::META_POLICY_FILE, POLICY_FILE];
+/// Files whose presence means a directory already holds a run that a fresh start would
+/// destroy: a checkpoint (resumable) or a finished expert policy. A meta-policy counts only when
+/// it is finished (or carries no training mark, as files made outside a run): an unfinished one
+/// beside no checkpoint is what a run killed before its first checkpoint leaves, and that run
+/// can only be started over ([`clear_interrupted_run`]).
+const RUN_MARKERS: [&str; 2] = [CHECKPOINT_FILE, POLICY_FILE];
+
+/// What a run writes into its directory before its first checkpoint (logs, event files, the
+/// policy kept by an early evaluation, the compute count). A run interrupted before that
+/// checkpoint left nothing to resume from; starting it again removes these first, so the new
+/// run's log does not continue the dead one's (two step-0 rows, two event files).
+const INTERRUPTED_RUN_FILES: [&str; 8] = [
+    crate::io::METRICS_FILE,
+    "tb",
+    crate::model::META_POLICY_FILE,
+    "last",
+    "checkpoint.json",
+    "compute.json",
+    BEST_POLICY_FILE,
+    ".policy-best-copy",
+];
 
 /// Refuses to start a *fresh* run in `dir` when it already holds one: starting over would
 /// overwrite its checkpoint and trained policy. Continue it with `--resume`, or choose another
-/// directory.
+/// directory. A directory left by a run interrupted before its first checkpoint passes: there
+/// is nothing to continue, and [`clear_interrupted_run`] clears it once the new run holds the
+/// directory's lock.
 pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
-    match RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
-        Some(m) => Err(Error::Checkpoint {
+    let refuse = |what: &str| {
+        Err(Error::Checkpoint {
             path: dir.to_path_buf(),
             reason: format!(
-                "already holds a run ({m}); pass --resume to continue it, or choose another \
+                "already holds a run ({what}); pass --resume to continue it, or choose another \
                  output directory (nothing was overwritten)"
             ),
-        }),
-        None => Ok(()),
+        })
+    };
+    if let Some(m) = RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
+        return refuse(m);
     }
+    let policy = dir.join(crate::model::META_POLICY_FILE);
+    if policy.exists() {
+        match crate::model::MetaPolicy::training_mark(&policy) {
+            Ok(Some(mark)) if !mark.finished => {}
+            Ok(Some(_)) => return refuse("a finished meta_policy.safetensors"),
+            Ok(None) => return refuse("meta_policy.safetensors, made outside a training run"),
+            Err(e) => {
+                return Err(Error::Checkpoint {
+                    path: policy,
+                    reason: format!(
+                        "cannot tell whether this run finished ({e}); move it away to start a \
+                         new run in {}",
+                        dir.display()
+                    ),
+                });
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Whether `dir` holds files of a run interrupted before its first checkpoint (see
+/// [`ensure_fresh_run_dir`]).
+pub fn holds_interrupted_run(dir: &Path) -> bool {
+    !dir.join(CHECKPOINT_FILE).exists()
+        && INTERRUPTED_RUN_FILES.iter().any(|f| dir.join(f).exists())
+}
+
+/// Removes what a run interrupted before its first checkpoint left in `dir` (the caller holds
+/// the directory's lock and has checked [`ensure_fresh_run_dir`] under it); returns the names
+/// removed, for the message that says so.
+pub fn clear_interrupted_run(dir: &Path) -> Result<Vec<&'static str>> {
+    ensure_fresh_run_dir(dir)?;
+    let mut removed = Vec::new();
+    for name in INTERRUPTED_RUN_FILES {
+        let path = dir.join(name);
+        let gone = if path.is_dir() {
+            std::fs::remove_dir_all(&path)
+        } else {
+            std::fs::remove_file(&path)
+        };
+        match gone {
+            Ok(()) => removed.push(name),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+            Err(e) => return Err(Error::Io { path, source: e }),
+        }
+    }
+    Ok(removed)
+}
+
+/// A file holding a NaN or infinite float, named with the tensor and where.
+fn non_finite(path: &Path, name: &str, value: f32, index: usize) -> Error {
+    ckpt_err(
+        path,
+        format!(
+            "tensor `{name}` holds a non-finite value ({value} at index {index}): the run that \
+             wrote it diverged; resume from an earlier checkpoint or train again"
+        ),
+    )
 }
 
 fn ckpt_err(path: &Path, reason: impl Into<String>) -> Error {
@@ -167,14 +251,7 @@ impl Loaded {
             }
             let v = t.flatten_all()?.to_vec1::<f32>()?;
             if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(ckpt_err(
-                    &self.path,
-                    format!(
-                        "tensor `{name}` holds a non-finite value ({} at index {i}): the run \
-                         that wrote it diverged; resume from an earlier checkpoint or train again",
-                        v[i]
-                    ),
-                ));
+                return Err(non_finite(&self.path, name, v[i], i));
             }
         }
         Ok(())
@@ -251,6 +328,11 @@ pub fn load(dir: &Path) -> Result<Loaded> {
                     .chunks_exact(4)
                     .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect();
+                // Every reader (resume, warm start, a policy) refuses a diverged file here, by
+                // name, before a NaN surfaces far away as a loss or an action.
+                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                    return Err(non_finite(&path, name, v[i], i));
+                }
                 Tensor::from_vec(v, shape, &Device::Cpu)?
             }
             Dtype::U32 => {

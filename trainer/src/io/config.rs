@@ -79,6 +79,30 @@ pub(crate) fn merge_tables(base: &mut toml::Table, over: toml::Table) {
     }
 }
 
+/// The one check of a count that must be positive, naming its key: flags, configuration files
+/// and sweep plans all end in a configuration's `validate`, which calls this, so a `0` that a
+/// flag would refuse cannot pass through a file either (an untrained policy marked finished, a
+/// metric over zero steps).
+pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::Result<()> {
+    match counts.iter().find(|(_, v)| *v == 0) {
+        Some((key, _)) => Err(crate::Error::Config(format!(
+            "{key} must be a positive count, not 0"
+        ))),
+        None => Ok(()),
+    }
+}
+
+/// An episode-length override must be at least one step (`None`: the family's own horizon).
+pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::Result<()> {
+    match horizon {
+        Some(0) => Err(crate::Error::Config(
+            "horizon must be at least 1 step (leave it out for the family's own horizon), not 0"
+                .into(),
+        )),
+        _ => Ok(()),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -13,6 +13,7 @@ mod policy_file;
 pub mod progress;
 
 pub use config::{from_toml_over_defaults, from_toml_with_flags, set_key};
+pub(crate) use config::{require_horizon, require_positive};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};
 pub use progress::bar;

@@ -14,9 +14,10 @@ pub struct EvalArgs {
     /// Trained run directories (or meta_policy.safetensors files); one line per method.
     #[arg(long, required = true, num_args = 1..)]
     policy: Vec<PathBuf>,
-    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass.
-    #[arg(long, default_value = "point-goal")]
-    env: Family,
+    /// Task family: point-goal, cheetah-vel, walker-dyn, ant-goal or ant-linclass [default:
+    /// the --contexts file's; the policies must be of it].
+    #[arg(long)]
+    env: Option<Family>,
     /// Which tasks to evaluate on.
     #[arg(long, default_value = "test")]
     split: Split,
@@ -76,9 +77,15 @@ enum WalkerProtocol {
 
 /// Run `smile eval`.
 pub fn run(a: EvalArgs) -> Result<()> {
+    // As `smile train` does: the family is the demo file's unless --env names one (which the
+    // file must then hold; the library checks it and the policies against it).
+    let env = match a.env {
+        Some(env) => env,
+        None => trainer::run::read_demos(&a.contexts, "--contexts")?.family,
+    };
     let mut req = EvalRequest::new(
         a.policy.clone(),
-        a.env,
+        env,
         a.split,
         a.contexts.clone(),
         a.out.clone(),

@@ -72,8 +72,8 @@ pub struct ExpertArgs {
     /// Random-action steps before learning.
     #[arg(long)]
     learning_starts: Option<u64>,
-    /// Episode length override.
-    #[arg(long)]
+    /// Episode length override (at least 1).
+    #[arg(long, value_parser = crate::positive)]
     horizon: Option<usize>,
     /// Train a per-task expert on this meta-train task index.
     #[arg(long, conflicts_with = "task_value")]
@@ -230,6 +230,17 @@ pub fn run(a: ExpertArgs) -> Result<()> {
     }
     let (mut run, dir) = match &a.resume {
         Some(dir) => {
+            if !dir.join(trainer::checkpoint::CHECKPOINT_FILE).exists()
+                && dir.join("config.toml").exists()
+            {
+                bail!(
+                    "--resume {}: no checkpoint yet (the run was interrupted before its first \
+                     one), so there is nothing to continue; start it again with the same flags \
+                     and -o {} (its partial files are replaced)",
+                    dir.display(),
+                    dir.display()
+                );
+            }
             let run = ExpertTrainer::resume(dir, a.total_steps)
                 .with_context(|| format!("resuming from {}", dir.display()))?;
             (run, dir.clone())
@@ -261,6 +272,19 @@ pub fn run(a: ExpertArgs) -> Result<()> {
     };
     // One writer per run directory: a second `smile expert` on it is refused with our pid.
     let _lock = trainer::DirLock::acquire(&dir)?;
+    if a.resume.is_none() {
+        // Under the lock: what a run killed before its first checkpoint left goes first, so
+        // this run's log does not continue the dead one's.
+        let removed = trainer::checkpoint::clear_interrupted_run(&dir)?;
+        if !removed.is_empty() {
+            eprintln!(
+                "{} held a run interrupted before its first checkpoint (nothing to resume); \
+                 starting over: removed {}",
+                dir.display(),
+                removed.join(", ")
+            );
+        }
+    }
     trainer::checkpoint::write_atomic(
         &dir.join("config.toml"),
         toml::to_string_pretty(run.config())?.as_bytes(),

@@ -20,9 +20,9 @@ pub struct ExportArgs {
     /// and reference.safetensors in the directory -o).
     #[arg(long, value_enum, default_value_t = Format::Blob)]
     format: Format,
-    /// Quantization: f32, w8a32 or w8a8 (blob only; ONNX is float32).
-    #[arg(long, default_value = "w8a8")]
-    quant: String,
+    /// Quantization: f32, w8a32 or w8a8 (blob only; ONNX is float32) [default: w8a8].
+    #[arg(long)]
+    quant: Option<String>,
     /// Output blob file, with a JSON report next to it (`<blob>.json`); with --format onnx, the
     /// output directory.
     #[arg(short, long)]
@@ -63,6 +63,12 @@ fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
 /// `--format onnx`: the graphs, their description and the trainer's z and actions on the
 /// contexts, written to the directory `a.out` in one rename.
 fn run_onnx(a: &ExportArgs, mp: &MetaPolicy) -> Result<()> {
+    if let Some(q) = a.quant.as_deref().filter(|q| *q != "f32") {
+        bail!(
+            "--quant {q} quantizes a blob; the ONNX graphs are float32 (drop --quant, or \
+             --format blob for a {q} blob)"
+        );
+    }
     if let Some(path) = &a.demos {
         read_demos(path, "--demos", mp)?;
     }
@@ -100,7 +106,8 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if a.format == Format::Onnx {
         return run_onnx(&a, &mp);
     }
-    let quant = export::parse_quant(&a.quant)?;
+    let quant_name = a.quant.as_deref().unwrap_or("w8a8");
+    let quant = export::parse_quant(quant_name)?;
     let family = mp.family;
     let demos = match &a.demos {
         Some(path) => {
@@ -125,30 +132,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
-    // `<blob>.json`, where firmware-sim looks (one definition: a blob named without an
-    // extension once got its report at `<blob>.blob.json`, which the device never found).
-    let json = export::ExportReport::path_beside(&a.out);
-    // A previous export's report must not outlive its blob: removed before the new blob lands,
-    // and the new report (written after verification) names the blob by its SHA-256.
-    match std::fs::remove_file(&json) {
-        Ok(()) => {}
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-        Err(e) => return Err(e).with_context(|| format!("removing the old {}", json.display())),
-    }
-    trainer::checkpoint::write_atomic(&a.out, &blob)?;
-    eprintln!(
-        "wrote {} ({} bytes, {})",
-        a.out.display(),
-        blob.len(),
-        a.quant
-    );
     let mut protocol = Protocol::for_family(family);
     if let Some(r) = a.rollouts {
         protocol.rollouts = r;
     }
     protocol.horizon = a.horizon;
     protocol.physics = mp.physics;
-    let report = export::verify(&mp, &blob, &a.quant, &ctx, &protocol)?;
+    let report = export::verify(&mp, &blob, quant_name, &ctx, &protocol)?;
     let p = &report.parity;
     eprintln!(
         "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}; mean with the float z {:.3e}",
@@ -168,7 +158,39 @@ pub fn run(a: ExportArgs) -> Result<()> {
         report.metric_candle,
         100.0 * report.metric_relative_difference
     );
-    report.write(&json)?;
-    eprintln!("wrote {}", json.display());
+    // `<blob>.json`, where firmware-sim looks (one definition: a blob named without an
+    // extension once got its report at `<blob>.blob.json`, which the device never found).
+    let json = export::ExportReport::path_beside(&a.out);
+    land_blob_and_report(&a.out, &blob, &json, &report)?;
+    eprintln!(
+        "wrote {} ({} bytes, {}) and {}",
+        a.out.display(),
+        blob.len(),
+        quant_name,
+        json.display()
+    );
     Ok(())
+}
+
+/// Replaces a previous export by the verified `blob` and its `report`, so that no instant
+/// loses the old pair without the new one in place: the report is staged first (a full disk
+/// fails here, the old blob and report untouched), then the blob lands, then the report. A
+/// kill between the last two leaves the new blob beside the old report, whose SHA-256 names
+/// the old blob: firmware-sim refuses that pair and says to export again.
+fn land_blob_and_report(
+    out: &Path,
+    blob: &[u8],
+    json: &Path,
+    report: &export::ExportReport,
+) -> Result<()> {
+    let mut staged = json.as_os_str().to_owned();
+    staged.push(".staged");
+    let staged = std::path::PathBuf::from(staged);
+    report.write(&staged)?;
+    if let Err(e) = trainer::checkpoint::write_atomic(out, blob) {
+        let _ = std::fs::remove_file(&staged);
+        return Err(e.into());
+    }
+    std::fs::rename(&staged, json)
+        .with_context(|| format!("moving {} to {}", staged.display(), json.display()))
 }

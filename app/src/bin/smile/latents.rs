@@ -60,6 +60,16 @@ pub fn run(a: LatentsArgs) -> Result<()> {
             policy.family
         );
     }
+    // The contexts' states come from a plant; a policy of the other plant would encode them
+    // into latents that mean nothing (eval, export and the device refuse the same mix).
+    ctx.ensure_physics(policy.physics).map_err(|e| {
+        anyhow::anyhow!(
+            "--contexts {} for --policy {} (trained on the {} plant): {e}",
+            a.contexts.display(),
+            a.policy.display(),
+            policy.physics
+        )
+    })?;
     let sizes: Vec<usize> = a.context_sizes.iter().map(|&k| k as usize).collect();
     let fewest = ctx
         .tasks

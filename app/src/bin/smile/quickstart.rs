@@ -23,10 +23,10 @@ pub struct QuickstartArgs {
     #[arg(long, value_enum, default_value_t = Budget::Short)]
     budget: Budget,
     /// Demos per meta-train task.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 4, value_parser = crate::positive)]
     demos_per_task: usize,
     /// Subsampling factor of the demos (keep every k-th step).
-    #[arg(long, default_value_t = 20)]
+    #[arg(long, default_value_t = 20, value_parser = crate::positive)]
     subsample: usize,
     /// No progress bars.
     #[arg(long)]

@@ -32,6 +32,10 @@ pub fn record(expert: &Expert, spec: &DemoSpec) -> Result<DemoDataset> {
 
 /// As [`record`], each task acted by its expert in `experts` (per-task experts).
 pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> {
+    crate::io::require_positive(&[
+        ("demos per task", spec.per_task as u64),
+        ("subsample", spec.subsample as u64),
+    ])?;
     let family: Family = experts.family();
     if experts.physics() != spec.env.physics {
         return Err(Error::WrongPhysics {

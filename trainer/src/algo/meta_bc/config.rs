@@ -150,6 +150,11 @@ impl MetaBcConfig {
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
+        crate::io::require_positive(&[
+            ("total_steps", self.total_steps),
+            ("eval_episodes", self.eval_episodes as u64),
+        ])?;
+        crate::io::require_horizon(self.horizon)?;
         crate::threads::check_learner_threads(self.learner_threads)?;
         if self.tasks_per_batch == 0
             || self.per_task == 0

@@ -213,6 +213,13 @@ impl SmileConfig {
                 "smile batch sizes and counts must be positive (eval_context_size too)".into(),
             ));
         }
+        crate::io::require_positive(&[
+            ("total_updates", self.total_updates),
+            ("rollouts_per_iter", self.rollouts_per_iter as u64),
+            ("eval_episodes", self.eval_episodes as u64),
+            ("eval_contexts", self.eval_contexts as u64),
+        ])?;
+        crate::io::require_horizon(self.horizon)?;
         crate::threads::check_learner_threads(self.learner_threads)?;
         for (key, v, min_ok) in [
             ("gp_weight", self.gp_weight, self.gp_weight >= 0.0),

@@ -355,6 +355,7 @@ pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
         ir_version: IR_VERSION,
         family: family.into(),
         algo: mp.algo.clone(),
+        physics: mp.physics,
         kind: if state_only {
             "state-only"
         } else {

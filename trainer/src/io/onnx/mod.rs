@@ -113,6 +113,10 @@ pub struct OnnxMeta {
     pub family: String,
     /// Algorithm that trained the policy.
     pub algo: String,
+    /// The plant it was trained on (`rapier` or `mujoco`); absent in exports made before this
+    /// field: Rapier's.
+    #[serde(default)]
+    pub physics: sim::Physics,
     /// `state-action` (`[s, a, s']` transitions) or `state-only` (`[s, s']`).
     pub kind: String,
     /// The layout of one context transition.
@@ -191,6 +195,41 @@ fn replaceable(dir: &Path) -> Result<bool> {
     Ok(empty || has_meta)
 }
 
+/// What an export killed mid-way left beside `out` (hidden `.{name}.onnx-tmp-PID` and
+/// `.{name}.onnx-old-PID` folders of processes no longer running): a half-written new export
+/// is removed, and a previous export moved aside just before the kill goes back to `out` if
+/// nothing replaced it. Exports still running (their PID alive) are left alone.
+fn recover_dead_exports(parent: &Path, name: &str, out: &Path) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let file = entry.file_name();
+        let Some(rest) = file
+            .to_str()
+            .and_then(|f| f.strip_prefix(&format!(".{name}.onnx-")))
+        else {
+            continue;
+        };
+        let Some((kind, pid)) = rest.split_once('-') else {
+            continue;
+        };
+        let alive = pid
+            .parse::<u32>()
+            .is_ok_and(|p| p == std::process::id() || Path::new("/proc").join(pid).exists());
+        if alive {
+            continue;
+        }
+        let path = entry.path();
+        match kind {
+            "old" if !out.exists() => std::fs::rename(&path, out).map_err(io_err(out))?,
+            "tmp" | "old" => std::fs::remove_dir_all(&path).map_err(io_err(&path))?,
+            _ => {}
+        }
+    }
+    Ok(())
+}
+
 /// Writes `export` (and `reference`, if any) to the directory `out`: everything goes to a
 /// temporary directory beside `out` first, which is renamed to `out` once complete, so a
 /// failure leaves nothing half-written. An existing `out` is replaced only if it is empty or
@@ -220,6 +259,7 @@ pub fn write_dir(
         _ => PathBuf::from("."),
     };
     std::fs::create_dir_all(&parent).map_err(|e| usage(e.to_string()))?;
+    recover_dead_exports(&parent, name, out)?;
     let tmp = parent.join(format!(".{name}.onnx-tmp-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir(&tmp).map_err(|e| usage(e.to_string()))?;

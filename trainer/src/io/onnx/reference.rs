@@ -38,6 +38,8 @@ pub struct Reference {
     pub act_dim: usize,
     /// Latent width.
     pub z_dim: usize,
+    /// The plant the policy and the contexts' states come from.
+    pub physics: sim::Physics,
     /// The contexts.
     pub contexts: Vec<ReferenceContext>,
 }
@@ -102,6 +104,7 @@ pub fn reference(mp: &MetaPolicy, demos: &DemoDataset) -> Result<Reference> {
         obs_dim: od,
         act_dim: ad,
         z_dim: zd,
+        physics: mp.physics,
         contexts,
     })
 }
@@ -141,6 +144,7 @@ impl Reference {
             meta.insert(format!("{i}.task"), c.task.to_string());
         }
         meta.insert("contexts".into(), self.contexts.len().to_string());
+        meta.insert("physics".into(), self.physics.name().to_string());
         let views = owned
             .iter()
             .map(|(name, shape, data)| {
