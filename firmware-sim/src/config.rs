@@ -61,6 +61,9 @@ pub enum LoopError {
     /// The plant refused something (a bug if it happens: actions are always finite).
     #[error("plant: {0}")]
     Plant(#[from] sim::SimError),
+    /// The serial link to a device in another process failed for good.
+    #[error("link: {0}")]
+    Link(#[from] crate::link::LinkError),
     /// The estimator cannot be built for this plant and configuration.
     #[error("estimator: {0}")]
     Estimator(#[from] infer_core::EstimatorError),

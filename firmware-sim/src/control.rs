@@ -96,9 +96,56 @@ fn sense(x: f32, config: &LoopConfig, noise: &Normal<f32>, rng: &mut ChaCha8Rng)
     v
 }
 
+/// What computes each tick's action: the controller in this process, or a device behind a
+/// serial port ([`crate::serial::RemoteDevice`]). The loop around it (sensors, actuators,
+/// plant, trace) is the same for both, so a run over a port can be compared tick by tick with
+/// one in process.
+pub trait Brain {
+    /// The action sent when nothing better is known.
+    fn safe_action(&self, action: &mut [f32]);
+
+    /// Called at the start of tick `tick`, before the sensors are read: a real-time brain
+    /// waits here for the tick's wall-clock time. Default: nothing.
+    fn start_tick(&mut self, _tick: usize) {}
+
+    /// The action for the observation `sensed` at `tick`, written into `action`.
+    fn act(
+        &mut self,
+        tick: usize,
+        sensed: &[f32],
+        action: &mut [f32],
+    ) -> Result<Outcome, LoopError>;
+}
+
+/// How one tick's computation went.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Outcome {
+    /// A non-finite reading or output was replaced by the safe action.
+    pub fault: bool,
+    /// Whether the action came too late to apply: `None` lets the loop judge by its compute
+    /// budget (in process); a remote device's deadline is judged by the brain itself.
+    pub late: Option<bool>,
+}
+
+impl Brain for Controller<'_, '_> {
+    fn safe_action(&self, action: &mut [f32]) {
+        Controller::safe_action(self, action);
+    }
+
+    fn act(
+        &mut self,
+        _tick: usize,
+        sensed: &[f32],
+        action: &mut [f32],
+    ) -> Result<Outcome, LoopError> {
+        let fault = Controller::act(self, sensed, action)?.is_err();
+        Ok(Outcome { fault, late: None })
+    }
+}
+
 /// Runs `controller` against `plant` on `task`.
 pub fn run(
-    controller: &mut Controller<'_, '_>,
+    controller: &mut dyn Brain,
     plant: &mut dyn Environment,
     task: &Task,
     config: &LoopConfig,
@@ -149,6 +196,7 @@ pub fn run(
         if plant_done {
             break;
         }
+        controller.start_tick(tick);
         // Sensors.
         if let Some(path) = estimated.as_mut() {
             // Position-only sensing: the device gets the measured entries and estimates the
@@ -170,21 +218,25 @@ pub fn run(
         // Compute.
         let start = Instant::now();
         let (outcome, sensor_fault) = match estimated.as_mut() {
-            None => (controller.act(&sensed, &mut computed)?, false),
+            None => (controller.act(tick, &sensed, &mut computed)?, false),
             Some(path) => match path.estimate(&mut sensed)? {
-                Some(rejected) => (controller.act(&sensed, &mut computed)?, rejected),
+                Some(rejected) => (controller.act(tick, &sensed, &mut computed)?, rejected),
                 None => {
                     // No estimate yet: the safe action.
                     computed.copy_from_slice(&safe);
-                    (Ok(()), true)
+                    let on_time = Outcome {
+                        fault: false,
+                        late: None,
+                    };
+                    (on_time, true)
                 }
             },
         };
         let ns = start.elapsed().as_nanos() as u64;
         compute_ns.push(ns);
-        let fault = outcome.is_err() || sensor_fault;
+        let fault = outcome.fault || sensor_fault;
         faults += fault as usize;
-        let overrun = ns as f64 > config.budget_us * 1e3;
+        let overrun = outcome.late.unwrap_or(ns as f64 > config.budget_us * 1e3);
         overruns += overrun as usize;
         // Actuators. A late action is dropped (hold the last one); with latency the bus
         // delivers the previous tick's action. Fixed buffers: no allocation per tick here.

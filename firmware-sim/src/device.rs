@@ -93,7 +93,24 @@ impl Device {
             .ok_or(DeviceError::NoBlob)
     }
 
-    fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
+    /// Boots with `blob` already in flash (a board's flash survives a reset): committed only
+    /// if it verifies and fits as an upload would.
+    pub fn restore(&mut self, blob: &[u8]) -> Result<(), DeviceError> {
+        if blob.len() > self.flash.len() {
+            return Err(DeviceError::RamBudget {
+                needed: blob.len(),
+                budget: self.flash.len(),
+            });
+        }
+        let model = Model::from_bytes(blob)?;
+        check_fits(&model, self.config)?;
+        self.flash[..blob.len()].copy_from_slice(blob);
+        self.committed = Some(blob.len());
+        Ok(())
+    }
+
+    /// The bootloader's handling of one message.
+    pub(crate) fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
         match *message {
             HostMessage::BlobBegin { len, crc } => {
                 let len = len as usize;
@@ -135,8 +152,10 @@ impl Device {
 
 impl Endpoint for Device {
     fn receive(&mut self, frame: &[u8], reply: &mut [u8]) -> Option<usize> {
-        let mut dedup = self.dedup;
-        let n = serve(frame, reply, &mut dedup, |m| self.apply(m));
+        let mut dedup = std::mem::take(&mut self.dedup);
+        let n = serve(frame, reply, &mut dedup, |_, m| {
+            self.apply(m).map(|()| None)
+        });
         self.dedup = dedup;
         n
     }
@@ -221,7 +240,13 @@ impl<'m, 'a> Controller<'m, 'a> {
         self.policy.safe_action(action);
     }
 
-    fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
+    /// The model's action dimension.
+    pub fn act_dim(&self) -> usize {
+        self.model.header().act_dim as usize
+    }
+
+    /// The application's handling of one teaching message.
+    pub(crate) fn apply(&mut self, message: &HostMessage<'_>) -> Result<(), Refusal> {
         match message {
             HostMessage::TeachBegin => {
                 self.encoder.reset();
@@ -255,8 +280,10 @@ impl<'m, 'a> Controller<'m, 'a> {
 
 impl Endpoint for Controller<'_, '_> {
     fn receive(&mut self, frame: &[u8], reply: &mut [u8]) -> Option<usize> {
-        let mut dedup = self.dedup;
-        let n = serve(frame, reply, &mut dedup, |m| self.apply(m));
+        let mut dedup = std::mem::take(&mut self.dedup);
+        let n = serve(frame, reply, &mut dedup, |_, m| {
+            self.apply(m).map(|()| None)
+        });
         self.dedup = dedup;
         n
     }

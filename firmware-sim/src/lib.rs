@@ -11,6 +11,11 @@
 //! ([`Sensing::Positions`]) the sensors deliver positions only and infer-core's estimator
 //! rebuilds the velocities on the device ([`estimation`]). Nothing in the control path allocates.
 //!
+//! The same device runs as its own process behind a real serial port ([`serial`]:
+//! `firmware-sim device`), with the plant on the host driving it in real time
+//! (`firmware-sim host`): the loop is the same ([`control::Brain`] is either the controller in
+//! this process or [`serial::RemoteDevice`]), the wire protocol is `docs/PROTOCOL.md`.
+//!
 //! This crate never depends on the trainer: a device holds no trainer.
 #![warn(missing_docs)]
 
@@ -21,10 +26,11 @@ pub mod estimation;
 pub mod host;
 pub mod link;
 pub mod reference;
+pub mod serial;
 pub mod session;
 pub mod trace;
 
-pub use control::{LoopConfig, LoopError, RunReport, TickRecord, run};
+pub use control::{Brain, LoopConfig, LoopError, Outcome, RunReport, TickRecord, run};
 pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, ram_needed};
 pub use estimation::Sensing;
 pub use session::{Session, SessionConfig, SessionError, run_session};

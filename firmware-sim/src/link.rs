@@ -15,6 +15,10 @@ pub const MAX_DIM: usize = 64;
 pub const CHUNK_BYTES: usize = 192;
 /// Largest encoded frame, COBS overhead and delimiter included.
 pub const MAX_FRAME: usize = 400;
+/// The wire protocol's version (`docs/PROTOCOL.md`): 1 was the in-process link (upload and
+/// teach); 2 added `Hello`/`Status` and `Tick`/`Action` for a device on a serial port. A device
+/// answers `Hello` with its own version and the host refuses a mismatch.
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// A vector of floats small enough for one frame.
 pub type Floats = HVec<f32, MAX_DIM>;
@@ -56,6 +60,19 @@ pub enum HostMessage<'a> {
     EndTrajectory,
     /// The context is complete: fix z.
     TeachEnd,
+    /// Who are you and what do you hold? Answered with [`DeviceMessage::Status`] in any state
+    /// (the host sends it first, and again after losing the device).
+    Hello {
+        /// The host's [`PROTOCOL_VERSION`].
+        version: u16,
+    },
+    /// One control tick: the sensed observation; answered with [`DeviceMessage::Action`].
+    Tick {
+        /// Tick index (echoed in the answer, so a late answer is never taken for a newer one).
+        tick: u32,
+        /// The observation the sensors read.
+        obs: Floats,
+    },
 }
 
 /// Why the device refused a message (a corrupt frame is simply not answered).
@@ -75,8 +92,10 @@ pub enum Refusal {
     DoesNotFit,
 }
 
-/// What the device answers.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+/// What the device answers. Variants differ in size on purpose, as [`HostMessage`]'s: one
+/// answer lives on the stack at a time, and boxing would put a heap into the device's reply path.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum DeviceMessage {
     /// Message `seq` applied (or already applied: duplicates are acknowledged, not re-applied).
     Ack {
@@ -90,6 +109,47 @@ pub enum DeviceMessage {
         /// Why.
         reason: Refusal,
     },
+    /// The answer to [`HostMessage::Hello`].
+    Status {
+        /// Sequence number answered.
+        seq: u16,
+        /// The device's [`PROTOCOL_VERSION`].
+        version: u16,
+        /// Bytes of the committed blob in flash; 0: none.
+        blob_len: u32,
+        /// CRC-32 of the committed blob (0 without one): the host skips a re-upload of the
+        /// same blob after a device reset.
+        blob_crc: u32,
+        /// Whether a context is taught (RAM: false after every reset).
+        taught: bool,
+        /// Times the watchdog found the host silent and held the safe action, since boot.
+        watchdog_trips: u32,
+    },
+    /// The answer to [`HostMessage::Tick`].
+    Action {
+        /// Sequence number answered.
+        seq: u16,
+        /// The tick it answers.
+        tick: u32,
+        /// The action to apply.
+        action: Floats,
+        /// A non-finite reading or output was replaced by the safe action.
+        fault: bool,
+        /// The device's compute time for this tick, microseconds.
+        compute_us: u32,
+    },
+}
+
+impl DeviceMessage {
+    /// The sequence number this answers.
+    pub fn seq(&self) -> u16 {
+        match self {
+            Self::Ack { seq }
+            | Self::Refused { seq, .. }
+            | Self::Status { seq, .. }
+            | Self::Action { seq, .. } => *seq,
+        }
+    }
 }
 
 /// A message with its sequence number, as framed on the wire.
@@ -123,6 +183,31 @@ pub enum LinkError {
         seq: u16,
         /// Attempts made.
         attempts: u32,
+    },
+    /// The serial port failed (closed, unplugged, the device process gone).
+    #[error("serial port {port}: {reason}")]
+    Port {
+        /// The port's path.
+        port: String,
+        /// The OS's words.
+        reason: String,
+    },
+    /// The device speaks another protocol version.
+    #[error(
+        "the device speaks protocol version {device}, this host {host}: flash a matching \
+             firmware or use a matching firmware-sim"
+    )]
+    Version {
+        /// The device's version.
+        device: u16,
+        /// Ours.
+        host: u16,
+    },
+    /// The device answered with something the message does not call for.
+    #[error("message {seq}: unexpected answer from the device")]
+    Unexpected {
+        /// Sequence number.
+        seq: u16,
     },
     /// The device refused a message.
     #[error("device refused message {seq}: {reason:?}")]
@@ -272,14 +357,14 @@ impl SimLink {
             let Some(received) = self.carry(&frame[..len]) else {
                 continue;
             };
-            let mut reply = [0u8; 64];
+            let mut reply = [0u8; MAX_FRAME];
             let Some(reply_len) = device.receive(&received, &mut reply) else {
                 continue;
             };
             let Some(back) = self.carry(&reply[..reply_len]) else {
                 continue;
             };
-            let mut scratch = [0u8; 64];
+            let mut scratch = [0u8; MAX_FRAME];
             let Ok(payload) = decode_frame(&back, &mut scratch) else {
                 continue;
             };
@@ -297,7 +382,7 @@ impl SimLink {
 
 /// Device-side duplicate filter: a resent message (its ack was lost) is acknowledged again
 /// but not applied twice.
-#[derive(Debug, Clone, Copy, Default)]
+#[derive(Debug, Clone, Default)]
 pub(crate) struct Dedup {
     last: Option<(u16, DeviceMessage)>,
 }
@@ -305,20 +390,25 @@ pub(crate) struct Dedup {
 impl Dedup {
     /// The earlier answer if `seq` was already handled.
     pub fn seen(&self, seq: u16) -> Option<DeviceMessage> {
-        self.last.filter(|(s, _)| *s == seq).map(|(_, m)| m)
+        self.last
+            .as_ref()
+            .filter(|(s, _)| *s == seq)
+            .map(|(_, m)| m.clone())
     }
     pub fn record(&mut self, seq: u16, answer: DeviceMessage) -> DeviceMessage {
-        self.last = Some((seq, answer));
+        self.last = Some((seq, answer.clone()));
         answer
     }
 }
 
-/// Shared device-side frame handling: verify, decode, deduplicate, apply, answer.
+/// Shared device-side frame handling: verify, decode, deduplicate, apply, answer. `apply`
+/// gets the message's sequence number and returns its answer (`None`: a plain
+/// acknowledgement).
 pub(crate) fn serve(
     frame: &[u8],
     reply: &mut [u8],
     dedup: &mut Dedup,
-    apply: impl FnOnce(&HostMessage<'_>) -> Result<(), Refusal>,
+    apply: impl FnOnce(u16, &HostMessage<'_>) -> Result<Option<DeviceMessage>, Refusal>,
 ) -> Option<usize> {
     let mut scratch = [0u8; MAX_FRAME];
     let payload = decode_frame(frame, &mut scratch).ok()?;
@@ -327,12 +417,87 @@ pub(crate) fn serve(
     let answer = match dedup.seen(seq) {
         Some(answer) => answer,
         None => {
-            let answer = match apply(&packet.message) {
-                Ok(()) => DeviceMessage::Ack { seq },
+            let answer = match apply(seq, &packet.message) {
+                Ok(None) => DeviceMessage::Ack { seq },
+                Ok(Some(answer)) => answer,
                 Err(reason) => DeviceMessage::Refused { seq, reason },
             };
             dedup.record(seq, answer)
         }
     };
     encode_frame(&answer, reply).ok()
+}
+
+#[cfg(test)]
+mod golden {
+    //! The worked examples of `docs/PROTOCOL.md`, byte for byte: a board written from that page
+    //! speaks to this code.
+    use super::*;
+
+    fn hex(bytes: &[u8]) -> String {
+        bytes
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect::<Vec<_>>()
+            .join(" ")
+    }
+
+    fn frame<T: Serialize>(value: &T) -> String {
+        let mut out = [0u8; MAX_FRAME];
+        let n = encode_frame(value, &mut out).unwrap();
+        hex(&out[..n])
+    }
+
+    fn floats(v: &[f32]) -> Floats {
+        Floats::from_slice(v).unwrap()
+    }
+
+    #[test]
+    fn the_protocol_pages_examples_are_these_bytes() {
+        let hello = Packet {
+            seq: 1,
+            message: HostMessage::Hello { version: 2 },
+        };
+        assert_eq!(frame(&hello), "08 01 07 02 ce 44 cc 5f 00");
+        let status = DeviceMessage::Status {
+            seq: 1,
+            version: 2,
+            blob_len: 0,
+            blob_crc: 0,
+            taught: false,
+            watchdog_trips: 0,
+        };
+        assert_eq!(frame(&status), "04 02 01 02 01 01 01 05 92 4e 6f bb 00");
+        let tick = Packet {
+            seq: 5,
+            message: HostMessage::Tick {
+                tick: 3,
+                obs: floats(&[0.5, -1.0]),
+            },
+        };
+        assert_eq!(
+            frame(&tick),
+            "05 05 08 03 02 01 01 02 3f 01 07 80 bf be da 58 df 00"
+        );
+        let action = DeviceMessage::Action {
+            seq: 5,
+            tick: 3,
+            action: floats(&[0.25, 0.0]),
+            fault: false,
+            compute_us: 4,
+        };
+        assert_eq!(
+            frame(&action),
+            "05 03 05 03 02 01 03 80 3e 01 01 01 01 06 04 f2 1b 0d 33 00"
+        );
+        let page = include_str!("../../docs/PROTOCOL.md");
+        for example in [
+            "08 01 07 02 ce 44 cc 5f 00",
+            "04 02 01 02 01 01 01 05 92 4e 6f bb 00",
+            "05 05 08 03 02 01 01 02 3f 01 07 80 bf be da 58 df 00",
+            "05 03 05 03 02 01 03 80 3e 01 01 01 01 06 04 f2 1b 0d 33 00",
+        ] {
+            assert!(page.contains(example), "docs/PROTOCOL.md lacks {example}");
+        }
+    }
 }

@@ -1,5 +1,7 @@
 //! `firmware-sim`: run a policy blob on the simulated device against a sim plant.
 
+mod hil;
+
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
@@ -35,6 +37,18 @@ enum Cmd {
         smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob\n  \
         firmware-sim compare --blob runs/pg-smile/policy.blob --env point-goal --contexts demos/pg-test.safetensors")]
     Compare(CompareArgs),
+    /// Be the device: serve the bootloader and the controller on a serial port (or a new
+    /// pseudo-terminal) until killed, as a board does. The wire protocol is docs/PROTOCOL.md.
+    #[command(after_help = "Examples:\n  \
+        firmware-sim device --pty /tmp/smile-tty                 # a virtual board; the host opens /tmp/smile-tty\n  \
+        firmware-sim device --port /dev/ttyUSB0 --baud 115200    # behind a USB-serial adapter")]
+    Device(hil::DeviceArgs),
+    /// Drive a device on a serial port: upload the blob, teach the demo, then run the plant on
+    /// this host in real time, one tick message and one action per tick.
+    #[command(after_help = "Example (two terminals):\n  \
+        firmware-sim device --pty /tmp/smile-tty\n  \
+        firmware-sim host --port /tmp/smile-tty --blob assets/policies/cheetah-vel-rapier-smile-bc/policy.blob --env cheetah-vel --task 3 --context assets/experts/cheetah-vel/demos-test-4x-sub20.safetensors")]
+    Host(hil::HostArgs),
 }
 
 /// A count of at least 1 (`--horizon`).
@@ -65,7 +79,7 @@ fn probability(text: &str) -> std::result::Result<f64, String> {
 }
 
 #[derive(Args, Debug)]
-struct RunArgs {
+struct PlantArgs {
     /// The policy blob (from `smile export`).
     #[arg(long)]
     blob: PathBuf,
@@ -107,6 +121,24 @@ struct RunArgs {
     /// Apply each action one tick late.
     #[arg(long)]
     latency: bool,
+    /// Seed of the plant reset and sensor noise.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Probability that a link frame is corrupted, 0 to 1.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    link_corrupt: f64,
+    /// Probability that a link frame is lost, 0 to 1.
+    #[arg(long, default_value_t = 0.0, value_parser = probability)]
+    link_drop: f64,
+    /// Output directory for trace.csv, plot.svg and summary.txt.
+    #[arg(long, short, default_value = "runs/firmware")]
+    out: PathBuf,
+}
+
+#[derive(Args, Debug)]
+struct RunArgs {
+    #[command(flatten)]
+    plant: PlantArgs,
     /// Compute budget per tick, microseconds; late actions are dropped and the last one held.
     #[arg(long, default_value_t = 1000.0)]
     budget_us: f64,
@@ -121,24 +153,12 @@ struct RunArgs {
     /// --noise and --adc-bits).
     #[arg(long)]
     meas_std: Option<f32>,
-    /// Seed of the plant reset and sensor noise.
-    #[arg(long, default_value_t = 0)]
-    seed: u64,
     /// Flash budget for the blob, KiB.
     #[arg(long, default_value_t = 64)]
     flash_kib: usize,
     /// RAM budget for the application, KiB.
     #[arg(long, default_value_t = 16)]
     ram_kib: usize,
-    /// Probability that a link frame is corrupted, 0 to 1.
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
-    link_corrupt: f64,
-    /// Probability that a link frame is lost, 0 to 1.
-    #[arg(long, default_value_t = 0.0, value_parser = probability)]
-    link_drop: f64,
-    /// Output directory for trace.csv, plot.svg and summary.txt.
-    #[arg(long, short, default_value = "runs/firmware")]
-    out: PathBuf,
 }
 
 /// How `--task` named the task: a test index or a parameter value.
@@ -180,37 +200,45 @@ fn parse_task(family: Family, spec: &str) -> Result<TaskSpec> {
 }
 
 fn session_config(args: &RunArgs, physics: sim::Physics) -> SessionConfig {
-    SessionConfig {
-        device: DeviceConfig {
-            flash_bytes: args.flash_kib * 1024,
-            ram_bytes: args.ram_kib * 1024,
+    let p = &args.plant;
+    let mut config = plant_config(p, physics);
+    config.device = DeviceConfig {
+        flash_bytes: args.flash_kib * 1024,
+        ram_bytes: args.ram_kib * 1024,
+    };
+    config.control.budget_us = args.budget_us;
+    config.control.sensing = match args.sensing {
+        firmware_sim::Sensing::Full => firmware_sim::Sensing::Full,
+        firmware_sim::Sensing::Positions { .. } => firmware_sim::Sensing::Positions {
+            accel_std: args.accel_std,
+            meas_std: args.meas_std,
         },
+    };
+    config
+}
+
+/// The session settings the plant's flags give (full sensing, the default device).
+fn plant_config(p: &PlantArgs, physics: sim::Physics) -> SessionConfig {
+    SessionConfig {
+        device: DeviceConfig::default(),
         link: LinkConfig {
-            corrupt_probability: args.link_corrupt,
-            drop_probability: args.link_drop,
-            seed: args.seed,
+            corrupt_probability: p.link_corrupt,
+            drop_probability: p.link_drop,
+            seed: p.seed,
             ..LinkConfig::default()
         },
         control: LoopConfig {
-            rate_hz: args.rate,
-            ticks: args.ticks.map(|t| t as usize),
-            noise_std: args.noise,
-            adc_bits: args.adc_bits,
-            adc_range: args.adc_range,
-            latency: args.latency,
-            budget_us: args.budget_us,
-            seed: args.seed,
-            nan_ticks: Vec::new(),
-            sensing: match args.sensing {
-                firmware_sim::Sensing::Full => firmware_sim::Sensing::Full,
-                firmware_sim::Sensing::Positions { .. } => firmware_sim::Sensing::Positions {
-                    accel_std: args.accel_std,
-                    meas_std: args.meas_std,
-                },
-            },
+            rate_hz: p.rate,
+            ticks: p.ticks.map(|t| t as usize),
+            noise_std: p.noise,
+            adc_bits: p.adc_bits,
+            adc_range: p.adc_range,
+            latency: p.latency,
+            seed: p.seed,
+            ..LoopConfig::default()
         },
         plant: EnvConfig {
-            horizon: args.horizon,
+            horizon: p.horizon,
             physics,
             ..EnvConfig::default()
         },
@@ -340,61 +368,94 @@ fn read_demos(
     Ok(demos)
 }
 
-fn run_cmd(args: RunArgs) -> Result<()> {
-    if args.sensing == firmware_sim::Sensing::Full
-        && (args.accel_std.is_some() || args.meas_std.is_some())
-    {
-        bail!("--accel-std and --meas-std tune the estimator: they need --sensing positions");
+/// What `run` and `host` read and check before the device sees anything.
+struct Prepared {
+    blob: Vec<u8>,
+    physics: sim::Physics,
+    /// The warning to print once the run is accepted (no export report to check against).
+    provenance: Option<String>,
+    demos: DemoDataset,
+    task: Task,
+    /// Index of the task's demos in `demos`.
+    entry: usize,
+}
+
+impl Prepared {
+    /// The context trajectories to teach.
+    fn context(&self, p: &PlantArgs) -> Vec<&sim::Trajectory> {
+        self.demos.tasks[self.entry]
+            .trajectories
+            .iter()
+            .take(p.trajectories as usize)
+            .collect()
     }
-    let spec = parse_task(args.env, &args.task)?;
-    let blob = read_blob(&args.blob)?;
-    let (provenance, physics) =
-        checked_provenance(&args.blob, &blob, None, false, args.env, args.physics)?;
-    let demos = read_demos(&args.context, "--context", args.env, physics)?;
+}
+
+fn prepare(p: &PlantArgs) -> Result<Prepared> {
+    let spec = parse_task(p.env, &p.task)?;
+    let blob = read_blob(&p.blob)?;
+    let (provenance, physics) = checked_provenance(&p.blob, &blob, None, false, p.env, p.physics)?;
+    let demos = read_demos(&p.context, "--context", p.env, physics)?;
     let value = match spec {
         TaskSpec::Index(task) => task.value(),
         TaskSpec::Param(value) => value,
     };
-    let found = demos_of(&demos, &args.context, "--context", value)?;
+    let found = demos_of(&demos, &p.context, "--context", value)?;
     let task = found.task;
     let named = match spec {
-        TaskSpec::Index(_) => format!("--task {}", args.task),
+        TaskSpec::Index(_) => format!("--task {}", p.task),
         TaskSpec::Param(v) => format!("--task param={v}"),
     };
     println!(
         "task            {} ({named}; value {}), demo from {}",
         task.label(),
         task.value(),
-        args.context.display()
+        p.context.display()
     );
     let available = found.trajectories.len();
-    if args.trajectories as usize > available {
+    if p.trajectories as usize > available {
         bail!(
             "--trajectories {}: --context {} holds {available} demo(s) of {}; pass \
              --trajectories 1..={available} or a file with more",
-            args.trajectories,
-            args.context.display(),
+            p.trajectories,
+            p.context.display(),
             task.label()
         );
     }
-    let context: Vec<_> = found
-        .trajectories
+    let entry = demos
+        .tasks
         .iter()
-        .take(args.trajectories as usize)
-        .collect();
+        .position(|t| t.task == task)
+        .expect("demos_of found it there");
+    Ok(Prepared {
+        blob,
+        physics,
+        provenance: provenance.err(),
+        demos,
+        task,
+        entry,
+    })
+}
+
+fn run_cmd(args: RunArgs) -> Result<()> {
+    if args.sensing == firmware_sim::Sensing::Full
+        && (args.accel_std.is_some() || args.meas_std.is_some())
+    {
+        bail!("--accel-std and --meas-std tune the estimator: they need --sensing positions");
+    }
+    let p = &args.plant;
+    let prep = prepare(p)?;
+    let (blob, physics, task) = (&prep.blob, prep.physics, prep.task);
+    let context = prep.context(p);
     let config = session_config(&args, physics);
-    let session = run_session(&blob, &task, &context, &config)?;
+    let session = run_session(blob, &task, &context, &config)?;
     // Only now: a blob the device refuses gets that one error, not a warning before it.
-    if let Err(warning) = provenance {
+    if let Some(warning) = &prep.provenance {
         eprintln!("{warning}");
     }
     let report = &session.report;
-
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
-    trace::write_csv(&args.out.join("trace.csv"), report, &session.z)?;
-    trace::write_plot(&args.out.join("plot.svg"), report)
-        .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+    let out = &p.out;
+    write_trace(out, report, &session.z)?;
     let summary = format!(
         "{}\nlink            {} frames, {} corrupted, {} dropped, {} retries\nz               {:?}\n",
         trace::summary(
@@ -410,13 +471,20 @@ fn run_cmd(args: RunArgs) -> Result<()> {
         session.link.retries,
         session.z,
     );
-    firmware_sim::write_atomic(&args.out.join("summary.txt"), summary.as_bytes())?;
+    firmware_sim::write_atomic(&out.join("summary.txt"), summary.as_bytes())?;
     print!("{summary}");
     println!(
         "wrote {}/{{trace.csv, plot.svg, summary.txt}}",
-        args.out.display()
+        out.display()
     );
     Ok(())
+}
+
+/// `trace.csv` and `plot.svg` of a run in `out`.
+fn write_trace(out: &std::path::Path, report: &firmware_sim::RunReport, z: &[f32]) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    trace::write_csv(&out.join("trace.csv"), report, z)?;
+    trace::write_plot(&out.join("plot.svg"), report).map_err(|e| anyhow::anyhow!("plot: {e}"))
 }
 
 /// Reads `--blob` and checks it is a whole, valid policy blob before the link sees it (a
@@ -572,6 +640,8 @@ fn main() -> std::process::ExitCode {
     let result = match Cli::parse().cmd {
         Cmd::Run(args) => run_cmd(args),
         Cmd::Compare(args) => compare_cmd(args),
+        Cmd::Device(args) => hil::device_cmd(args),
+        Cmd::Host(args) => hil::host_cmd(args),
     };
     sim::exit_code(result)
 }

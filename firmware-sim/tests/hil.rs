@@ -1,0 +1,243 @@
+//! Hardware in the loop over a real OS serial device (issue 55): `firmware-sim device` in its
+//! own process on a pseudo-terminal, `firmware-sim host` driving it. On a clean line the run is
+//! the in-process `firmware-sim run` bit for bit; a corrupting line finishes with its errors
+//! counted; a device killed mid-run is survived (safe action held, reconnect, upload again);
+//! a silent host trips the device's watchdog; a blob the device cannot hold is refused with the
+//! device's reason. Every process here is bounded in time and killed at the end.
+
+mod common;
+use common::{s, tmp};
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use firmware_sim::reference::pd_point_goal_blob;
+use infer_core::Quant;
+use sim::{DemoDataset, Family, Split, TaskDemos};
+
+/// A device process, killed when dropped.
+struct DeviceProcess {
+    child: Child,
+    log: PathBuf,
+}
+
+impl DeviceProcess {
+    /// `firmware-sim device --pty LINK` with `extra` flags; waits for the link to appear.
+    fn start(dir: &Path, link: &Path, extra: &[&str], name: &str) -> Self {
+        let log = dir.join(format!("{name}.log"));
+        let child = Command::new(env!("CARGO_BIN_EXE_firmware-sim"))
+            .args(["device", "--pty", s(link)])
+            .args(extra)
+            .stdout(Stdio::null())
+            .stderr(std::fs::File::create(&log).unwrap())
+            .spawn()
+            .unwrap();
+        let t0 = Instant::now();
+        while !std::fs::read_to_string(&log)
+            .unwrap_or_default()
+            .contains("booted")
+        {
+            assert!(
+                t0.elapsed() < Duration::from_secs(10),
+                "the device did not boot"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Self { child, log }
+    }
+
+    fn log(&self) -> String {
+        std::fs::read_to_string(&self.log).unwrap_or_default()
+    }
+
+    /// Waits up to `limit` for `text` in the device's log.
+    fn wait_for(&self, text: &str, limit: Duration) -> bool {
+        let t0 = Instant::now();
+        while t0.elapsed() < limit {
+            if self.log().contains(text) {
+                return true;
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        false
+    }
+}
+
+impl Drop for DeviceProcess {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// A point-goal PD blob with its export report, and one PD demo of each of the first four
+/// test goals: (blob, demos).
+fn blob_and_demos(dir: &Path) -> (PathBuf, PathBuf) {
+    let fam = Family::PointGoal;
+    let mut ds = DemoDataset::new(fam, Split::Test, "scripted-pd");
+    for (i, task) in fam.test_tasks().into_iter().take(4).enumerate() {
+        ds.tasks.push(TaskDemos {
+            task,
+            trajectories: vec![common::pd_demo(&task, 100 + i as u64)],
+        });
+    }
+    let demos: Vec<_> = ds.tasks.iter().map(|t| &t.trajectories[0]).collect();
+    let blob = pd_point_goal_blob(Quant::W8A8, &demos).unwrap();
+    let (blob_path, demos_path) = (dir.join("pd.blob"), dir.join("demos.safetensors"));
+    std::fs::write(&blob_path, blob).unwrap();
+    ds.write(&demos_path).unwrap();
+    (blob_path, demos_path)
+}
+
+/// `firmware-sim host` (or `run`, with `port` None) of the blob on test goal 2, `ticks` ticks,
+/// bounded by a 60 s timeout.
+fn drive(port: Option<&Path>, blob: &Path, demos: &Path, out: &Path, extra: &[&str]) -> Output {
+    let mut cmd = Command::new("timeout");
+    cmd.args(["60", env!("CARGO_BIN_EXE_firmware-sim")]);
+    match port {
+        Some(p) => cmd.args(["host", "--port", s(p)]),
+        None => cmd.arg("run"),
+    };
+    cmd.args(["--blob", s(blob), "--env", "point-goal", "--task", "2"])
+        .args(["--context", s(demos), "--seed", "7", "-o", s(out)])
+        .args(extra)
+        .env_remove("RUST_BACKTRACE")
+        .output()
+        .unwrap()
+}
+
+fn ok(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert!(
+        out.status.success(),
+        "stdout: {}\nstderr: {err}",
+        String::from_utf8_lossy(&out.stdout)
+    );
+    err
+}
+
+/// The columns of `trace.csv` in `dir` whose names start with `prefix`, row by row.
+fn columns(dir: &Path, prefixes: &[&str]) -> Vec<Vec<String>> {
+    let text = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let keep: Vec<usize> = (0..header.len())
+        .filter(|&i| prefixes.iter().any(|p| header[i].starts_with(p)))
+        .collect();
+    assert!(!keep.is_empty());
+    lines
+        .map(|l| {
+            let cells: Vec<&str> = l.split(',').collect();
+            keep.iter().map(|&i| cells[i].to_string()).collect()
+        })
+        .collect()
+}
+
+fn hil_json(dir: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("hil.json")).unwrap()).unwrap()
+}
+
+#[test]
+fn a_clean_pty_run_is_the_in_process_run_bit_for_bit_and_a_silent_host_trips_the_watchdog() {
+    let dir = tmp("hil-clean");
+    let (blob, demos) = blob_and_demos(&dir);
+    let link = dir.join("tty");
+    let device = DeviceProcess::start(&dir, &link, &["--watchdog-ms", "300"], "device");
+    let ticks = ["--ticks", "25"];
+    let host_out = dir.join("host");
+    let err = ok(&drive(Some(&link), &blob, &demos, &host_out, &ticks));
+    assert!(err.contains("uploaded the blob"), "{err}");
+    let run_out = dir.join("run");
+    ok(&drive(None, &blob, &demos, &run_out, &ticks));
+    let cols = ["computed", "action", "obs"];
+    let (host, local) = (columns(&host_out, &cols), columns(&run_out, &cols));
+    assert_eq!(host.len(), 25);
+    assert_eq!(
+        host, local,
+        "the device over the port acts as the one in process"
+    );
+    let hil = hil_json(&host_out);
+    assert_eq!(hil["deadline_misses"], 0, "{hil}");
+    assert_eq!(hil["link"]["bad_frames"], 0, "{hil}");
+    // The host has stopped talking: the device holds the safe action.
+    assert!(
+        device.wait_for("watchdog: no tick for", Duration::from_secs(5)),
+        "{}",
+        device.log()
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_corrupting_line_still_finishes_with_its_errors_counted() {
+    let dir = tmp("hil-lossy");
+    let (blob, demos) = blob_and_demos(&dir);
+    let link = dir.join("tty");
+    let _device = DeviceProcess::start(&dir, &link, &["--baud", "0"], "device");
+    let out = dir.join("host");
+    let faults = [
+        "--ticks",
+        "30",
+        "--baud",
+        "0",
+        "--link-corrupt",
+        "0.1",
+        "--link-drop",
+        "0.1",
+    ];
+    ok(&drive(Some(&link), &blob, &demos, &out, &faults));
+    let hil = hil_json(&out);
+    assert_eq!(hil["ticks"], 30, "{hil}");
+    let injected = hil["wire"]["injected_corrupt"].as_u64().unwrap()
+        + hil["wire"]["injected_drop"].as_u64().unwrap();
+    assert!(injected > 0, "{hil}");
+    assert!(hil["link"]["retries"].as_u64().unwrap() > 0, "{hil}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_device_killed_mid_run_is_survived_and_a_blob_it_cannot_run_is_refused_by_name() {
+    let dir = tmp("hil-kill");
+    let (blob, demos) = blob_and_demos(&dir);
+    let link = dir.join("tty");
+    let first = DeviceProcess::start(&dir, &link, &[], "first");
+    let out = dir.join("host");
+    let host = {
+        let (blob, demos, out, link) = (blob.clone(), demos.clone(), out.clone(), link.clone());
+        std::thread::spawn(move || drive(Some(&link), &blob, &demos, &out, &["--ticks", "60"]))
+    };
+    assert!(
+        first.wait_for("context taught", Duration::from_secs(20)),
+        "{}",
+        first.log()
+    );
+    std::thread::sleep(Duration::from_millis(1500));
+    drop(first);
+    std::thread::sleep(Duration::from_millis(700));
+    let second = DeviceProcess::start(&dir, &link, &[], "second");
+    let err = ok(&host.join().unwrap());
+    let hil = hil_json(&out);
+    assert_eq!(hil["ticks"], 60, "{hil}");
+    assert_eq!(hil["reconnects"], 1, "{err}\n{hil}");
+    // No flash file: the restarted device booted empty and got the blob again.
+    assert_eq!(hil["uploads"], 2, "{err}\n{hil}");
+    assert!(hil["held_safe"].as_u64().unwrap() > 0, "{hil}");
+    assert!(
+        err.contains("holding the safe action") && err.contains("ticks resume"),
+        "{err}"
+    );
+    assert!(second.log().contains("blob committed"), "{}", second.log());
+    drop(second);
+    // A device with 1 KiB of RAM refuses the blob; the host says why and stops.
+    let small = DeviceProcess::start(&dir, &link, &["--ram-kib", "1"], "small");
+    let refused = drive(Some(&link), &blob, &demos, &dir.join("refused"), &[]);
+    let err = String::from_utf8_lossy(&refused.stderr).into_owned();
+    assert_eq!(refused.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("the device refused the blob") && err.contains("RAM"),
+        "{err}"
+    );
+    assert!(small.log().contains("DoesNotFit"), "{}", small.log());
+    std::fs::remove_dir_all(&dir).ok();
+}
