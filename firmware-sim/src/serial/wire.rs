@@ -156,9 +156,14 @@ impl Wire {
         (false, None)
     }
 
-    /// Writes one frame and waits the time it takes on the line.
+    /// Puts one frame on the line. On a paced line the frame becomes readable at the other
+    /// end only after its last byte would have arrived (its line time is waited first), as a
+    /// receiver on a real UART sees a frame complete only then.
     pub fn send(&mut self, frame: &[u8]) -> Result<(), LinkError> {
-        let start = Instant::now();
+        let wait = line_time(frame.len(), self.baud);
+        if !wait.is_zero() {
+            std::thread::sleep(wait);
+        }
         let (dropped, flip) = self.fault(frame.len());
         self.stats.frames_out += 1;
         self.stats.bytes_out += frame.len() as u64;
@@ -173,10 +178,6 @@ impl Wire {
                 .write_all(out)
                 .and_then(|()| self.port.flush())
                 .map_err(|e| port_error(&self.name, e))?;
-        }
-        let left = line_time(frame.len(), self.baud).saturating_sub(start.elapsed());
-        if !left.is_zero() {
-            std::thread::sleep(left);
         }
         Ok(())
     }

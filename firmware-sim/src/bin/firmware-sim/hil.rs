@@ -10,7 +10,7 @@ use firmware_sim::DeviceConfig;
 use firmware_sim::serial::{self, BoardConfig, BoardEvent, Faults, RemoteDevice, SerialConfig};
 use serde::Serialize;
 
-use crate::{PlantArgs, plant_config, prepare, write_trace};
+use crate::{PlantArgs, plant_config, positive_finite, prepare, write_trace};
 
 /// Arguments of `firmware-sim device`.
 #[derive(Args, Debug)]
@@ -112,6 +112,10 @@ pub(crate) struct HostArgs {
     /// Give the run up when a lost device is not back within this many seconds.
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
     reconnect_s: u64,
+    /// Run the plant this many times faster than real time: ticks come every
+    /// 1 / (rate x speedup) s of wall clock, so a loop can be timed past the plant's own rate.
+    #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
+    speedup: f32,
     #[command(flatten)]
     plant: PlantArgs,
 }
@@ -122,6 +126,7 @@ struct HilReport {
     port: String,
     baud: u32,
     rate_hz: f32,
+    speedup: f32,
     ticks: usize,
     metric: f32,
     deadline_misses: usize,
@@ -194,7 +199,7 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         a.baud,
         serial::line_time(prep.blob.len() * 103 / 100, a.baud).as_secs_f64()
     );
-    let mut remote = RemoteDevice::connect(link, &prep.blob, context, rate)
+    let mut remote = RemoteDevice::connect(link, &prep.blob, context, rate * a.speedup)
         .map_err(|e| refusal_in_words(e, prep.blob.len()))?;
     for e in &remote.events {
         eprintln!("host: tick {}: {}", e.tick, e.what);
@@ -213,6 +218,7 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         port: a.port.display().to_string(),
         baud: a.baud,
         rate_hz: rate,
+        speedup: a.speedup,
         ticks: report.records.len(),
         metric: report.metric,
         deadline_misses: remote.misses,
@@ -255,13 +261,14 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         report.faults
     );
     let summary = format!(
-        "{}\nhil             {} ticks at {rate} Hz over {} ({} baud): {} deadline misses, {} late \
+        "{}\nhil             {} ticks at {rate} Hz x {} over {} ({} baud): {} deadline misses, {} late \
          starts, {} ticks on the safe action, {} reconnects\nround trip      median {:.0} us, \
          p99 {:.0} us, max {:.0} us (device compute median {:.0} us)\nlink            {} \
          frames out, {} in; {} resends, {} damaged answers, {} stale; injected {} corrupt, {} \
          dropped\n",
         head,
         hil.ticks,
+        a.speedup,
         hil.port,
         a.baud,
         hil.deadline_misses,
