@@ -18,4 +18,6 @@ pub use format::{Activation, Header, ModelKind, Quant};
 pub use model::Model;
 pub use runner::{ContextEncoder, Policy};
 #[cfg(feature = "alloc")]
-pub use writer::{Calibration, Dims, FloatLayer, FloatModel, WriteError, write_blob};
+pub use writer::{
+    Calibration, Dims, FloatLayer, FloatModel, WriteError, write_blob, write_blob_with,
+};

@@ -160,6 +160,52 @@ impl FloatModel {
             .collect()
     }
 
+    /// The range of each input channel of each layer of (encoder, z_head, policy) on
+    /// `calib`: the largest absolute value, except that no channel's exceeds the layer's
+    /// `quantile` of |input| pooled over its channels (1.0: the plain maximum). A quantile
+    /// below 1 gives up the rarest values (clipped) for a finer step on all the others.
+    fn input_ranges_at(&self, calib: &Calibration, quantile: f32) -> [Vec<Vec<f32>>; 3] {
+        let mut ranges = self.input_ranges(calib);
+        if quantile >= 1.0 {
+            return ranges;
+        }
+        let pooled = |layers: &[FloatLayer]| -> Vec<Vec<f32>> {
+            layers.iter().map(|_| Vec::new()).collect()
+        };
+        let mut seen = [
+            pooled(&self.encoder),
+            pooled(&self.z_head),
+            pooled(&self.policy),
+        ];
+        let keep = |p: &mut Vec<Vec<f32>>, i: usize, x: &[f32]| {
+            p[i].extend(x.iter().map(|v| v.abs()));
+        };
+        let mut latents = Vec::new();
+        for context in &calib.contexts {
+            let sum = self.context_sum(context, |i, x| keep(&mut seen[0], i, x));
+            latents.push(run(&self.z_head, &sum, |i, x| keep(&mut seen[1], i, x)));
+        }
+        for (i, obs) in calib.observations.iter().enumerate() {
+            let mut x = self.normalise(obs);
+            x.extend_from_slice(&latents[i % latents.len()]);
+            run(&self.policy, &x, |l, v| keep(&mut seen[2], l, v));
+        }
+        for (stack, values) in ranges.iter_mut().zip(seen.iter_mut()) {
+            for (layer, v) in stack.iter_mut().zip(values.iter_mut()) {
+                if v.is_empty() {
+                    continue;
+                }
+                v.sort_unstable_by(f32::total_cmp);
+                let at = ((v.len() - 1) as f32 * quantile) as usize;
+                let cap = v[at];
+                if cap > 0.0 {
+                    layer.iter_mut().for_each(|r| *r = r.min(cap));
+                }
+            }
+        }
+        ranges
+    }
+
     /// Largest absolute value of each input channel of each layer of (encoder, z_head,
     /// policy) on `calib`.
     fn input_ranges(&self, calib: &Calibration) -> [Vec<Vec<f32>>; 3] {
@@ -336,12 +382,24 @@ pub fn write_blob(
     quant: Quant,
     calibration: &Calibration,
 ) -> Result<Vec<u8>, WriteError> {
+    write_blob_with(model, quant, calibration, 1.0)
+}
+
+/// [`write_blob`] with w8a8's activation ranges capped at each layer's `range_quantile` of
+/// |input| on the calibration (1.0: the maximum, as [`write_blob`]); the blob format is the
+/// same, only its scales differ.
+pub fn write_blob_with(
+    model: &FloatModel,
+    quant: Quant,
+    calibration: &Calibration,
+    range_quantile: f32,
+) -> Result<Vec<u8>, WriteError> {
     model.check()?;
     if quant == Quant::W8A8 {
         calibration.check(model)?;
     }
     let ranges = if quant == Quant::W8A8 {
-        model.input_ranges(calibration)
+        model.input_ranges_at(calibration, range_quantile.clamp(0.5, 1.0))
     } else {
         Default::default()
     };

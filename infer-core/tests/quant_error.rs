@@ -94,3 +94,32 @@ fn quantization_error_is_reported_and_bounded() {
         }
     }
 }
+
+/// `write_blob_with` at quantile 1 is `write_blob` byte for byte; a lower quantile caps the
+/// activation ranges (finer steps, the rarest values clipped), so the blob differs and still
+/// loads and acts close to the float model.
+#[test]
+fn a_range_quantile_below_one_caps_the_scales_and_one_is_the_maximum() {
+    use infer_core::write_blob_with;
+    let float = model(ModelKind::StateAction, 32, 21);
+    let mut rng = Rng(99);
+    let calib = calibration(&mut rng, &float);
+    let plain = write_blob(&float, Quant::W8A8, &calib).unwrap();
+    assert_eq!(
+        write_blob_with(&float, Quant::W8A8, &calib, 1.0).unwrap(),
+        plain
+    );
+    let capped = write_blob_with(&float, Quant::W8A8, &calib, 0.99).unwrap();
+    assert_ne!(capped, plain);
+    let (p, c) = (
+        Model::from_bytes(&plain).unwrap(),
+        Model::from_bytes(&capped).unwrap(),
+    );
+    let mut rng = Rng(1234);
+    let ctx = context(&mut rng, &float, 2);
+    let obs = rng.vec(20, 1.5);
+    let (zp, zc) = (blob_latent(&p, &ctx), blob_latent(&c, &ctx));
+    for (a, b) in blob_act(&p, &obs, &zp).iter().zip(&blob_act(&c, &obs, &zc)) {
+        assert!((a - b).abs() < 0.2, "{a} vs {b}");
+    }
+}

@@ -72,6 +72,58 @@ pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibrat
     }
 }
 
+/// Calibration inputs from demos and from the float policy's own closed loop (issue 59): for
+/// each task of `demos`, `episodes` episodes acted by `mp` deterministically, conditioned on
+/// all of the task's demos, on `env`'s plant; every state it visits joins the demos' states.
+/// A policy leaves the demos' state distribution (its errors compound), and an activation
+/// range calibrated on the demos alone clips what it then meets. Each state is paired with its
+/// own task's latent (infer-core pairs observation `i` with context `i % n`: the states are
+/// interleaved task by task, each task contributing as many as the one with fewest).
+pub fn closed_loop_calibration(
+    mp: &MetaPolicy,
+    demos: &DemoDataset,
+    env: sim::EnvConfig,
+    episodes: usize,
+) -> Result<infer_core::Calibration> {
+    let demo_calib = calibration(mp, demos);
+    let od = demos.obs_dim;
+    let actor = mp.clone();
+    let mut plant = sim::make_env(mp.family, env)?;
+    let mut per_task: Vec<Vec<Vec<f32>>> = Vec::with_capacity(demos.tasks.len());
+    for (t, td) in demos.tasks.iter().enumerate() {
+        let mut states: Vec<Vec<f32>> = td
+            .trajectories
+            .iter()
+            .flat_map(|tr| tr.obs.chunks_exact(od).map(<[f32]>::to_vec))
+            .collect();
+        let context: Vec<&Trajectory> = td.trajectories.iter().collect();
+        let z = actor.latent(&context)?;
+        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+        for e in 0..episodes {
+            let seed = sim::seeds::EVALUATION_SEED + (t * episodes + e) as u64;
+            let mut obs = plant.reset(&td.task, seed)?.to_vec();
+            loop {
+                let action = actor.act(&obs, &z, true, &mut rng)?;
+                states.push(obs);
+                let done = plant.step(&action)?.done;
+                obs = plant.observation().to_vec();
+                if done {
+                    break;
+                }
+            }
+        }
+        per_task.push(states);
+    }
+    let fewest = per_task.iter().map(Vec::len).min().unwrap_or(0);
+    let observations = (0..fewest)
+        .flat_map(|i| per_task.iter().map(move |states| states[i].clone()))
+        .collect();
+    Ok(infer_core::Calibration {
+        contexts: demo_calib.contexts,
+        observations,
+    })
+}
+
 /// Refuses demos (calibration or contexts) that are not of `mp`'s family and dimensions, with
 /// one line naming what differs.
 pub fn check_demos_fit(mp: &MetaPolicy, demos: &DemoDataset, what: &str) -> Result<()> {
@@ -106,10 +158,27 @@ pub fn export_blob(
     quant: infer_core::Quant,
     calib_demos: Option<&DemoDataset>,
 ) -> Result<Vec<u8>> {
+    export_blob_with(mp, quant, calib_demos, None, 1.0)
+}
+
+/// [`export_blob`], calibrating w8a8 on the policy's closed loop too when `closed_loop` gives
+/// the episodes' plant and count ([`closed_loop_calibration`]).
+pub fn export_blob_with(
+    mp: &MetaPolicy,
+    quant: infer_core::Quant,
+    calib_demos: Option<&DemoDataset>,
+    closed_loop: Option<(sim::EnvConfig, usize)>,
+    range_quantile: f32,
+) -> Result<Vec<u8>> {
     let calib = match (quant, calib_demos) {
         (_, Some(demos)) => {
             check_demos_fit(mp, demos, "the calibration demos")?;
-            calibration(mp, demos)
+            match closed_loop {
+                Some((env, episodes)) if quant == infer_core::Quant::W8A8 => {
+                    closed_loop_calibration(mp, demos, env, episodes)?
+                }
+                _ => calibration(mp, demos),
+            }
         }
         (infer_core::Quant::W8A8, None) => {
             return Err(Error::Usage(
@@ -122,7 +191,12 @@ pub fn export_blob(
         },
     };
     let fm = mp.to_float_model()?;
-    Ok(infer_core::write_blob(&fm, quant, &calib)?)
+    Ok(infer_core::write_blob_with(
+        &fm,
+        quant,
+        &calib,
+        range_quantile,
+    )?)
 }
 
 /// Loads (and fully validates) `blob` with infer-core, refusing layers wider than the

@@ -27,6 +27,16 @@ pub struct ExportArgs {
     /// output directory.
     #[arg(short, long)]
     out: PathBuf,
+    /// What calibrates w8a8's activation scales: `demos` (the --demos states and contexts) or
+    /// `closed-loop` (those plus the states the float policy itself visits on the --demos
+    /// tasks, one episode each: ranges it meets off the demos are not clipped).
+    #[arg(long, value_enum, default_value_t = Calibrate::Demos)]
+    calibrate: Calibrate,
+    /// w8a8: cap each layer's activation range at this quantile of |input| on the
+    /// calibration, 0.5 to 1 (1: the largest value seen; below 1 trades the rarest values,
+    /// clipped, for a finer step on all the others).
+    #[arg(long, default_value_t = 1.0, value_parser = quantile)]
+    range_quantile: f32,
     /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
     #[arg(long)]
     demos: Option<PathBuf>,
@@ -58,6 +68,24 @@ fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
     let demos = trainer::run::read_demos(path, flag)?;
     export::check_demos_fit(mp, &demos, &format!("{flag} {}", path.display()))?;
     Ok(demos)
+}
+
+/// `--range-quantile`: a number from 0.5 to 1.
+fn quantile(text: &str) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(q) if (0.5..=1.0).contains(&q) => Ok(q),
+        Ok(q) => Err(format!("{q}: expected a quantile from 0.5 to 1")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
+/// `--calibrate`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum Calibrate {
+    /// The demos' states and contexts.
+    Demos,
+    /// The demos and the float policy's own closed loop on their tasks.
+    ClosedLoop,
 }
 
 /// `--format onnx`: the graphs, their description and the trainer's z and actions on the
@@ -128,7 +156,15 @@ pub fn run(a: ExportArgs) -> Result<()> {
         None => None,
     };
     let ctx = read_demos(&a.contexts, "--contexts", &mp)?;
-    let blob = export::export_blob(&mp, quant, demos.as_ref())?;
+    let closed_loop = (a.calibrate == Calibrate::ClosedLoop).then(|| {
+        let env = sim::EnvConfig {
+            horizon: a.horizon,
+            physics: mp.physics,
+            ..sim::EnvConfig::default()
+        };
+        (env, 1)
+    });
+    let blob = export::export_blob_with(&mp, quant, demos.as_ref(), closed_loop, a.range_quantile)?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
