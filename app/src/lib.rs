@@ -16,6 +16,7 @@
 #![warn(missing_docs)]
 
 pub mod bench;
+pub mod device_table;
 pub mod quickstart;
 pub mod report;
 pub mod sweep;

@@ -213,3 +213,63 @@ fn train_eval_export_and_refuse_meta_test_data() {
     assert!(rep["metric_blob"].as_f64().unwrap().is_finite());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Issue 59: `smile device-table` on a shipped policy directory (weights and `deploy.toml`):
+/// every column is measured, the f32 blob scores as the float policy, and the w8a8 blob on the
+/// device with ideal sensing scores exactly as the same blob evaluated on the host (the loop
+/// and the evaluation run the same episodes); a directory without a manifest is refused by
+/// name.
+#[test]
+fn device_table_measures_float_to_int8_to_the_device_loop() {
+    let dir = common::fresh_dir("smile-device-table", "pg");
+    let (train, test) = common::point_goal_demo_files(&dir);
+    let policy = dir.join("policy");
+    common::tiny_bc(&train, &policy);
+    let e = String::from_utf8_lossy(
+        &smile(&[
+            "device-table",
+            common::s(&policy),
+            "-o",
+            common::s(&dir.join("t")),
+        ])
+        .stderr,
+    )
+    .into_owned();
+    assert!(e.contains("deploy.toml"), "{e}");
+    std::fs::write(
+        policy.join("deploy.toml"),
+        format!(
+            "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
+            common::s(&train),
+            common::s(&test)
+        ),
+    )
+    .unwrap();
+    let out = dir.join("table");
+    ok(&smile(&[
+        "device-table",
+        common::s(&policy),
+        "--draws",
+        "1",
+        "-o",
+        common::s(&out),
+    ]));
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("device-table.json")).unwrap())
+            .unwrap();
+    let row = &rows[0];
+    let float = row["float"].as_f64().unwrap();
+    let f32_blob = row["blobs"][0]["metric"].as_f64().unwrap();
+    assert!(
+        (f32_blob - float).abs() < 1e-3 * float.abs().max(1.0),
+        "{row}"
+    );
+    assert_eq!(
+        row["device"][0]["cell"]["metric"], row["blobs"][2]["metric"],
+        "the ideal device loop is the host's evaluation of the same blob: {row}"
+    );
+    assert_eq!(row["fits"], true, "{row}");
+    let md = std::fs::read_to_string(out.join("device-table.md")).unwrap();
+    assert_eq!(md.lines().count(), 3, "{md}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -10,6 +10,7 @@ use clap::{Parser, Subcommand};
 
 mod bench;
 mod demos;
+mod device_table;
 mod eval;
 mod expert;
 mod export;
@@ -85,6 +86,11 @@ enum Cmd {
         after_help = "Examples:\n  smile latents --policy runs/wd-smile --env walker-dyn --contexts assets/experts/walker-dyn/demos-test-4x-sub20.safetensors -o runs/wd-smile/latents.csv\n  smile latents --policy runs/alc-smile --env ant-linclass --contexts assets/experts/ant-linclass/demos-test-16x-sub5.safetensors --context-sizes 1,2,4,8 -o z.csv"
     )]
     Latents(latents::LatentsArgs),
+    /// Shipped meta-policies from float to int8 to the device loop: the deployment table.
+    #[command(
+        after_help = "Examples:\n  smile device-table assets/policies/* -o runs/device-table\n  smile device-table assets/policies/cheetah-vel-rapier-smile-bc --draws 3 --rollouts 2"
+    )]
+    DeviceTable(device_table::DeviceTableArgs),
 }
 
 /// Most `--threads`: each is a candle worker; far more than cores only thrashes (1000 made a
@@ -137,5 +143,6 @@ fn run() -> Result<()> {
         Cmd::Sweep(a) => sweep::run(a),
         Cmd::Report(a) => report::run(a),
         Cmd::Latents(a) => latents::run(a),
+        Cmd::DeviceTable(a) => device_table::run(a),
     }
 }

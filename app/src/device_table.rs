@@ -1,0 +1,340 @@
+//! The deployment table (`smile device-table`, issue 59): a shipped meta-policy measured from
+//! float on the host, through its f32 / w8a32 / w8a8 blobs on the host, to the w8a8 blob in
+//! firmware-sim's fixed-rate loop, taught one test demo over the link, under the effects a
+//! device has: ideal full sensing, sensor noise with a 12-bit ADC, position-only sensing with
+//! the on-board estimator, and a lossy link.
+//!
+//! Every column is the family's metric on the meta-test tasks, one-demo contexts: draw `d`
+//! teaches the demo [`trainer::eval::context_draw`] picks, rollout `r` starts from reset seed
+//! [`trainer::eval::episode_seed`]`(d, r)`, on the host and on the device alike, so the ideal
+//! device column checks the loop against the host's evaluation of the same blob. A policy is
+//! a directory with `meta_policy.safetensors` and its [`DeployManifest`] (`deploy.toml`).
+
+use std::path::{Path, PathBuf};
+
+use firmware_sim::link::LinkConfig;
+use firmware_sim::{DeviceConfig, LoopConfig, Sensing, SessionConfig, ram_needed, run_session};
+use serde::{Deserialize, Serialize};
+use sim::{DemoDataset, EnvConfig, Family, Split};
+use trainer::eval::{self, Protocol};
+use trainer::export::{self, BlobActor};
+use trainer::{Error, MetaPolicy, Result};
+
+/// File naming what a shipped policy was trained and is measured on.
+pub const MANIFEST_FILE: &str = "deploy.toml";
+
+/// `deploy.toml` beside a shipped `meta_policy.safetensors`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DeployManifest {
+    /// The method as the results tables name it ("SMILe + BC", "Meta-BC").
+    pub method: String,
+    /// Meta-train demos (w8a8 calibration), relative to the manifest.
+    pub demos: PathBuf,
+    /// Meta-test demos: the one-demo contexts, relative to the manifest.
+    pub contexts: PathBuf,
+    /// Episode length (the family's when absent).
+    #[serde(default)]
+    pub horizon: Option<usize>,
+}
+
+/// How much to measure.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TableConfig {
+    /// Context draws per task (demo `d` of the task teaches draw `d`).
+    pub draws: usize,
+    /// Rollouts per draw.
+    pub rollouts: usize,
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        Self {
+            draws: 3,
+            rollouts: 1,
+        }
+    }
+}
+
+/// One measured column: the metric, and its degradation against float (positive: worse).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Cell {
+    /// Mean over the test tasks.
+    pub metric: f32,
+    /// `(worse - float) / |float|` in percent, the sign making a loss positive whichever way
+    /// the metric points.
+    pub degradation_pct: f32,
+}
+
+/// A device column: the cell and the loop's per-tick compute.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct DeviceCell {
+    /// Metric and degradation.
+    pub cell: Cell,
+    /// Per-tick compute of `act`, median and p99, microseconds (host time).
+    pub tick_us: (f64, f64),
+    /// Frames resent on the link (flash and teach) over all episodes.
+    pub link_retries: u64,
+}
+
+/// One row of the table: one shipped policy.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Row {
+    /// The policy directory.
+    pub policy: PathBuf,
+    /// Family.
+    pub family: Family,
+    /// Plant.
+    pub physics: sim::Physics,
+    /// Method.
+    pub method: String,
+    /// Metric name.
+    pub metric: String,
+    /// Test tasks and episodes per task per column.
+    pub tasks: usize,
+    /// Episodes per task per column (draws x rollouts).
+    pub episodes_per_task: usize,
+    /// Float policy on the host.
+    pub float: f32,
+    /// f32, w8a32 and w8a8 blobs on the host.
+    pub blobs: [Cell; 3],
+    /// w8a8 blob bytes (f32 and w8a32 in `blob_bytes_all`).
+    pub blob_bytes: usize,
+    /// Bytes of the f32, w8a32 and w8a8 blobs.
+    pub blob_bytes_all: [usize; 3],
+    /// The device's RAM for the application.
+    pub ram_bytes: usize,
+    /// Whether the w8a8 blob and its runners fit 64 KiB of flash and 16 KiB of RAM.
+    pub fits: bool,
+    /// w8a8 on the device: ideal full sensing, noise 0.01 + 12-bit ADC, position-only
+    /// sensing with the estimator, 5% of frames corrupted or dropped.
+    pub device: [DeviceCell; 4],
+}
+
+/// The device conditions, in the table's order.
+pub const DEVICE_COLUMNS: [&str; 4] = [
+    "ideal",
+    "noise 0.01 + 12-bit ADC",
+    "positions + estimator",
+    "lossy link (5%)",
+];
+
+fn degradation(family: Family, float: f32, x: f32) -> f32 {
+    let worse = match family.metric_kind().lower_is_better() {
+        true => x - float,
+        false => float - x,
+    };
+    100.0 * worse / float.abs().max(1e-9)
+}
+
+fn cell(family: Family, float: f32, metric: f32) -> Cell {
+    Cell {
+        metric,
+        degradation_pct: degradation(family, float, metric),
+    }
+}
+
+/// Reads a demo file named in `manifest` (relative to its directory).
+fn demos_at(dir: &Path, file: &Path) -> Result<DemoDataset> {
+    let path = dir.join(file);
+    trainer::run::read_demos(&path, &format!("{} ({MANIFEST_FILE})", path.display()))
+}
+
+/// Measures the shipped policy in `dir`.
+pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> Result<Row> {
+    let manifest_path = dir.join(MANIFEST_FILE);
+    let text = std::fs::read_to_string(&manifest_path).map_err(|e| Error::Io {
+        path: manifest_path.clone(),
+        source: e,
+    })?;
+    let manifest: DeployManifest = toml::from_str(&text)
+        .map_err(|e| Error::Config(format!("{}: {}", manifest_path.display(), e.message())))?;
+    let mut mp = MetaPolicy::load(dir)?;
+    MetaPolicy::ensure_finished(dir, false)?;
+    let family = mp.family;
+    let train = demos_at(dir, &manifest.demos)?;
+    let test = demos_at(dir, &manifest.contexts)?;
+    let mut protocol = Protocol::for_family(family);
+    protocol.context_sizes = vec![1];
+    protocol.draws = config.draws;
+    protocol.rollouts = config.rollouts;
+    protocol.horizon = manifest.horizon;
+    protocol.physics = mp.physics;
+    let host = |actor: &mut dyn eval::ConditionedActor, name: &str| {
+        eval::evaluate(
+            actor,
+            name,
+            family,
+            Split::Test,
+            &test,
+            &protocol,
+            &mut |_, _| {},
+        )
+        .map(|r| r.mean)
+    };
+    let float = host(&mut mp, "float")?;
+    on(format!("{}: float {float:.4}", dir.display()));
+    let mut blobs = Vec::new();
+    let mut bytes = [0; 3];
+    for (i, quant) in [
+        infer_core::Quant::F32,
+        infer_core::Quant::W8A32,
+        infer_core::Quant::W8A8,
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let blob = export::export_blob(&mp, quant, Some(&train))?;
+        bytes[i] = blob.len();
+        let metric = {
+            let model = export::load_blob(&blob)?;
+            host(&mut BlobActor::new(&model)?, "blob")?
+        };
+        on(format!("  {quant:?} blob ({} B): {metric:.4}", blob.len()));
+        blobs.push((blob, cell(family, float, metric)));
+    }
+    let w8a8 = &blobs[2].0;
+    let device = DEVICE_COLUMNS
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let d = device_column(w8a8, c, &test, &protocol, family, float)?;
+            on(format!("  device, {name}: {:.4}", d.cell.metric));
+            Ok(d)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let ram = ram_needed();
+    Ok(Row {
+        policy: dir.to_path_buf(),
+        family,
+        physics: mp.physics,
+        method: manifest.method,
+        metric: eval::metric_name(family.metric_kind()).into(),
+        tasks: family.test_tasks().len(),
+        episodes_per_task: config.draws * config.rollouts,
+        float,
+        blobs: [blobs[0].1, blobs[1].1, blobs[2].1],
+        blob_bytes: bytes[2],
+        blob_bytes_all: bytes,
+        ram_bytes: ram,
+        fits: bytes[2] <= 64 * 1024 && ram <= 16 * 1024,
+        device: [device[0], device[1], device[2], device[3]],
+    })
+}
+
+/// The session settings of device column `column` for episode seed `seed`.
+fn session(column: usize, seed: u64, plant: EnvConfig) -> SessionConfig {
+    let mut control = LoopConfig {
+        seed,
+        // A generous budget: the host is not the device; overruns are not the question here.
+        budget_us: 1e6,
+        ..LoopConfig::default()
+    };
+    let mut link = LinkConfig {
+        seed,
+        ..LinkConfig::default()
+    };
+    match column {
+        1 => {
+            control.noise_std = 0.01;
+            control.adc_bits = Some(12);
+        }
+        2 => control.sensing = Sensing::POSITIONS,
+        3 => {
+            link.corrupt_probability = 0.025;
+            link.drop_probability = 0.025;
+            link.max_retries = 20;
+        }
+        _ => {}
+    }
+    SessionConfig {
+        device: DeviceConfig::default(),
+        link,
+        control,
+        plant,
+    }
+}
+
+/// The w8a8 blob on the device under condition `column`, over every test task, draw and
+/// rollout of `protocol`.
+fn device_column(
+    blob: &[u8],
+    column: usize,
+    test: &DemoDataset,
+    protocol: &Protocol,
+    family: Family,
+    float: f32,
+) -> Result<DeviceCell> {
+    let tasks = family.test_tasks();
+    let contexts = eval::contexts_for(test, family, &tasks)?;
+    let plant = EnvConfig {
+        horizon: protocol.horizon,
+        physics: protocol.physics,
+        ..EnvConfig::default()
+    };
+    let (mut per_task, mut ticks, mut retries) = (Vec::new(), Vec::new(), 0);
+    for (i, (task, demos)) in tasks.iter().zip(&contexts).enumerate() {
+        let trajs: Vec<&sim::Trajectory> = demos
+            .trajectories
+            .iter()
+            .filter(|t| !t.is_empty())
+            .collect();
+        let mut metrics = Vec::new();
+        for d in 0..protocol.draws {
+            // The host evaluation's draw: the same demo teaches the device.
+            let context = eval::context_draw(&trajs, i, 1, d);
+            for r in 0..protocol.rollouts {
+                let config = session(column, eval::episode_seed(d, r), plant);
+                let s = run_session(blob, task, &context, &config)
+                    .map_err(|e| Error::Device(e.to_string()))?;
+                metrics.push(s.report.metric);
+                ticks.extend(s.report.compute_ns.iter().map(|&n| n as f64 / 1e3));
+                retries += s.link.retries;
+            }
+        }
+        per_task.push(metrics.iter().sum::<f32>() / metrics.len() as f32);
+    }
+    let metric = per_task.iter().sum::<f32>() / per_task.len() as f32;
+    ticks.sort_by(f64::total_cmp);
+    let at = |q: f64| ticks[((ticks.len() - 1) as f64 * q).round() as usize];
+    Ok(DeviceCell {
+        cell: cell(family, float, metric),
+        tick_us: (at(0.5), at(0.99)),
+        link_retries: retries,
+    })
+}
+
+/// The table in markdown: one row per policy.
+pub fn markdown(rows: &[Row]) -> String {
+    let mut md = String::from(
+        "| family, plant | method | metric | float | f32 blob | w8a32 blob | w8a8 blob | device: \
+         ideal | noise + ADC | positions + estimator | lossy link | blob B | RAM B | fits | \
+         tick us (median / p99) | tasks x episodes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+    );
+    let pct = |c: &Cell| format!("{:.4} ({:+.1}%)", c.metric, c.degradation_pct);
+    for r in rows {
+        md.push_str(&format!(
+            "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {} x {} |\n",
+            r.family,
+            r.physics,
+            r.method,
+            r.metric,
+            r.float,
+            pct(&r.blobs[0]),
+            pct(&r.blobs[1]),
+            pct(&r.blobs[2]),
+            pct(&r.device[0].cell),
+            pct(&r.device[1].cell),
+            pct(&r.device[2].cell),
+            pct(&r.device[3].cell),
+            r.blob_bytes,
+            r.ram_bytes,
+            if r.fits { "yes" } else { "no" },
+            r.device[0].tick_us.0,
+            r.device[0].tick_us.1,
+            r.tasks,
+            r.episodes_per_task,
+        ));
+    }
+    md
+}
