@@ -38,6 +38,19 @@ pub struct DeployManifest {
     pub horizon: Option<usize>,
 }
 
+impl DeployManifest {
+    /// Reads `dir/deploy.toml`; errors name the file.
+    pub fn read(dir: &Path) -> Result<Self> {
+        let path = dir.join(MANIFEST_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
+            path: path.clone(),
+            source: e,
+        })?;
+        toml::from_str(&text)
+            .map_err(|e| Error::Config(format!("{}: {}", path.display(), e.message())))
+    }
+}
+
 /// How much to measure.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TableConfig {
@@ -142,13 +155,7 @@ fn demos_at(dir: &Path, file: &Path) -> Result<DemoDataset> {
 
 /// Measures the shipped policy in `dir`.
 pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> Result<Row> {
-    let manifest_path = dir.join(MANIFEST_FILE);
-    let text = std::fs::read_to_string(&manifest_path).map_err(|e| Error::Io {
-        path: manifest_path.clone(),
-        source: e,
-    })?;
-    let manifest: DeployManifest = toml::from_str(&text)
-        .map_err(|e| Error::Config(format!("{}: {}", manifest_path.display(), e.message())))?;
+    let manifest = DeployManifest::read(dir)?;
     let mut mp = MetaPolicy::load(dir)?;
     MetaPolicy::ensure_finished(dir, false)?;
     let family = mp.family;
@@ -313,12 +320,14 @@ pub fn markdown(rows: &[Row]) -> String {
     );
     let pct = |c: &Cell| format!("{:.4} ({:+.1}%)", c.metric, c.degradation_pct);
     for r in rows {
+        // A metric's name may hold a pipe (`mean |v - v*|`): escaped, it stays one cell.
+        let metric = r.metric.replace('|', "\\|");
         md.push_str(&format!(
             "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {} x {} |\n",
             r.family,
             r.physics,
             r.method,
-            r.metric,
+            metric,
             r.float,
             pct(&r.blobs[0]),
             pct(&r.blobs[1]),

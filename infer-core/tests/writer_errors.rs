@@ -263,3 +263,27 @@ proptest! {
         }
     }
 }
+
+/// Issue 57, item 9: a network with a parameter of 3e38 (finite, but beyond what the blob's
+/// scales and sums can hold) is refused by name, for every scheme, instead of writing a blob
+/// that fails to load back.
+#[test]
+fn a_parameter_too_large_for_the_blob_is_refused_by_layer() {
+    for quant in [Quant::F32, Quant::W8A32, Quant::W8A8] {
+        let mut m = model(ModelKind::StateAction);
+        m.policy[1].weights[3] = 3e38;
+        let e = write_blob(&m, quant, &good(ModelKind::StateAction)).unwrap_err();
+        assert!(
+            matches!(
+                e,
+                WriteError::OutOfRange {
+                    part: "policy",
+                    layer: 1,
+                    ..
+                }
+            ),
+            "{quant:?}: {e}"
+        );
+        assert!(e.to_string().contains("policy layer 1"), "{e}");
+    }
+}

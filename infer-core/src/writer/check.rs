@@ -54,9 +54,23 @@ pub enum WriteError {
         /// Length given.
         got: usize,
     },
+    /// A weight or bias too large for the blob's arithmetic (its scales and sums would
+    /// overflow f32): a diverged or corrupted network, not a trained one.
+    OutOfRange {
+        /// Which MLP.
+        part: &'static str,
+        /// Index of the layer.
+        layer: usize,
+        /// The largest magnitude found.
+        value: f32,
+    },
     /// The finished blob did not load back (a bug in the writer; please report).
     SelfCheck(crate::BlobError),
 }
+
+/// Largest weight or bias magnitude a blob takes: trained networks stay orders of magnitude
+/// below it, and beyond it a quantization scale or an accumulated sum can overflow f32.
+const MAX_PARAMETER: f32 = 1.0e6;
 
 impl fmt::Display for WriteError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -95,6 +109,12 @@ impl fmt::Display for WriteError {
                     "calibration {what} {at}{index}: length {got}, the model needs {expected}"
                 )
             }
+            Self::OutOfRange { part, layer, value } => write!(
+                f,
+                "{part} layer {layer}: a parameter of magnitude {value:e} exceeds the blob's \
+                 {MAX_PARAMETER:e} (a diverged or corrupted network: retrain or take an earlier \
+                 checkpoint)"
+            ),
             Self::SelfCheck(e) => write!(f, "written blob failed to load back: {e}"),
         }
     }
@@ -188,7 +208,7 @@ impl FloatModel {
                 return Err(WriteError::TooManyLayers { part: name });
             }
             check_widths(name, layers, input, output)?;
-            for l in layers {
+            for (index, l) in layers.iter().enumerate() {
                 if l.in_dim.checked_mul(l.out_dim) != Some(l.weights.len())
                     || l.bias.len() != l.out_dim
                 {
@@ -196,6 +216,18 @@ impl FloatModel {
                 }
                 if l.weights.iter().chain(&l.bias).any(|x| !x.is_finite()) {
                     return Err(WriteError::NonFinite(name));
+                }
+                let largest = l
+                    .weights
+                    .iter()
+                    .chain(&l.bias)
+                    .fold(0.0f32, |m, x| m.max(x.abs()));
+                if largest > MAX_PARAMETER {
+                    return Err(WriteError::OutOfRange {
+                        part: name,
+                        layer: index,
+                        value: largest,
+                    });
                 }
             }
         }
