@@ -35,7 +35,7 @@ fn shipped() -> Vec<PathBuf> {
 /// The test contexts a policy's manifest names.
 fn contexts(dir: &Path) -> DemoDataset {
     let manifest = smile_app::device_table::DeployManifest::read(dir).unwrap();
-    DemoDataset::read(&dir.join(manifest.contexts)).unwrap()
+    DemoDataset::read(dir.join(manifest.contexts)).unwrap()
 }
 
 #[test]
