@@ -343,5 +343,14 @@ fn a_blob_of_another_family_and_counts_that_cannot_run_are_refused() {
         "{e}"
     );
     ok(&run(&["--ticks", "3"]));
+    // An export interrupted between its blob and its report leaves the old report: `run`
+    // refuses the pair as `compare` does (issue 57, item 3).
+    std::fs::write(
+        dir.join("pd.blob.json"),
+        export_report(&[(task.value(), 0.5)], &"0".repeat(64)),
+    )
+    .unwrap();
+    let e = fails(&run(&[]));
+    assert!(e.contains("describes another blob"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }

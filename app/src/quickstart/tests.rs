@@ -158,3 +158,30 @@ fn its_configs_are_the_documented_files() {
         assert_eq!(long, factor * short, "{family}");
     }
 }
+
+/// Issue 57, item 4: a quickstart over an earlier one removes the earlier results first, so a
+/// run killed before writing its own never sits beside them looking complete; other files
+/// (the stages' folders, which each stage replaces) are left to their stages.
+#[test]
+fn an_earlier_quickstarts_results_are_removed_before_a_new_one_starts() {
+    let dir = std::env::temp_dir().join(format!("smile-qs-clear-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("device")).unwrap();
+    for f in [
+        "summary.json",
+        "report.md",
+        "eval.json",
+        "policy.blob",
+        "policy.blob.json",
+    ] {
+        std::fs::write(dir.join(f), "old").unwrap();
+    }
+    std::fs::write(dir.join("demos-train.safetensors"), "kept").unwrap();
+    clear_results(&dir).unwrap();
+    for f in RESULT_FILES {
+        assert!(!dir.join(f).exists(), "{f} survived");
+    }
+    assert!(dir.join("demos-train.safetensors").exists());
+    clear_results(&dir).unwrap();
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -148,6 +148,31 @@ fn mismatched_metadata_and_families_are_rejected() {
     ));
 }
 
+/// Issue 57, item 10: a `dones` flag other than 0 or 1, and a task listed twice, are refused by
+/// name, not read as "done" or drawn twice as often.
+#[test]
+fn done_flags_other_than_zero_or_one_and_repeated_tasks_are_refused() {
+    let dataset = point_goal_demos(2, 1, 10);
+    let bytes = dataset.to_bytes().unwrap();
+    let header_len = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header: serde_json::Value = serde_json::from_slice(&bytes[8..8 + header_len]).unwrap();
+    let start = header[names::DONES]["data_offsets"][0].as_u64().unwrap() as usize;
+    let mut seven = bytes.clone();
+    seven[8 + header_len + start] = 7;
+    let e = DemoDataset::from_bytes(&seven).unwrap_err();
+    assert!(
+        matches!(&e, DatasetError::Inconsistent(m) if m.contains("dones") && m.contains('7')),
+        "{e}"
+    );
+    let mut twice = dataset.clone();
+    twice.tasks.push(dataset.tasks[0].clone());
+    let e = twice.to_bytes().unwrap_err();
+    assert!(
+        matches!(&e, DatasetError::Inconsistent(m) if m.contains("appears twice")),
+        "{e}"
+    );
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
     /// Any byte changed anywhere is an `Ok` or a `DatasetError`, never a panic.

@@ -322,6 +322,19 @@ pub fn evaluate(
     on_task: &mut dyn FnMut(usize, usize),
 ) -> Result<MethodResult> {
     let tasks = family.tasks(split);
+    evaluate_tasks(actor, name, family, &tasks, contexts, protocol, on_task)
+}
+
+/// [`evaluate`] on the given `tasks` (a split's, or the contexts file's own new tasks).
+pub fn evaluate_tasks(
+    actor: &mut dyn ConditionedActor,
+    name: &str,
+    family: Family,
+    tasks: &[Task],
+    contexts: &DemoDataset,
+    protocol: &Protocol,
+    on_task: &mut dyn FnMut(usize, usize),
+) -> Result<MethodResult> {
     if contexts.physics != protocol.physics {
         return Err(Error::WrongPhysics {
             what: "the context demos".into(),
@@ -329,7 +342,7 @@ pub fn evaluate(
             expected: protocol.physics,
         });
     }
-    let demos = contexts_for(contexts, family, &tasks)?;
+    let demos = contexts_for(contexts, family, tasks)?;
     let mut env = sim::make_env(family, protocol.env_config())?;
     let mut results = Vec::with_capacity(tasks.len());
     let mut no_op_rows: Vec<Option<Vec<f32>>> = Vec::with_capacity(tasks.len());

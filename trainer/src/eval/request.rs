@@ -43,6 +43,9 @@ pub struct EvalRequest {
     pub experts: Vec<PathBuf>,
     /// Evaluate a policy whose training did not finish (with a note) instead of refusing it.
     pub allow_unfinished: bool,
+    /// Score the tasks the contexts file holds (new tasks recorded with `smile demos
+    /// --task-params`: what a few-shot learner is for) instead of `split`'s.
+    pub contexts_tasks: bool,
 }
 
 impl EvalRequest {
@@ -70,6 +73,7 @@ impl EvalRequest {
             base: None,
             experts: Vec::new(),
             allow_unfinished: false,
+            contexts_tasks: false,
         }
     }
 }
@@ -96,7 +100,14 @@ pub enum EvalEvent {
 pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<EvalReport> {
     let family = req.family;
     let ctx = crate::run::read_demos_of(&req.contexts, "--contexts", family)?;
-    if ctx.split != req.split {
+    if req.contexts_tasks && req.base.is_some() {
+        return Err(Error::Usage(
+            "--base normalises over a split's tasks; the contexts' own tasks have no base and \
+             expert returns (drop --base or --contexts-tasks)"
+                .into(),
+        ));
+    }
+    if !req.contexts_tasks && ctx.split != req.split {
         return Err(Error::Usage(format!(
             "--contexts {} holds {} demos but --split is {}; pass --split {} or the {} demos",
             req.contexts.display(),
@@ -162,7 +173,10 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
         |e: Error| Error::Usage(format!("--contexts {}: {e}", req.contexts.display()));
     ctx.ensure_physics(protocol.physics)
         .map_err(|e| Error::Usage(format!("--contexts {}: {e}", req.contexts.display())))?;
-    let tasks = family.tasks(req.split);
+    let tasks = match req.contexts_tasks {
+        true => ctx.tasks.iter().map(|t| t.task).collect(),
+        false => family.tasks(req.split),
+    };
     super::contexts_for(&ctx, family, &tasks).map_err(in_contexts)?;
     let references = match &req.base {
         Some(base) => Some(References::load(family, base, &req.experts)?),
@@ -198,11 +212,11 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
             name: name.clone(),
             tasks: tasks.len(),
         });
-        let r = super::evaluate(
+        let r = super::evaluate_tasks(
             &mut mp,
             &name,
             family,
-            req.split,
+            &tasks,
             &ctx,
             &protocol,
             &mut |i, _| on(EvalEvent::Task(i)),
@@ -232,6 +246,9 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
         methods.push(r);
     }
     let mut report = EvalReport::new(family, req.split, protocol, methods);
+    if req.contexts_tasks {
+        report.split = "the contexts' own tasks".into();
+    }
     if let Some(r) = reference {
         report = report.with_reference(r)?;
         for m in &report.methods {

@@ -57,6 +57,10 @@ pub struct EvalArgs {
     /// experts, comma separated, each task uses its own; or one general expert). Needs --base.
     #[arg(long, requires = "base", num_args = 1.., value_delimiter = ',')]
     expert: Vec<PathBuf>,
+    /// Score the tasks the --contexts file holds instead of a split's: new tasks recorded with
+    /// `smile demos --task-params` (what a few-shot learner is for).
+    #[arg(long)]
+    contexts_tasks: bool,
     /// Evaluate a policy whose training did not finish (killed or still running), with a
     /// warning, instead of refusing it.
     #[arg(long)]
@@ -99,6 +103,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     req.base = a.base.clone();
     req.experts = a.expert.clone();
     req.allow_unfinished = a.allow_unfinished;
+    req.contexts_tasks = a.contexts_tasks;
     let mut pb: Option<ProgressBar> = None;
     let report = eval::evaluate_to_dir(&req, &mut |e| match e {
         EvalEvent::Note(text) => eprintln!("{text}"),
