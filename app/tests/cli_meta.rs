@@ -273,3 +273,43 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     assert_eq!(md.lines().count(), 3, "{md}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 57: `smile eval --contexts-tasks` scores the tasks the contexts file holds (new goals
+/// recorded with `smile demos --task-params`), where a split's evaluation needs demos of the
+/// split's tasks; the family comes from the contexts without `--env`.
+#[test]
+fn eval_scores_the_contexts_own_new_tasks() {
+    let dir = common::fresh_dir("smile-eval-new-tasks", "pg");
+    let (train, _) = common::point_goal_demo_files(&dir);
+    let policy = dir.join("bc");
+    common::tiny_bc(&train, &policy);
+    let pd = common::scripted_pd_expert(dir.join("pd"));
+    let new = dir.join("new.safetensors");
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        "0.1,1.7",
+        "--per-task",
+        "1",
+        "--expert",
+        common::s(&pd),
+        "-o",
+        common::s(&new),
+    ]));
+    let out = dir.join("eval");
+    let args = common::eval_args(&policy, &new, &out);
+    let refused = smile(&args);
+    assert!(!refused.status.success());
+    ok(&smile(&[&args[..], &["--contexts-tasks"]].concat()));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("eval.json")).unwrap()).unwrap();
+    let tasks = report["methods"][0]["tasks"].as_array().unwrap();
+    assert_eq!(tasks.len(), 2, "{report}");
+    assert!(
+        (tasks[1]["value"].as_f64().unwrap() - 1.7).abs() < 1e-3,
+        "{report}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
