@@ -511,15 +511,7 @@ const RESULT_FILES: [&str; 8] = [
 fn clear_results(out: &Path) -> Result<()> {
     for name in RESULT_FILES {
         let path = out.join(name);
-        let gone = if path.is_dir() {
-            std::fs::remove_dir_all(&path)
-        } else {
-            std::fs::remove_file(&path)
-        };
-        match gone {
-            Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&path)(e)),
-            _ => {}
-        }
+        sim::remove_any(&path).map_err(io(&path))?;
     }
     Ok(())
 }

@@ -177,19 +177,9 @@ impl FloatModel {
             pooled(&self.z_head),
             pooled(&self.policy),
         ];
-        let keep = |p: &mut Vec<Vec<f32>>, i: usize, x: &[f32]| {
-            p[i].extend(x.iter().map(|v| v.abs()));
-        };
-        let mut latents = Vec::new();
-        for context in &calib.contexts {
-            let sum = self.context_sum(context, |i, x| keep(&mut seen[0], i, x));
-            latents.push(run(&self.z_head, &sum, |i, x| keep(&mut seen[1], i, x)));
-        }
-        for (i, obs) in calib.observations.iter().enumerate() {
-            let mut x = self.normalise(obs);
-            x.extend_from_slice(&latents[i % latents.len()]);
-            run(&self.policy, &x, |l, v| keep(&mut seen[2], l, v));
-        }
+        self.trace(calib, |stack, layer, x| {
+            seen[stack][layer].extend(x.iter().map(|v| v.abs()));
+        });
         for (stack, values) in ranges.iter_mut().zip(seen.iter_mut()) {
             for (layer, v) in stack.iter_mut().zip(values.iter_mut()) {
                 if v.is_empty() {
@@ -220,22 +210,29 @@ impl FloatModel {
             zeros(&self.z_head),
             zeros(&self.policy),
         ];
-        let track = |r: &mut Vec<Vec<f32>>, i: usize, x: &[f32]| {
-            r[i].iter_mut()
+        self.trace(calib, |stack, layer, x| {
+            ranges[stack][layer]
+                .iter_mut()
                 .zip(x)
                 .for_each(|(m, v)| *m = m.max(v.abs()));
-        };
+        });
+        ranges
+    }
+
+    /// Runs `calib` through the encoder, the z head and the policy (observation `i` with the
+    /// latent of context `i % n`), calling `tap(stack, layer, input)` with every layer's input
+    /// (stack 0: encoder, 1: z head, 2: policy).
+    fn trace(&self, calib: &Calibration, mut tap: impl FnMut(usize, usize, &[f32])) {
         let mut latents = Vec::new();
         for context in &calib.contexts {
-            let sum = self.context_sum(context, |i, x| track(&mut ranges[0], i, x));
-            latents.push(run(&self.z_head, &sum, |i, x| track(&mut ranges[1], i, x)));
+            let sum = self.context_sum(context, |i, x| tap(0, i, x));
+            latents.push(run(&self.z_head, &sum, |i, x| tap(1, i, x)));
         }
         for (i, obs) in calib.observations.iter().enumerate() {
             let mut x = self.normalise(obs);
             x.extend_from_slice(&latents[i % latents.len()]);
-            run(&self.policy, &x, |l, v| track(&mut ranges[2], l, v));
+            run(&self.policy, &x, |l, v| tap(2, l, v));
         }
-        ranges
     }
 }
 

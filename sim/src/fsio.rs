@@ -149,3 +149,17 @@ mod canonical_tests {
         assert_eq!(super::canonical_safetensors(vec![1, 2, 3]), vec![1, 2, 3]);
     }
 }
+
+/// Removes `path`, a file or a whole folder; `Ok(false)` when there was nothing to remove.
+pub fn remove_any(path: &Path) -> std::io::Result<bool> {
+    let gone = if path.is_dir() {
+        std::fs::remove_dir_all(path)
+    } else {
+        std::fs::remove_file(path)
+    };
+    match gone {
+        Ok(()) => Ok(true),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(false),
+        Err(e) => Err(e),
+    }
+}

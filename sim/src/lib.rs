@@ -62,7 +62,9 @@ pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::{SimError, error_line, exit_code};
 pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
-pub use fsio::{canonical_safetensors, sha256_hex, temp_sibling, write_atomic, write_atomic_with};
+pub use fsio::{
+    canonical_safetensors, remove_any, sha256_hex, temp_sibling, write_atomic, write_atomic_with,
+};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use physics::{MUJOCO_VERSION, Physics};
 pub use plant::{Robot, TorsoPose};

@@ -106,14 +106,9 @@ pub fn clear_interrupted_run(dir: &Path) -> Result<Vec<&'static str>> {
     let mut removed = Vec::new();
     for name in INTERRUPTED_RUN_FILES {
         let path = dir.join(name);
-        let gone = if path.is_dir() {
-            std::fs::remove_dir_all(&path)
-        } else {
-            std::fs::remove_file(&path)
-        };
-        match gone {
-            Ok(()) => removed.push(name),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        match sim::remove_any(&path) {
+            Ok(true) => removed.push(name),
+            Ok(false) => {}
             Err(e) => return Err(Error::Io { path, source: e }),
         }
     }
