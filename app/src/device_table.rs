@@ -120,8 +120,11 @@ pub struct Row {
     /// Whether the w8a8 blob and its runners fit 64 KiB of flash and 16 KiB of RAM.
     pub fits: bool,
     /// w8a8 on the device: ideal full sensing, noise 0.01 + 12-bit ADC, position-only
-    /// sensing with the estimator, 5% of frames corrupted or dropped.
-    pub device: [DeviceCell; 4],
+    /// sensing with the estimator, 5% of frames corrupted or dropped; `None` when the blob
+    /// does not fit the device (`does_not_fit` says why).
+    pub device: Option<[DeviceCell; 4]>,
+    /// Why the w8a8 blob cannot run on the 64 KiB / 16 KiB device, and by how much.
+    pub does_not_fit: Option<String>,
 }
 
 /// The device conditions, in the table's order.
@@ -201,15 +204,25 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         blobs.push((blob, cell(family, float, metric)));
     }
     let w8a8 = &blobs[2].0;
-    let device = DEVICE_COLUMNS
-        .iter()
-        .enumerate()
-        .map(|(c, name)| {
-            let d = device_column(w8a8, c, &test, &protocol, family, float)?;
-            on(format!("  device, {name}: {:.4}", d.cell.metric));
-            Ok(d)
-        })
-        .collect::<Result<Vec<_>>>()?;
+    let does_not_fit = misfit(w8a8)?;
+    let device = match &does_not_fit {
+        Some(why) => {
+            on(format!("  device: {why}"));
+            None
+        }
+        None => {
+            let cells = DEVICE_COLUMNS
+                .iter()
+                .enumerate()
+                .map(|(c, name)| {
+                    let d = device_column(w8a8, c, &test, &protocol, family, float)?;
+                    on(format!("  device, {name}: {:.4}", d.cell.metric));
+                    Ok(d)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            Some([cells[0], cells[1], cells[2], cells[3]])
+        }
+    };
     let ram = ram_needed();
     Ok(Row {
         policy: dir.to_path_buf(),
@@ -224,9 +237,40 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         blob_bytes: bytes[2],
         blob_bytes_all: bytes,
         ram_bytes: ram,
-        fits: bytes[2] <= 64 * 1024 && ram <= 16 * 1024,
-        device: [device[0], device[1], device[2], device[3]],
+        fits: does_not_fit.is_none(),
+        device,
+        does_not_fit,
     })
+}
+
+/// Why `blob` cannot run on the default device (64 KiB flash, 16 KiB RAM, layers at most
+/// [`firmware_sim::CAPACITY`] wide), with the numbers; `None` when it fits.
+fn misfit(blob: &[u8]) -> Result<Option<String>> {
+    let config = DeviceConfig::default();
+    let model = export::load_blob(blob)?;
+    let mut why = Vec::new();
+    if blob.len() > config.flash_bytes {
+        why.push(format!(
+            "{} B of flash, {} over the {} B",
+            blob.len(),
+            blob.len() - config.flash_bytes,
+            config.flash_bytes
+        ));
+    }
+    if model.max_width() > firmware_sim::CAPACITY {
+        why.push(format!(
+            "layers {} wide, the firmware's runners {} (a 2 x {} policy would fit)",
+            model.max_width(),
+            firmware_sim::CAPACITY,
+            firmware_sim::CAPACITY
+        ));
+    }
+    if why.is_empty()
+        && let Err(e) = firmware_sim::check_fits(&model, config)
+    {
+        why.push(e.to_string());
+    }
+    Ok((!why.is_empty()).then(|| format!("does not fit: {}", why.join("; "))))
 }
 
 /// The session settings of device column `column` for episode seed `seed`.
@@ -322,8 +366,20 @@ pub fn markdown(rows: &[Row]) -> String {
     for r in rows {
         // A metric's name may hold a pipe (`mean |v - v*|`): escaped, it stays one cell.
         let metric = r.metric.replace('|', "\\|");
+        let device: Vec<String> = match &r.device {
+            Some(d) => d.iter().map(|c| pct(&c.cell)).collect(),
+            None => vec![
+                r.does_not_fit.clone().unwrap_or_default(),
+                "-".into(),
+                "-".into(),
+                "-".into(),
+            ],
+        };
+        let tick = r.device.map_or("-".into(), |d| {
+            format!("{:.1} / {:.1}", d[0].tick_us.0, d[0].tick_us.1)
+        });
         md.push_str(&format!(
-            "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.1} / {:.1} | {} x {} |\n",
+            "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} x {} |\n",
             r.family,
             r.physics,
             r.method,
@@ -332,18 +388,62 @@ pub fn markdown(rows: &[Row]) -> String {
             pct(&r.blobs[0]),
             pct(&r.blobs[1]),
             pct(&r.blobs[2]),
-            pct(&r.device[0].cell),
-            pct(&r.device[1].cell),
-            pct(&r.device[2].cell),
-            pct(&r.device[3].cell),
+            device[0],
+            device[1],
+            device[2],
+            device[3],
             r.blob_bytes,
             r.ram_bytes,
             if r.fits { "yes" } else { "no" },
-            r.device[0].tick_us.0,
-            r.device[0].tick_us.1,
+            tick,
             r.tasks,
             r.episodes_per_task,
         ));
     }
     md
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use infer_core::{Calibration, Dims, FloatModel, ModelKind, Quant};
+
+    fn blob(hidden: usize) -> Vec<u8> {
+        let dims = Dims {
+            obs: 17,
+            act: 6,
+            r: 32,
+            z: 16,
+            hidden,
+        };
+        let model = FloatModel::random(ModelKind::StateAction, dims, 3);
+        infer_core::write_blob(&model, Quant::W8A32, &Calibration::default()).unwrap()
+    }
+
+    /// A blob the device can hold is not flagged; one with 256-wide layers is, with the width,
+    /// the runners' capacity and the width that would fit; a 256-wide f32 blob also says by
+    /// how many bytes it overflows the flash.
+    #[test]
+    fn a_blob_too_wide_or_too_large_for_the_device_says_by_how_much() {
+        assert_eq!(misfit(&blob(64)).unwrap(), None);
+        let why = misfit(&blob(256)).unwrap().unwrap();
+        assert!(
+            why.contains("layers 256 wide") && why.contains("2 x 128 policy would fit"),
+            "{why}"
+        );
+        let dims = Dims {
+            obs: 17,
+            act: 6,
+            r: 32,
+            z: 16,
+            hidden: 256,
+        };
+        let model = FloatModel::random(ModelKind::StateAction, dims, 3);
+        let f32_blob = infer_core::write_blob(&model, Quant::F32, &Calibration::default()).unwrap();
+        let why = misfit(&f32_blob).unwrap().unwrap();
+        assert!(
+            why.contains("B of flash") && why.contains("over the 65536 B"),
+            "{why}"
+        );
+    }
 }
