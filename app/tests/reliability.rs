@@ -281,6 +281,68 @@ fn nan_weights_are_refused() {
     std::fs::write(&file, &bytes).unwrap();
     let e = err_of(&smile(&eval_args(&run, &test, &dir.join("ev"))));
     assert!(e.contains("non-finite") && e.contains("diverged"), "{e}");
+    // The same in the run's checkpoint: a resume names the file and the tensor (issue 57,
+    // item 9), not a loss gone NaN some updates later.
+    let ck = run.join(trainer::checkpoint::CHECKPOINT_FILE);
+    let mut bytes = std::fs::read(&ck).unwrap();
+    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(&ck, &bytes).unwrap();
+    let train = dir.join("train.safetensors");
+    let e = err_of(&smile(
+        &[
+            &resume_args(&train, &run)[..],
+            &["--updates", "40", "--quiet"],
+        ]
+        .concat(),
+    ));
+    assert!(
+        e.contains("checkpoint.safetensors") && e.contains("non-finite"),
+        "{e}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// Issue 57, item 9: Meta-DAgger given an expert of another family says which family it got.
+#[test]
+fn a_dagger_expert_of_another_family_is_named() {
+    let (dir, train, _) = with_demos("dagger-family");
+    let walker = dir.join("walker-expert");
+    ok(&smile(&[
+        "expert",
+        "--env",
+        "walker-dyn",
+        "--total-steps",
+        "30",
+        "--learning-starts",
+        "10",
+        "--horizon",
+        "10",
+        "--hidden",
+        "8,8",
+        "--batch-size",
+        "8",
+        "--eval-episodes",
+        "1",
+        "-o",
+        s(&walker),
+        "--quiet",
+    ]));
+    let e = err_of(&smile(&[
+        "train",
+        "--algo",
+        "meta-dagger",
+        "--demos",
+        s(&train),
+        "--expert",
+        s(&walker),
+        "-o",
+        s(&dir.join("dagger")),
+        "--updates",
+        "10",
+        "--quiet",
+    ]));
+    assert!(e.contains("walker-dyn") && e.contains("point-goal"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
