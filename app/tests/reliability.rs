@@ -40,14 +40,27 @@ fn err_of(out: &std::process::Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-/// Starts a long Meta-BC run in the background and waits until it has written a kept policy.
-fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
-    // No early stop: the run must still be going when the test kills it.
+/// Starts a Meta-BC run of 100M steps in the background with the config `cfg_text` (no early
+/// stop: it must still be going when the test kills it) and waits until `ready` holds.
+fn spawn_long_bc(
+    train: &Path,
+    run: &Path,
+    cfg_text: &str,
+    seed: &str,
+    ready: impl Fn() -> bool,
+) -> std::process::Child {
     let cfg = run.with_extension("toml");
-    std::fs::write(&cfg, "patience = 0\n").unwrap();
+    std::fs::write(&cfg, cfg_text).unwrap();
     let child = Command::new(env!("CARGO_BIN_EXE_smile"))
         .args(common::meta_bc_args(train, run))
-        .args(["--config", s(&cfg), "--updates", "100000000"])
+        .args([
+            "--config",
+            s(&cfg),
+            "--updates",
+            "100000000",
+            "--seed",
+            seed,
+        ])
         .args(["--eval-every", "20", "--hidden", "8,8", "--quiet"])
         .env("RAYON_NUM_THREADS", "1")
         .stdout(Stdio::null())
@@ -55,13 +68,27 @@ fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
         .spawn()
         .unwrap();
     let t0 = Instant::now();
-    while !run.join(trainer::META_POLICY_FILE).exists()
-        || !run.join(trainer::checkpoint::CHECKPOINT_FILE).exists()
-    {
+    while !ready() {
         assert!(t0.elapsed() < Duration::from_secs(60), "no policy written");
-        std::thread::sleep(Duration::from_millis(50));
+        std::thread::sleep(Duration::from_millis(20));
     }
     child
+}
+
+/// A long Meta-BC run that has written a kept policy and a checkpoint.
+fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
+    spawn_long_bc(train, run, "patience = 0\n", "0", || {
+        run.join(trainer::META_POLICY_FILE).exists()
+            && run.join(trainer::checkpoint::CHECKPOINT_FILE).exists()
+    })
+}
+
+/// Overwrites the first f32 of the first tensor of the safetensors `file` with NaN.
+fn nan_first_float(file: &Path) {
+    let mut bytes = std::fs::read(file).unwrap();
+    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    std::fs::write(file, &bytes).unwrap();
 }
 
 /// Items 1 and 6: a second writer is refused with the holder's pid; a killed run's policy is
@@ -129,29 +156,10 @@ fn a_killed_run_does_not_look_finished_and_a_second_writer_is_refused() {
 /// budget) and kills it with SIGKILL once it has kept a policy: the state a run killed in its
 /// first window leaves (issue 57, item 1).
 fn killed_before_first_checkpoint(train: &Path, run: &Path, seed: &str) {
-    let cfg = run.with_extension("toml");
-    std::fs::write(&cfg, "patience = 0\ncheckpoint_every = 1000000000\n").unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_smile"))
-        .args(common::meta_bc_args(train, run))
-        .args([
-            "--config",
-            s(&cfg),
-            "--updates",
-            "100000000",
-            "--seed",
-            seed,
-        ])
-        .args(["--eval-every", "20", "--hidden", "8,8", "--quiet"])
-        .env("RAYON_NUM_THREADS", "1")
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let t0 = Instant::now();
-    while !run.join(trainer::META_POLICY_FILE).exists() {
-        assert!(t0.elapsed() < Duration::from_secs(60), "no policy written");
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    let cfg = "patience = 0\ncheckpoint_every = 1000000000\n";
+    let mut child = spawn_long_bc(train, run, cfg, seed, || {
+        run.join(trainer::META_POLICY_FILE).exists()
+    });
     child.kill().unwrap();
     child.wait().unwrap();
     assert!(!run.join(trainer::checkpoint::CHECKPOINT_FILE).exists());
@@ -273,21 +281,12 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
 #[test]
 fn nan_weights_are_refused() {
     let (dir, test, run) = with_tiny_bc("nan");
-    // Overwrite the first f32 of the first tensor's data with NaN.
-    let file = run.join(trainer::META_POLICY_FILE);
-    let mut bytes = std::fs::read(&file).unwrap();
-    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-    std::fs::write(&file, &bytes).unwrap();
+    nan_first_float(&run.join(trainer::META_POLICY_FILE));
     let e = err_of(&smile(&eval_args(&run, &test, &dir.join("ev"))));
     assert!(e.contains("non-finite") && e.contains("diverged"), "{e}");
     // The same in the run's checkpoint: a resume names the file and the tensor (issue 57,
     // item 9), not a loss gone NaN some updates later.
-    let ck = run.join(trainer::checkpoint::CHECKPOINT_FILE);
-    let mut bytes = std::fs::read(&ck).unwrap();
-    let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
-    std::fs::write(&ck, &bytes).unwrap();
+    nan_first_float(&run.join(trainer::checkpoint::CHECKPOINT_FILE));
     let train = dir.join("train.safetensors");
     let e = err_of(&smile(
         &[
