@@ -92,8 +92,8 @@ fn each_shipped_blob_runs_on_the_device_against_its_plant() {
                 physics: report.physics,
                 ..EnvConfig::default()
             },
+            // One whole episode of the plant.
             control: firmware_sim::LoopConfig {
-                ticks: Some(60),
                 budget_us: 1e6,
                 ..firmware_sim::LoopConfig::default()
             },
@@ -114,7 +114,7 @@ fn each_shipped_blob_runs_on_the_device_against_its_plant() {
             continue;
         }
         let session = run.unwrap();
-        assert_eq!(session.report.records.len(), 60, "{}", dir.display());
+        assert!(session.report.records.len() >= 10, "{}", dir.display());
         assert_eq!(session.report.faults, 0, "{}", dir.display());
         assert!(session.report.metric.is_finite(), "{}", dir.display());
         assert!(session.z.iter().all(|v| v.is_finite()));
