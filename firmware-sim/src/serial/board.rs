@@ -192,35 +192,29 @@ fn bootloader(
     wire: &mut Wire,
     board: &mut Board<'_>,
     device: &mut Device,
-    mut handover: Option<([u8; MAX_FRAME], usize)>,
+    handover: Option<([u8; MAX_FRAME], usize)>,
     stop: &dyn Fn() -> bool,
     on: &mut dyn FnMut(BoardEvent),
 ) -> Result<Option<([u8; MAX_FRAME], usize)>, BoardError> {
-    let mut buf = [0u8; MAX_FRAME];
+    let (mut buf, mut pending) = match handover {
+        Some((frame, len)) => (frame, Some(len)),
+        None => ([0u8; MAX_FRAME], None),
+    };
     loop {
-        let len = match handover.take() {
-            Some((frame, len)) => {
-                buf = frame;
-                len
+        let Some(len) = next_frame(wire, &mut buf, &mut pending, Duration::from_millis(50))? else {
+            if stop() {
+                return Ok(None);
             }
-            None => match wire.receive(Instant::now() + Duration::from_millis(50))? {
-                Some(frame) => {
-                    buf[..frame.len()].copy_from_slice(frame);
-                    frame.len()
-                }
-                None if stop() => return Ok(None),
-                None => continue,
-            },
+            continue;
         };
         let mut scratch = [0u8; MAX_FRAME];
         let Some(p) = packet(&buf[..len], &mut scratch) else {
             continue;
         };
-        if for_application(&p.message) && device.blob().is_ok() && board.dedup.seen(p.seq).is_none()
-        {
+        let fresh = board.dedup.seen(p.seq).is_none();
+        if fresh && for_application(&p.message) && device.blob().is_ok() {
             return Ok(Some((buf, len)));
         }
-        let before = blob_id(device);
         let answer = board.answer(p.seq, |b| match &p.message {
             HostMessage::Hello { .. } => Ok(Some(b.status(p.seq, device, false))),
             m => device.apply(m).map(|()| None),
@@ -229,12 +223,30 @@ fn bootloader(
             on(BoardEvent::Refused(reason));
         }
         board.reply(wire, &answer)?;
-        let after = blob_id(device);
-        if let Some((len, crc)) = after.filter(|_| after != before) {
+        let committed = matches!(p.message, HostMessage::BlobEnd)
+            && matches!(answer, DeviceMessage::Ack { .. });
+        if let Some((len, crc)) = blob_id(device).filter(|_| fresh && committed) {
             on(BoardEvent::Committed(len, crc));
             persist(board.config, device, on);
         }
     }
+}
+
+/// The next frame into `buf`: the one `pending` names (already in `buf`), else one read within
+/// `wait`; `None` when none came.
+fn next_frame(
+    wire: &mut Wire,
+    buf: &mut [u8; MAX_FRAME],
+    pending: &mut Option<usize>,
+    wait: Duration,
+) -> Result<Option<usize>, LinkError> {
+    if let Some(len) = pending.take() {
+        return Ok(Some(len));
+    }
+    Ok(wire.receive(Instant::now() + wait)?.map(|frame| {
+        buf[..frame.len()].copy_from_slice(frame);
+        frame.len()
+    }))
 }
 
 /// Writes the committed blob to the flash file, if there is one.
@@ -265,50 +277,36 @@ fn application(
     let mut last_tick: Option<Instant> = None;
     let mut holding = false;
     loop {
-        let len = match pending.take() {
-            Some(len) => len,
-            None => match wire.receive(Instant::now() + Duration::from_millis(20))? {
-                Some(frame) => {
-                    buf[..frame.len()].copy_from_slice(frame);
-                    frame.len()
-                }
-                None => {
-                    if let Some(t) = last_tick.filter(|t| t.elapsed() > board.config.watchdog) {
-                        // The host went silent: hold the safe action until it comes back.
-                        app.safe_action(&mut actuators[..act_dim]);
-                        board.watchdog_trips += 1;
-                        holding = true;
-                        last_tick = None;
-                        on(BoardEvent::Watchdog(t.elapsed()));
-                    }
-                    if stop() {
-                        return Ok(None);
-                    }
-                    continue;
-                }
-            },
+        let Some(len) = next_frame(wire, &mut buf, &mut pending, Duration::from_millis(20))? else {
+            if let Some(t) = last_tick.filter(|t| t.elapsed() > board.config.watchdog) {
+                // The host went silent: hold the safe action until it comes back.
+                app.safe_action(&mut actuators[..act_dim]);
+                board.watchdog_trips += 1;
+                holding = true;
+                last_tick = None;
+                on(BoardEvent::Watchdog(t.elapsed()));
+            }
+            if stop() {
+                return Ok(None);
+            }
+            continue;
         };
         let mut scratch = [0u8; MAX_FRAME];
         let Some(p) = packet(&buf[..len], &mut scratch) else {
             continue;
         };
-        if !for_application(&p.message)
-            && !matches!(p.message, HostMessage::Hello { .. })
-            && board.dedup.seen(p.seq).is_none()
+        let fresh = board.dedup.seen(p.seq).is_none();
+        if fresh && !for_application(&p.message) && !matches!(p.message, HostMessage::Hello { .. })
         {
             return Ok(Some((buf, len)));
         }
-        let fresh = board.dedup.seen(p.seq).is_none();
         let answer = board.answer(p.seq, |b| match &p.message {
             HostMessage::Hello { .. } => Ok(Some(b.status(p.seq, device, app.z().is_some()))),
             HostMessage::Tick { tick, obs } => {
                 let start = Instant::now();
-                let z_ready = app.z().is_some();
-                if !z_ready {
-                    return Err(Refusal::NotReady);
-                }
                 let mut action = crate::link::Floats::new();
                 let _ = action.resize(act_dim, 0.0);
+                // Untaught (no z yet): not ready; a bad reading: the safe action, a fault.
                 let fault = app
                     .act(obs, &mut action)
                     .map_err(|_| Refusal::NotReady)?

@@ -264,6 +264,8 @@ pub struct LinkEvent {
 pub struct RemoteDevice<'a> {
     link: SerialLink,
     blob: &'a [u8],
+    /// The blob's length and CRC-32, as the device's `Status` names a committed one.
+    blob_id: (u32, u32),
     context: Vec<&'a Trajectory>,
     dims: (usize, usize),
     safe: Vec<f32>,
@@ -320,6 +322,7 @@ impl<'a> RemoteDevice<'a> {
         let mut remote = Self {
             link,
             blob,
+            blob_id: (blob.len() as u32, infer_core::format::crc32(blob)),
             context,
             dims,
             safe,
@@ -354,8 +357,7 @@ impl<'a> RemoteDevice<'a> {
     /// Hello, the blob if the device lacks it, the context.
     fn bring_up(&mut self, tick: usize) -> Result<(), LinkError> {
         let status = self.link.hello()?;
-        let ours = (self.blob.len() as u32, infer_core::format::crc32(self.blob));
-        if status.blob == Some(ours) {
+        if status.blob == Some(self.blob_id) {
             self.note(tick, "the device holds this blob already: no upload".into());
         } else {
             let start = Instant::now();
@@ -403,9 +405,7 @@ impl<'a> RemoteDevice<'a> {
                 );
                 Ok(())
             }
-            Err(LinkError::Refused { reason, .. }) => {
-                Err(LoopError::Link(LinkError::Refused { seq: 0, reason }))
-            }
+            Err(e @ LinkError::Refused { .. }) => Err(LoopError::Link(e)),
             Err(e) if since.elapsed() > self.link.config.reconnect_for => {
                 Err(LoopError::Link(port_error(
                     &self.link.config.port.to_string_lossy(),
@@ -438,17 +438,13 @@ impl Brain for RemoteDevice<'_> {
 
     fn start_tick(&mut self, tick: usize) {
         let now = Instant::now();
-        let (base, first) = match self.schedule {
-            Some(base) => (base, false),
-            None => {
-                self.schedule = Some(now - self.period.mul_f64(tick as f64));
-                (now - self.period.mul_f64(tick as f64), true)
-            }
-        };
-        let due = base + self.period.mul_f64(tick as f64);
+        let offset = self.period.mul_f64(tick as f64);
+        // The schedule (re)starts with this tick due now (the first tick, or after a reconnect).
+        let base = *self.schedule.get_or_insert(now - offset);
+        let due = base + offset;
         if now < due {
             std::thread::sleep(due - now);
-        } else if !first && now > due + self.period / 2 {
+        } else if now > due + self.period / 2 {
             self.late_starts += 1;
         }
         self.tick_start = Instant::now().max(due);
@@ -473,48 +469,37 @@ impl Brain for RemoteDevice<'_> {
         }
         let deadline = self.tick_start + self.period;
         let start = Instant::now();
-        match self.link.tick(tick as u32, sensed, deadline) {
+        let lost = match self.link.tick(tick as u32, sensed, deadline) {
             Ok(Some((answer, fault, compute_us))) => {
                 self.round_trip_ns.push(start.elapsed().as_nanos() as u64);
                 self.device_compute_us.push(compute_us);
                 self.silent = 0;
                 action.copy_from_slice(&answer[..action.len()]);
-                Ok(Outcome {
+                return Ok(Outcome {
                     fault,
                     late: Some(false),
-                })
+                });
             }
             Ok(None) => {
-                self.misses += 1;
                 self.silent += 1;
-                if self.silent >= self.link.config.lost_after {
-                    self.lose(tick, format!("no answer to {} ticks in a row", self.silent));
-                }
-                Ok(Outcome {
-                    fault: false,
-                    late: Some(true),
-                })
+                (self.silent >= self.link.config.lost_after)
+                    .then(|| format!("no answer to {} ticks in a row", self.silent))
             }
+            // The device reset and lost its context (or its blob): bring it up again.
             Err(LinkError::Refused {
                 reason: Refusal::NotReady,
                 ..
-            }) => {
-                // The device reset and lost its context (or its blob): bring it up again.
-                self.lose(tick, "the device is not ready (it was reset)".into());
-                self.misses += 1;
-                Ok(Outcome {
-                    fault: false,
-                    late: Some(true),
-                })
-            }
-            Err(e) => {
-                self.lose(tick, e.to_string());
-                self.misses += 1;
-                Ok(Outcome {
-                    fault: false,
-                    late: Some(true),
-                })
-            }
+            }) => Some("the device is not ready (it was reset)".into()),
+            Err(e) => Some(e.to_string()),
+        };
+        // A miss: the loop holds the last applied action for this tick.
+        self.misses += 1;
+        if let Some(why) = lost {
+            self.lose(tick, why);
         }
+        Ok(Outcome {
+            fault: false,
+            late: Some(true),
+        })
     }
 }
