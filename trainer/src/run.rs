@@ -380,9 +380,12 @@ impl Run<'_> {
         let mut set = req.set.clone();
         let table = text.parse::<toml::Table>().unwrap_or_default();
         // The family comes from the demos; a file naming another would be silently ignored.
-        if let Some(env) = table.get("env").or(set.get("env"))
-            && env.as_str() != Some(self.family.name())
-        {
+        let named = if table.contains_key("env") {
+            &table
+        } else {
+            &set
+        };
+        if let Some(env) = crate::algo::other_env(named, self.family) {
             let whose = file
                 .as_ref()
                 .map_or("the flags".into(), |p| p.display().to_string());

@@ -14,6 +14,7 @@ mod fit;
 pub mod learner;
 pub mod meta_bc;
 mod registry;
+pub(crate) use registry::other_env;
 pub mod sac;
 pub mod smile;
 

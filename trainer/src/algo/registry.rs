@@ -39,9 +39,7 @@ impl Algo {
             type Output = Result<()>;
             fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
                 let table = self.0.parse::<toml::Table>().unwrap_or_default();
-                if let Some(env) = table.get("env")
-                    && env.as_str() != Some(self.1.name())
-                {
+                if let Some(env) = other_env(&table, self.1) {
                     return Err(crate::Error::Config(format!(
                         "env = {env} contradicts the plan's family {}",
                         self.1
@@ -54,6 +52,14 @@ impl Algo {
         }
         self.with_learner(Check(text, family))
     }
+}
+
+/// The `env` a configuration table names when it is not `family`: the family comes from the
+/// demos (or the plan), and [`MetaLearner::configure`] would overwrite another one silently.
+pub(crate) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Value> {
+    table
+        .get("env")
+        .filter(|env| env.as_str() != Some(family.name()))
 }
 
 #[cfg(test)]

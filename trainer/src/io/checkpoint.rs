@@ -91,13 +91,6 @@ pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Whether `dir` holds files of a run interrupted before its first checkpoint (see
-/// [`ensure_fresh_run_dir`]).
-pub fn holds_interrupted_run(dir: &Path) -> bool {
-    !dir.join(CHECKPOINT_FILE).exists()
-        && INTERRUPTED_RUN_FILES.iter().any(|f| dir.join(f).exists())
-}
-
 /// Removes what a run interrupted before its first checkpoint left in `dir` (the caller holds
 /// the directory's lock and has checked [`ensure_fresh_run_dir`] under it); returns the names
 /// removed, for the message that says so.
@@ -113,17 +106,6 @@ pub fn clear_interrupted_run(dir: &Path) -> Result<Vec<&'static str>> {
         }
     }
     Ok(removed)
-}
-
-/// A file holding a NaN or infinite float, named with the tensor and where.
-fn non_finite(path: &Path, name: &str, value: f32, index: usize) -> Error {
-    ckpt_err(
-        path,
-        format!(
-            "tensor `{name}` holds a non-finite value ({value} at index {index}): the run that \
-             wrote it diverged; resume from an earlier checkpoint or train again"
-        ),
-    )
 }
 
 fn ckpt_err(path: &Path, reason: impl Into<String>) -> Error {
@@ -234,24 +216,6 @@ impl Loaded {
             .ok_or_else(|| ckpt_err(&self.path, format!("missing tensor `{name}`")))
     }
 
-    /// Refuses a file holding a NaN or infinite float (a diverged run): through a ReLU a NaN
-    /// weight comes out 0, so such a policy would evaluate to a plausible-looking number.
-    pub fn ensure_finite(&self) -> Result<()> {
-        let mut names: Vec<&String> = self.tensors.keys().collect();
-        names.sort();
-        for name in names {
-            let t = &self.tensors[name];
-            if t.dtype() != DType::F32 {
-                continue;
-            }
-            let v = t.flatten_all()?.to_vec1::<f32>()?;
-            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                return Err(non_finite(&self.path, name, v[i], i));
-            }
-        }
-        Ok(())
-    }
-
     /// Where it was loaded from.
     pub fn path(&self) -> &Path {
         &self.path
@@ -324,9 +288,18 @@ pub fn load(dir: &Path) -> Result<Loaded> {
                     .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
                     .collect();
                 // Every reader (resume, warm start, a policy) refuses a diverged file here, by
-                // name, before a NaN surfaces far away as a loss or an action.
+                // name, before a NaN surfaces far away as a loss or an action (through a ReLU a
+                // NaN weight comes out 0: a policy would evaluate to a plausible number).
                 if let Some(i) = v.iter().position(|x| !x.is_finite()) {
-                    return Err(non_finite(&path, name, v[i], i));
+                    return Err(ckpt_err(
+                        &path,
+                        format!(
+                            "tensor `{name}` holds a non-finite value ({} at index {i}): the run \
+                             that wrote it diverged; resume from an earlier checkpoint or train \
+                             again",
+                            v[i]
+                        ),
+                    ));
                 }
                 Tensor::from_vec(v, shape, &Device::Cpu)?
             }

@@ -48,9 +48,24 @@ pub fn raw_transitions(
 /// Calibration inputs from demos: one context per task (all its trajectories) and every
 /// demo state as an observation.
 pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibration {
+    let od = demos.obs_dim;
+    let observations = demos
+        .tasks
+        .iter()
+        .flat_map(|td| &td.trajectories)
+        .flat_map(|t| t.obs.chunks_exact(od).map(<[f32]>::to_vec))
+        .collect();
+    infer_core::Calibration {
+        contexts: calibration_contexts(mp, demos),
+        observations,
+    }
+}
+
+/// One calibration context per task of `demos`: all its trajectories, in the blob's layout.
+fn calibration_contexts(mp: &MetaPolicy, demos: &DemoDataset) -> Vec<Vec<Vec<Vec<f32>>>> {
     let (od, ad) = (demos.obs_dim, demos.act_dim);
     let so = mp.encoder.config().state_only;
-    let contexts = demos
+    demos
         .tasks
         .iter()
         .map(|td| {
@@ -59,17 +74,7 @@ pub fn calibration(mp: &MetaPolicy, demos: &DemoDataset) -> infer_core::Calibrat
                 .map(|t| raw_transitions(t, od, ad, so))
                 .collect()
         })
-        .collect();
-    let observations = demos
-        .tasks
-        .iter()
-        .flat_map(|td| &td.trajectories)
-        .flat_map(|t| t.obs.chunks_exact(od).map(<[f32]>::to_vec))
-        .collect();
-    infer_core::Calibration {
-        contexts,
-        observations,
-    }
+        .collect()
 }
 
 /// Calibration inputs from demos and from the float policy's own closed loop (issue 59): for
@@ -85,9 +90,7 @@ pub fn closed_loop_calibration(
     env: sim::EnvConfig,
     episodes: usize,
 ) -> Result<infer_core::Calibration> {
-    let demo_calib = calibration(mp, demos);
     let od = demos.obs_dim;
-    let actor = mp.clone();
     let mut plant = sim::make_env(mp.family, env)?;
     let mut per_task: Vec<Vec<Vec<f32>>> = Vec::with_capacity(demos.tasks.len());
     for (t, td) in demos.tasks.iter().enumerate() {
@@ -97,13 +100,13 @@ pub fn closed_loop_calibration(
             .flat_map(|tr| tr.obs.chunks_exact(od).map(<[f32]>::to_vec))
             .collect();
         let context: Vec<&Trajectory> = td.trajectories.iter().collect();
-        let z = actor.latent(&context)?;
+        let z = mp.latent(&context)?;
         let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
         for e in 0..episodes {
             let seed = sim::seeds::EVALUATION_SEED + (t * episodes + e) as u64;
             let mut obs = plant.reset(&td.task, seed)?.to_vec();
             loop {
-                let action = actor.act(&obs, &z, true, &mut rng)?;
+                let action = mp.act(&obs, &z, true, &mut rng)?;
                 states.push(obs);
                 let done = plant.step(&action)?.done;
                 obs = plant.observation().to_vec();
@@ -119,7 +122,7 @@ pub fn closed_loop_calibration(
         .flat_map(|i| per_task.iter().map(move |states| states[i].clone()))
         .collect();
     Ok(infer_core::Calibration {
-        contexts: demo_calib.contexts,
+        contexts: calibration_contexts(mp, demos),
         observations,
     })
 }
