@@ -109,12 +109,12 @@ pub struct Row {
     pub episodes_per_task: usize,
     /// Float policy on the host.
     pub float: f32,
-    /// f32, w8a32 and w8a8 blobs on the host.
-    pub blobs: [Cell; 3],
-    /// w8a8 blob bytes (f32 and w8a32 in `blob_bytes_all`).
+    /// The blobs of [`BLOB_COLUMNS`] on the host.
+    pub blobs: [Cell; 4],
+    /// The deployed blob's bytes (w8a8 with w8a32 edges; the others in `blob_bytes_all`).
     pub blob_bytes: usize,
-    /// Bytes of the f32, w8a32 and w8a8 blobs.
-    pub blob_bytes_all: [usize; 3],
+    /// Bytes of the blobs of [`BLOB_COLUMNS`].
+    pub blob_bytes_all: [usize; 4],
     /// The device's RAM for the application.
     pub ram_bytes: usize,
     /// Whether the w8a8 blob and its runners fit 64 KiB of flash and 16 KiB of RAM.
@@ -126,6 +126,14 @@ pub struct Row {
     /// Why the w8a8 blob cannot run on the 64 KiB / 16 KiB device, and by how much.
     pub does_not_fit: Option<String>,
 }
+
+/// The blobs measured on the host, in the table's order; the last is the one deployed.
+pub const BLOB_COLUMNS: [&str; 4] = [
+    "f32",
+    "w8a32",
+    "w8a8 (int8 throughout)",
+    "w8a8, w8a32 edges",
+];
 
 /// The device conditions, in the table's order.
 pub const DEVICE_COLUMNS: [&str; 4] = [
@@ -184,26 +192,30 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
     };
     let float = host(&mut mp, "float")?;
     on(format!("{}: float {float:.4}", dir.display()));
+    // The deployed blob is the last: w8a8 with its first and last layers in w8a32.
+    use infer_core::Quant::{F32, W8A8, W8A32};
+    let variants = [(F32, F32), (W8A32, W8A32), (W8A8, W8A8), (W8A8, W8A32)];
     let mut blobs = Vec::new();
-    let mut bytes = [0; 3];
-    for (i, quant) in [
-        infer_core::Quant::F32,
-        infer_core::Quant::W8A32,
-        infer_core::Quant::W8A8,
-    ]
-    .into_iter()
-    .enumerate()
-    {
-        let blob = export::export_blob(&mp, quant, Some(&train))?;
+    let mut bytes = [0; 4];
+    for (i, (quant, edges)) in variants.into_iter().enumerate() {
+        let options = infer_core::WriteOptions {
+            edges: Some(edges),
+            ..Default::default()
+        };
+        let blob = export::export_blob_with(&mp, quant, Some(&train), None, &options)?;
         bytes[i] = blob.len();
         let metric = {
             let model = export::load_blob(&blob)?;
             host(&mut BlobActor::new(&model)?, "blob")?
         };
-        on(format!("  {quant:?} blob ({} B): {metric:.4}", blob.len()));
+        on(format!(
+            "  {} blob ({} B): {metric:.4}",
+            BLOB_COLUMNS[i],
+            blob.len()
+        ));
         blobs.push((blob, cell(family, float, metric)));
     }
-    let w8a8 = &blobs[2].0;
+    let w8a8 = &blobs[3].0;
     let does_not_fit = misfit(w8a8)?;
     let device = match &does_not_fit {
         Some(why) => {
@@ -233,8 +245,8 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         tasks: family.test_tasks().len(),
         episodes_per_task: config.draws * config.rollouts,
         float,
-        blobs: [blobs[0].1, blobs[1].1, blobs[2].1],
-        blob_bytes: bytes[2],
+        blobs: [blobs[0].1, blobs[1].1, blobs[2].1, blobs[3].1],
+        blob_bytes: bytes[3],
         blob_bytes_all: bytes,
         ram_bytes: ram,
         fits: does_not_fit.is_none(),
@@ -343,9 +355,11 @@ fn device_column(
                 retries += s.link.retries;
             }
         }
-        per_task.push(metrics.iter().sum::<f32>() / metrics.len() as f32);
+        // Averaged as the host's evaluation averages, so that the same episodes give the
+        // same number to the last bit.
+        per_task.push(eval::mean_std(&metrics).0);
     }
-    let metric = per_task.iter().sum::<f32>() / per_task.len() as f32;
+    let metric = eval::mean_std(&per_task).0;
     ticks.sort_by(f64::total_cmp);
     let at = |q: f64| ticks[((ticks.len() - 1) as f64 * q).round() as usize];
     Ok(DeviceCell {
@@ -358,9 +372,10 @@ fn device_column(
 /// The table in markdown: one row per policy.
 pub fn markdown(rows: &[Row]) -> String {
     let mut md = String::from(
-        "| family, plant | method | metric | float | f32 blob | w8a32 blob | w8a8 blob | device: \
-         ideal | noise + ADC | positions + estimator | lossy link | blob B | RAM B | fits | \
-         tick us (median / p99) | tasks x episodes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| family, plant | method | metric | float | f32 blob | w8a32 blob | w8a8 blob (int8 \
+         throughout) | w8a8 blob, w8a32 edges | device: ideal | noise + ADC | positions + \
+         estimator | lossy link | blob B | RAM B | fits | tick us (median / p99) | tasks x \
+         episodes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     let pct = |c: &Cell| format!("{:.4} ({:+.1}%)", c.metric, c.degradation_pct);
     for r in rows {
@@ -379,7 +394,7 @@ pub fn markdown(rows: &[Row]) -> String {
             format!("{:.1} / {:.1}", d[0].tick_us.0, d[0].tick_us.1)
         });
         md.push_str(&format!(
-            "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} x {} |\n",
+            "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} x {} |\n",
             r.family,
             r.physics,
             r.method,
@@ -388,6 +403,7 @@ pub fn markdown(rows: &[Row]) -> String {
             pct(&r.blobs[0]),
             pct(&r.blobs[1]),
             pct(&r.blobs[2]),
+            pct(&r.blobs[3]),
             device[0],
             device[1],
             device[2],

@@ -277,9 +277,11 @@ fn train_expert(args: &Quickstart<'_>, dir: &Path) -> Result<(Expert, String)> {
     let mut run = expert::ExpertTrainer::new(cfg.clone())?;
     let pb = bar(cfg.total_steps, args.quiet, "env steps");
     expert::train(&mut run, dir, &mut |e| match e {
-        expert::Event::Step(n) => pb.set_position(n),
-        expert::Event::Episode(r, _) => pb.set_message(format!("return {:.1}", r.episodic_return)),
-        expert::Event::Checkpoint(_) => {}
+        trainer::Progress::Steps(n) => pb.set_position(n),
+        trainer::Progress::Episode {
+            episodic_return, ..
+        } => pb.set_message(format!("return {episodic_return:.1}")),
+        _ => {}
     })?;
     pb.finish();
     let note = format!(
@@ -436,7 +438,7 @@ fn train_learner<L: MetaLearner>(
             Some(mse) => format!("val mse {mse:.4}, held-out train tasks {m:.3}"),
             None => format!("held-out train tasks {m:.3} (best {best:.3})"),
         }),
-        Progress::Checkpoint(_) => {}
+        Progress::Checkpoint(_) | Progress::Episode { .. } => {}
         Progress::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
     })?;
     pb.finish();
@@ -633,6 +635,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         bytes: blob.len(),
         blob_sha256: trainer::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),
+        edges: export::default_edges(infer_core::Quant::W8A8).map(export::quant_name),
         algo: smile_policy.algo.clone(),
         env: args.env,
         physics: smile_policy.physics,

@@ -265,8 +265,15 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
         "{row}"
     );
     assert_eq!(
-        row["device"][0]["cell"]["metric"], row["blobs"][2]["metric"],
-        "the ideal device loop is the host's evaluation of the same blob: {row}"
+        row["device"][0]["cell"]["metric"], row["blobs"][3]["metric"],
+        "the ideal device loop is the host's evaluation of the same (deployed) blob: {row}"
+    );
+    // The deployed blob keeps w8a8's flash: its edge layers store int8 weights too.
+    let bytes = &row["blob_bytes_all"];
+    assert!(bytes[3].as_u64() <= bytes[2].as_u64(), "{row}");
+    assert!(
+        bytes[3].as_u64().unwrap() * 3 < bytes[0].as_u64().unwrap(),
+        "{row}"
     );
     assert_eq!(row["fits"], true, "{row}");
     let md = std::fs::read_to_string(out.join("device-table.md")).unwrap();

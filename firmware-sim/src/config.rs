@@ -66,7 +66,7 @@ pub enum LoopError {
     Link(#[from] crate::link::LinkError),
     /// The estimator cannot be built for this plant and configuration.
     #[error("estimator: {0}")]
-    Estimator(#[from] infer_core::EstimatorError),
+    Estimator(#[from] infer_core::Error),
     /// The sensor noise std is negative or not finite.
     #[error("sensor noise std must be finite and >= 0, got {0}")]
     Noise(f32),

@@ -4,7 +4,7 @@
 
 use core::mem::size_of;
 
-use infer_core::{ContextEncoder, InferError, Model, Policy};
+use infer_core::{ContextEncoder, Model, Policy};
 
 use crate::link::{Dedup, Endpoint, HostMessage, MAX_DIM, MAX_FRAME, Refusal, serve};
 
@@ -37,7 +37,7 @@ pub enum DeviceError {
     NoBlob,
     /// The blob failed validation.
     #[error("blob rejected: {0}")]
-    Blob(#[from] infer_core::BlobError),
+    Blob(#[from] infer_core::Error),
     /// The application needs more RAM than the budget.
     #[error("model needs {needed} B of RAM, budget is {budget} B")]
     RamBudget {
@@ -136,7 +136,7 @@ impl Device {
             HostMessage::BlobEnd => {
                 let (len, crc) = self.announced.take().ok_or(Refusal::NotReady)?;
                 let blob = &self.flash[..self.received];
-                if self.received != len || infer_core::format::crc32(blob) != crc {
+                if self.received != len || infer_core::crc32(blob) != crc {
                     return Err(Refusal::BadBlob);
                 }
                 let model = Model::from_bytes(blob).map_err(|_| Refusal::BadBlob)?;
@@ -227,7 +227,7 @@ impl<'m, 'a> Controller<'m, 'a> {
         &mut self,
         obs: &[f32],
         action: &mut [f32],
-    ) -> Result<Result<(), InferError>, DeviceError> {
+    ) -> Result<Result<(), infer_core::Error>, DeviceError> {
         if !self.taught {
             return Err(DeviceError::NotTaught);
         }

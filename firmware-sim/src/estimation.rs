@@ -2,7 +2,7 @@
 //! angles, directly measured values; see [`sim::Family::obs_components`]) and infer-core's
 //! [`Estimator`] rebuilds the observation the policy was trained on.
 
-use infer_core::{Channel, Estimator, EstimatorConfig, EstimatorError};
+use infer_core::{Channel, Estimator, EstimatorConfig};
 use sim::{Family, ObsComponent};
 
 pub use crate::config::Sensing;
@@ -95,7 +95,7 @@ impl SensorPath {
     pub fn estimate(&mut self, obs: &mut [f32]) -> Result<Option<bool>, LoopError> {
         match self.estimator.step(&self.readings, obs) {
             Ok(report) => Ok(Some(report.rejected > 0)),
-            Err(EstimatorError::NotReady { .. }) => Ok(None),
+            Err(infer_core::Error::NotReady { .. }) => Ok(None),
             Err(e) => Err(e.into()),
         }
     }

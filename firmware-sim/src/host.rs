@@ -24,7 +24,7 @@ pub fn upload_with(send: &mut Send<'_>, blob: &[u8]) -> Result<(), LinkError> {
     let len = u32::try_from(blob.len()).map_err(|_| LinkError::FrameTooLarge)?;
     send(&HostMessage::BlobBegin {
         len,
-        crc: infer_core::format::crc32(blob),
+        crc: infer_core::crc32(blob),
     })?;
     for (i, chunk) in blob.chunks(CHUNK_BYTES).enumerate() {
         send(&HostMessage::BlobChunk {

@@ -226,7 +226,7 @@ pub fn encode_frame<T: Serialize>(value: &T, out: &mut [u8]) -> Result<usize, Li
     let n = postcard::to_slice(value, &mut raw[..MAX_FRAME - 8])
         .map_err(|_| LinkError::FrameTooLarge)?
         .len();
-    let crc = infer_core::format::crc32(&raw[..n]);
+    let crc = infer_core::crc32(&raw[..n]);
     raw[n..n + 4].copy_from_slice(&crc.to_le_bytes());
     let m = cobs::try_encode(&raw[..n + 4], out).map_err(|_| LinkError::FrameTooLarge)?;
     *out.get_mut(m).ok_or(LinkError::FrameTooLarge)? = 0;
@@ -241,7 +241,7 @@ pub fn decode_frame<'s>(frame: &[u8], scratch: &'s mut [u8]) -> Result<&'s [u8],
         return Err(LinkError::Checksum);
     }
     let (payload, crc) = scratch[..n].split_at(n - 4);
-    if infer_core::format::crc32(payload).to_le_bytes() != crc {
+    if infer_core::crc32(payload).to_le_bytes() != crc {
         return Err(LinkError::Checksum);
     }
     Ok(payload)

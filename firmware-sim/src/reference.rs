@@ -66,7 +66,7 @@ pub fn point_goal_calibration(demos: &[&sim::Trajectory]) -> infer_core::Calibra
 pub fn pd_point_goal_blob(
     quant: infer_core::Quant,
     demos: &[&sim::Trajectory],
-) -> Result<Vec<u8>, infer_core::WriteError> {
+) -> Result<Vec<u8>, infer_core::Error> {
     infer_core::write_blob(
         &pd_point_goal_model(),
         quant,

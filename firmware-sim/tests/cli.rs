@@ -29,6 +29,7 @@ fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
         bytes: 0,
         blob_sha256: blob_sha256.into(),
         quant: "w8a8".into(),
+        edges: None,
         algo: "scripted-pd".into(),
         env: Family::PointGoal,
         physics: sim::Physics::Rapier,

@@ -121,7 +121,7 @@ fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
 
     // Half a blob, then silence: still nothing to run.
     let mut link = SimLink::new(LinkConfig::default());
-    let crc = infer_core::format::crc32(&bytes);
+    let crc = infer_core::crc32(&bytes);
     link.send(
         &mut device,
         &HostMessage::BlobBegin {

@@ -6,7 +6,7 @@ mod common;
 use firmware_sim::link::{Endpoint, HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::session::{SessionConfig, run_session};
 use firmware_sim::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, host, reference};
-use infer_core::{BlobError, Dims, FloatModel, Model, ModelKind, Quant, write_blob};
+use infer_core::{Dims, Error, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{Family, Task, Trajectory};
 
 fn demo() -> Trajectory {
@@ -50,7 +50,7 @@ fn assert_upload_does_not_fit(blob: &[u8], config: DeviceConfig) {
 fn begin(blob: &[u8]) -> HostMessage<'static> {
     HostMessage::BlobBegin {
         len: blob.len() as u32,
-        crc: infer_core::format::crc32(blob),
+        crc: infer_core::crc32(blob),
     }
 }
 
@@ -142,7 +142,7 @@ fn oversize_incomplete_corrupt_and_invalid_blobs_are_refused() {
     not_a_model[0] = b'X';
     let wrong_crc = HostMessage::BlobBegin {
         len: blob.len() as u32,
-        crc: infer_core::format::crc32(&blob) ^ 1,
+        crc: infer_core::crc32(&blob) ^ 1,
     };
     let cases: [(HostMessage<'_>, &[u8]); 3] = [
         (wrong_crc, &blob),
@@ -261,7 +261,7 @@ fn a_valid_blob_the_device_cannot_run_is_refused_and_the_session_names_why() {
     assert!(
         matches!(
             err,
-            firmware_sim::SessionError::Device(DeviceError::Blob(BlobError::CapacityExceeded {
+            firmware_sim::SessionError::Device(DeviceError::Blob(Error::CapacityExceeded {
                 capacity: CAPACITY,
                 ..
             }))

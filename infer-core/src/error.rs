@@ -1,15 +1,26 @@
-//! The two error enums: one for loading a blob, one for running it.
+//! infer-core's one error type: loading a blob, running it, the estimator and the writer all
+//! return [`Error`], so a caller matches one enum and `?` works across them.
 
 use core::fmt;
 
-/// Why a byte string is not a usable policy blob.
+/// `Result` with infer-core's [`Error`].
+pub type Result<T> = core::result::Result<T, Error>;
+
+/// Everything that can go wrong in infer-core, by where it happens:
 ///
-/// Returned by [`Model::from_bytes`](crate::Model::from_bytes) and by the constructors of the
-/// runners ([`Policy`](crate::Policy), [`ContextEncoder`](crate::ContextEncoder)), which check
-/// the blob's widths against their compiled capacity once, before anything runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// - **loading** ([`Model::from_bytes`](crate::Model::from_bytes), and the runners'
+///   constructors, which check the blob's widths against their compiled capacity once): the
+///   byte string is not a usable policy blob;
+/// - **running** ([`Policy::act`](crate::Policy::act),
+///   [`ContextEncoder`](crate::ContextEncoder)): one inference call could not give a normal
+///   result;
+/// - **estimating** ([`Estimator`](crate::Estimator)): a configuration the estimator cannot
+///   take, or no estimate yet;
+/// - **writing** (`write_blob`, feature `alloc`): a float model or calibration that cannot
+///   become a blob.
+#[derive(Debug, Clone, Copy, PartialEq)]
 #[non_exhaustive]
-pub enum BlobError {
+pub enum Error {
     /// Fewer bytes than the fixed envelope header.
     TooShort {
         /// Bytes given.
@@ -60,7 +71,7 @@ pub enum BlobError {
         part: &'static str,
     },
     /// An MLP has more layers than the format allows
-    /// ([`MAX_LAYERS`](crate::format::MAX_LAYERS)).
+    /// ([`MAX_LAYERS`](crate::MAX_LAYERS)).
     TooManyLayers {
         /// Which MLP.
         part: &'static str,
@@ -88,6 +99,15 @@ pub enum BlobError {
     },
     /// The policy's last layer has a non-linearity; the action is `tanh` of its raw output.
     PolicyOutputActivation,
+    /// A layer is stored coarser than the header's quantization, the blob's lowest precision.
+    LayerBelowHeader {
+        /// Which MLP.
+        part: &'static str,
+        /// The layer's quantization.
+        layer: crate::format::Quant,
+        /// The header's quantization.
+        header: crate::format::Quant,
+    },
     /// A layer is wider than the runner's compiled capacity `W`.
     CapacityExceeded {
         /// Width the blob needs.
@@ -95,9 +115,113 @@ pub enum BlobError {
         /// Width this runner was compiled with.
         capacity: usize,
     },
+
+    // Running a loaded blob.
+    /// An input slice has the wrong length.
+    WrongLength {
+        /// Which input: `"obs"`, `"z"`, `"action"`, `"next_obs"`.
+        input: &'static str,
+        /// Length the model needs.
+        expected: usize,
+        /// Length given.
+        found: usize,
+    },
+    /// An input contains NaN or infinity. For [`Policy::act`](crate::Policy::act) the safe
+    /// action (the centre of the action range) has been written to the output.
+    NonFiniteInput {
+        /// Which input.
+        input: &'static str,
+    },
+    /// The computation overflowed to a non-finite value; the safe action has been written.
+    NonFiniteOutput,
+    /// [`ContextEncoder::latent`](crate::ContextEncoder::latent) was called before any
+    /// transition was pushed.
+    EmptyContext,
+
+    // The estimator.
+    /// More channels than the estimator's capacity `N`, or none.
+    ChannelCount {
+        /// Channels given.
+        found: usize,
+        /// The capacity `N`.
+        capacity: usize,
+    },
+    /// A rate names an entry that is not a position or angle, or has a non-finite scale.
+    BadRate {
+        /// Index of the rate channel.
+        index: usize,
+        /// The index it names.
+        of: usize,
+    },
+    /// An estimator configuration value is out of its range.
+    BadConfig {
+        /// Which field of [`EstimatorConfig`](crate::EstimatorConfig).
+        field: &'static str,
+    },
+    /// The channel at this observation index has had no valid reading yet: there is no
+    /// estimate to give the policy.
+    NotReady {
+        /// Observation index.
+        index: usize,
+    },
+
+    // Writing a blob (feature `alloc`). A blob that fails to load back after writing (a
+    // writer bug) returns the loader's error.
+    /// A dimension or tensor length of the float model is inconsistent.
+    Shape(&'static str),
+    /// `w8a8` needs calibration contexts and observations.
+    MissingCalibration,
+    /// A dimension does not fit the format's `u16`.
+    TooLarge,
+    /// A layer's input width is not the width that reaches it (the MLP's input or the
+    /// previous layer's output), or an MLP's output is not the model's dimension.
+    LayerWidth {
+        /// Which MLP.
+        part: &'static str,
+        /// Index of the layer.
+        layer: usize,
+        /// `"input"` or `"output"`.
+        side: &'static str,
+        /// Width the model structure requires.
+        expected: usize,
+        /// Width the layer has.
+        got: usize,
+    },
+    /// A `w8a8` calibration row does not have the model's dimension.
+    CalibrationLength {
+        /// `"observation"` or `"context transition"`.
+        what: &'static str,
+        /// Index of the observation, or of the context holding the transition.
+        index: usize,
+        /// Length the model needs.
+        expected: usize,
+        /// Length given.
+        got: usize,
+    },
+    /// A weight or bias too large for the blob's arithmetic (its scales and sums would
+    /// overflow f32): a diverged or corrupted network, not a trained one.
+    OutOfRange {
+        /// Which MLP.
+        part: &'static str,
+        /// Index of the layer.
+        layer: usize,
+        /// The largest magnitude found.
+        value: f32,
+    },
+    /// The higher precision asked for the edge layers is coarser than the blob's own.
+    EdgesBelowQuant {
+        /// The edge layers' quantization asked for.
+        edges: crate::format::Quant,
+        /// The blob's quantization.
+        quant: crate::format::Quant,
+    },
 }
 
-impl fmt::Display for BlobError {
+/// Largest weight or bias magnitude a blob takes: trained networks stay orders of magnitude
+/// below it, and beyond it a quantization scale or an accumulated sum can overflow f32.
+pub(crate) const MAX_PARAMETER: f32 = 1.0e6;
+
+impl fmt::Display for Error {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::TooShort { len } => write!(
@@ -157,56 +281,85 @@ impl fmt::Display for BlobError {
             Self::PolicyOutputActivation => f.write_str(
                 "policy: last layer must have identity activation (tanh is applied to its output)",
             ),
+            Self::LayerBelowHeader {
+                part,
+                layer,
+                header,
+            } => write!(
+                f,
+                "{part}: a layer is stored as {layer:?}, coarser than the blob's {header:?}"
+            ),
             Self::CapacityExceeded { needed, capacity } => write!(
                 f,
                 "blob needs width {needed} but this runner was built for at most {capacity}"
             ),
-        }
-    }
-}
-
-/// Why one inference call could not produce a normal result.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[non_exhaustive]
-pub enum InferError {
-    /// An input slice has the wrong length.
-    WrongLength {
-        /// Which input: `"obs"`, `"z"`, `"action"`, `"next_obs"`.
-        input: &'static str,
-        /// Length the model needs.
-        expected: usize,
-        /// Length given.
-        found: usize,
-    },
-    /// An input contains NaN or infinity. For [`Policy::act`](crate::Policy::act) the safe
-    /// action (the centre of the action range) has been written to the output.
-    NonFiniteInput {
-        /// Which input.
-        input: &'static str,
-    },
-    /// The computation overflowed to a non-finite value; the safe action has been written.
-    NonFiniteOutput,
-    /// [`ContextEncoder::latent`](crate::ContextEncoder::latent) was called before any
-    /// transition was pushed.
-    EmptyContext,
-}
-
-impl fmt::Display for InferError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
             Self::WrongLength {
                 input,
                 expected,
                 found,
-            } => write!(f, "{input}: length {found}, the model needs {expected}"),
+            } => write!(f, "{input}: length {found}, {expected} needed"),
             Self::NonFiniteInput { input } => {
                 write!(f, "{input} contains NaN or infinity; safe action used")
             }
             Self::NonFiniteOutput => f.write_str("policy output overflowed; safe action used"),
             Self::EmptyContext => f.write_str("no context transition pushed yet"),
+            Self::ChannelCount { found, capacity } => write!(
+                f,
+                "{found} observation channels; the estimator takes 1 to {capacity}"
+            ),
+            Self::BadRate { index, of } => write!(
+                f,
+                "channel {index} is a rate of channel {of}, which is not a position or angle (or its scale is not finite)"
+            ),
+            Self::BadConfig { field } => write!(f, "estimator config: {field} out of range"),
+            Self::NotReady { index } => write!(
+                f,
+                "no valid reading of observation entry {index} yet: no estimate"
+            ),
+            Self::Shape(what) => write!(f, "inconsistent shape: {what}"),
+            Self::MissingCalibration => {
+                f.write_str("w8a8 needs calibration contexts and observations")
+            }
+            Self::TooLarge => f.write_str("a dimension exceeds 65535"),
+            Self::LayerWidth {
+                part,
+                layer,
+                side,
+                expected,
+                got,
+            } => write!(
+                f,
+                "{part} layer {layer}: {side} width {got}, the model needs {expected}"
+            ),
+            Self::CalibrationLength {
+                what,
+                index,
+                expected,
+                got,
+            } => {
+                let at = if what == "observation" {
+                    ""
+                } else {
+                    "in context "
+                };
+                write!(
+                    f,
+                    "calibration {what} {at}{index}: length {got}, the model needs {expected}"
+                )
+            }
+            Self::OutOfRange { part, layer, value } => write!(
+                f,
+                "{part} layer {layer}: a parameter of magnitude {value:e} exceeds the blob's \
+                 {MAX_PARAMETER:e} (a diverged or corrupted network: retrain or take an earlier \
+                 checkpoint)"
+            ),
+            Self::EdgesBelowQuant { edges, quant } => write!(
+                f,
+                "edge layers as {edges:?} would be coarser than the blob's {quant:?}: \
+                 the edges take a higher precision, not a lower one"
+            ),
         }
     }
 }
 
-impl core::error::Error for BlobError {}
-impl core::error::Error for InferError {}
+impl core::error::Error for Error {}

@@ -1,36 +1,9 @@
-//! On-device state estimation for position-only sensing: a constant-velocity Kalman filter
-//! per measured position, in fixed-size `nalgebra` matrices (no heap).
-//!
-//! A device that measures positions (encoders, a tracker) but whose policy was trained on
-//! positions *and* velocities runs one [`Estimator`] between its sensors and
-//! [`Policy::act`](crate::Policy::act). Each observation entry is a [`Channel`]: a measured
-//! position or angle (filtered), the rate of one of them (estimated, never measured), or a
-//! directly measured value (passed through). Every tick, each position's filter
-//!
-//! 1. predicts with the constant-velocity model, state `x = [p, v]`:
-//!    `x <- F x`, `P <- F P F^T + Q`, with `F = [[1, dt], [0, 1]]` and
-//!    `Q = a^2 [[dt^4/3, dt^3/2], [dt^3/2, dt^2]]` (white acceleration noise of std
-//!    [`accel_std`](EstimatorConfig::accel_std) `= a` over the step);
-//! 2. updates with the reading `y` if it is valid (finite and inside
-//!    `+-`[`limit`](EstimatorConfig::limit)): innovation `e = y - p` (wrapped to
-//!    `[-pi, pi]` for angles), `S = P00 + r^2`, `K = P[:, 0] / S`, `x <- x + K e`, and the
-//!    Joseph form `P <- (I - K H) P (I - K H)^T + K r^2 K^T` (`r` =
-//!    [`meas_std`](EstimatorConfig::meas_std));
-//! 3. otherwise holds the prediction and reports the reading as rejected: an invalid
-//!    reading never reaches the observation.
-//!
-//! The observation then gets `p` for a position, `scale * v` of the named position for a
-//! rate, and the last valid reading for a direct channel. A channel's first valid reading
-//! starts its filter at `[y, 0]` with `P = diag(r^2, initial_rate_std^2)`; until every
-//! channel has had one, [`Estimator::step`] returns [`EstimatorError::NotReady`] and the
-//! observation is not written.
-//!
-//! Everything is `f32` in a fixed order of operations: bit-exact and deterministic.
-
+//! On-device state estimation for position-only sensing (the docs are on [`Estimator`]).
 use core::f32::consts::TAU;
-use core::fmt;
 
 use nalgebra::{Matrix2, RowVector2, Vector2};
+
+use crate::error::{Error, Result};
 
 /// What one observation entry is to the estimator.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -77,73 +50,6 @@ pub struct EstimatorConfig {
 /// Smallest measurement variance used, so that a noise-free sensor keeps the gain finite.
 pub const MIN_MEAS_VAR: f32 = 1e-10;
 
-/// Why the estimator cannot be built or did not produce an observation.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
-pub enum EstimatorError {
-    /// More channels than the estimator's capacity `N`, or none.
-    ChannelCount {
-        /// Channels given.
-        found: usize,
-        /// The capacity `N`.
-        capacity: usize,
-    },
-    /// A rate names an entry that is not a position or angle, or has a non-finite scale.
-    BadRate {
-        /// Index of the rate channel.
-        index: usize,
-        /// The index it names.
-        of: usize,
-    },
-    /// A configuration value is out of its range.
-    BadConfig {
-        /// Which field of [`EstimatorConfig`].
-        field: &'static str,
-    },
-    /// A slice has the wrong length.
-    WrongLength {
-        /// `"readings"` or `"obs"`.
-        input: &'static str,
-        /// Length needed.
-        expected: usize,
-        /// Length given.
-        found: usize,
-    },
-    /// The channel at this observation index has had no valid reading yet: there is no
-    /// estimate to give the policy.
-    NotReady {
-        /// Observation index.
-        index: usize,
-    },
-}
-
-impl fmt::Display for EstimatorError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match *self {
-            Self::ChannelCount { found, capacity } => write!(
-                f,
-                "{found} observation channels; the estimator takes 1 to {capacity}"
-            ),
-            Self::BadRate { index, of } => write!(
-                f,
-                "channel {index} is a rate of channel {of}, which is not a position or angle (or its scale is not finite)"
-            ),
-            Self::BadConfig { field } => write!(f, "estimator config: {field} out of range"),
-            Self::WrongLength {
-                input,
-                expected,
-                found,
-            } => write!(f, "{input}: length {found}, the estimator needs {expected}"),
-            Self::NotReady { index } => write!(
-                f,
-                "no valid reading of observation entry {index} yet: no estimate"
-            ),
-        }
-    }
-}
-
-impl core::error::Error for EstimatorError {}
-
 /// What a tick did with the readings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct StepReport {
@@ -182,6 +88,35 @@ fn positive(value: f32) -> bool {
 
 /// A bank of constant-velocity Kalman filters for up to `N` observation entries. Its size is
 /// fixed at compile time; it allocates nothing.
+///
+/// On-device state estimation for position-only sensing: a constant-velocity Kalman filter
+/// per measured position, in fixed-size `nalgebra` matrices (no heap).
+///
+/// A device that measures positions (encoders, a tracker) but whose policy was trained on
+/// positions *and* velocities runs one `Estimator` between its sensors and
+/// [`Policy::act`](crate::Policy::act). Each observation entry is a [`Channel`]: a measured
+/// position or angle (filtered), the rate of one of them (estimated, never measured), or a
+/// directly measured value (passed through). Every tick, each position's filter
+///
+/// 1. predicts with the constant-velocity model, state `x = [p, v]`:
+///    `x <- F x`, `P <- F P F^T + Q`, with `F = [[1, dt], [0, 1]]` and
+///    `Q = a^2 [[dt^4/3, dt^3/2], [dt^3/2, dt^2]]` (white acceleration noise of std
+///    [`accel_std`](EstimatorConfig::accel_std) `= a` over the step);
+/// 2. updates with the reading `y` if it is valid (finite and inside
+///    `+-`[`limit`](EstimatorConfig::limit)): innovation `e = y - p` (wrapped to
+///    `[-pi, pi]` for angles), `S = P00 + r^2`, `K = P[:, 0] / S`, `x <- x + K e`, and the
+///    Joseph form `P <- (I - K H) P (I - K H)^T + K r^2 K^T` (`r` =
+///    [`meas_std`](EstimatorConfig::meas_std));
+/// 3. otherwise holds the prediction and reports the reading as rejected: an invalid
+///    reading never reaches the observation.
+///
+/// The observation then gets `p` for a position, `scale * v` of the named position for a
+/// rate, and the last valid reading for a direct channel. A channel's first valid reading
+/// starts its filter at `[y, 0]` with `P = diag(r^2, initial_rate_std^2)`; until every
+/// channel has had one, [`Estimator::step`](Estimator::step) returns [`Error::NotReady`] and the
+/// observation is not written.
+///
+/// Everything is `f32` in a fixed order of operations: bit-exact and deterministic.
 #[derive(Debug, Clone)]
 pub struct Estimator<const N: usize> {
     channels: [Channel; N],
@@ -197,9 +132,9 @@ pub struct Estimator<const N: usize> {
 
 impl<const N: usize> Estimator<N> {
     /// An estimator for an observation whose entry `i` is `channels[i]`.
-    pub fn new(channels: &[Channel], config: EstimatorConfig) -> Result<Self, EstimatorError> {
+    pub fn new(channels: &[Channel], config: EstimatorConfig) -> Result<Self> {
         if channels.is_empty() || channels.len() > N {
-            return Err(EstimatorError::ChannelCount {
+            return Err(Error::ChannelCount {
                 found: channels.len(),
                 capacity: N,
             });
@@ -209,7 +144,7 @@ impl<const N: usize> Estimator<N> {
                 let is_position =
                     matches!(channels.get(of), Some(Channel::Position | Channel::Angle));
                 if !is_position || !scale.is_finite() {
-                    return Err(EstimatorError::BadRate { index, of });
+                    return Err(Error::BadRate { index, of });
                 }
             }
         }
@@ -231,7 +166,7 @@ impl<const N: usize> Estimator<N> {
             ),
         ];
         if let Some((field, _)) = checks.iter().find(|(_, ok)| !ok) {
-            return Err(EstimatorError::BadConfig { field });
+            return Err(Error::BadConfig { field });
         }
         let a2 = accel_std * accel_std;
         let (dt2, dt3) = (dt * dt, dt * dt * dt);
@@ -284,20 +219,16 @@ impl<const N: usize> Estimator<N> {
     /// ([`readings_len`](Self::readings_len) values); writes the estimated observation into
     /// `obs` ([`obs_len`](Self::obs_len) values). Invalid readings are rejected and counted
     /// in the report; `obs` is written only when every channel has an estimate.
-    pub fn step(
-        &mut self,
-        readings: &[f32],
-        obs: &mut [f32],
-    ) -> Result<StepReport, EstimatorError> {
+    pub fn step(&mut self, readings: &[f32], obs: &mut [f32]) -> Result<StepReport> {
         if readings.len() != self.measured {
-            return Err(EstimatorError::WrongLength {
+            return Err(Error::WrongLength {
                 input: "readings",
                 expected: self.measured,
                 found: readings.len(),
             });
         }
         if obs.len() != self.len {
-            return Err(EstimatorError::WrongLength {
+            return Err(Error::WrongLength {
                 input: "obs",
                 expected: self.len,
                 found: obs.len(),
@@ -342,7 +273,7 @@ impl<const N: usize> Estimator<N> {
             };
             !self.tracks[source].ready
         }) {
-            return Err(EstimatorError::NotReady { index });
+            return Err(Error::NotReady { index });
         }
         for (i, out) in obs.iter_mut().enumerate().take(self.len) {
             *out = match self.channels[i] {

@@ -1,9 +1,9 @@
-//! Blob format v2: the one definition of the bytes a trained policy travels in.
+//! Blob format v3: the one definition of the bytes a trained policy travels in.
 //!
 //! ```text
 //! offset  size  field
 //! 0       4     magic  b"SMLB"
-//! 4       2     format version, u16 little-endian (= 2)
+//! 4       2     format version, u16 little-endian (= 3)
 //! 6       4     payload length in bytes, u32 little-endian
 //! 10      4     CRC-32 (IEEE) of the payload, u32 little-endian
 //! 14      n     payload: postcard encoding of `Payload`
@@ -14,18 +14,23 @@
 //! little-endian and read with `f32::from_le_bytes` (no alignment needed), `i8` weights are
 //! the bytes themselves. Weight matrices are row-major `[out][in]`.
 //!
-//! Version 2 (v1 blobs are refused with [`BlobError::OutdatedVersion`](crate::BlobError)):
-//! a `w8a8` layer quantizes each input channel with its own scale (folded into the stored
-//! weights, so the integer dot product is unchanged), and a layer whose input follows a ReLU
-//! quantizes it as unsigned 8-bit (0..=255), twice the resolution of a signed byte for a
+//! Version 2: a `w8a8` layer quantizes each input channel with its own scale (folded into the
+//! stored weights, so the integer dot product is unchanged), and a layer whose input follows a
+//! ReLU quantizes it as unsigned 8-bit (0..=255), twice the resolution of a signed byte for a
 //! non-negative value.
+//!
+//! Version 3 (v1 and v2 blobs are refused with
+//! [`Error::OutdatedVersion`](crate::Error::OutdatedVersion)): every layer record names its own
+//! [`Quant`], so a `w8a8` blob may keep chosen layers (the first and last of each MLP, where
+//! int8 activations cost the most) at a higher precision. The header's `quant` is the blob's
+//! lowest precision, and no layer is stored coarser than it.
 
 use serde::{Deserialize, Serialize};
 
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"SMLB";
 /// The blob format version this crate reads and writes.
-pub const FORMAT_VERSION: u16 = 2;
+pub const FORMAT_VERSION: u16 = 3;
 /// Bytes before the payload: magic, version, length, checksum.
 pub const ENVELOPE_LEN: usize = 14;
 /// Most layers one MLP of a blob may have.
@@ -53,6 +58,20 @@ pub enum Quant {
 }
 
 impl Quant {
+    /// Rank by precision: `F32` 2, `W8A32` 1, `W8A8` 0.
+    const fn rank(self) -> u8 {
+        match self {
+            Quant::F32 => 2,
+            Quant::W8A32 => 1,
+            Quant::W8A8 => 0,
+        }
+    }
+
+    /// Whether a layer stored as `self` is at least as precise as `other`.
+    pub const fn at_least(self, other: Quant) -> bool {
+        self.rank() >= other.rank()
+    }
+
     /// Bytes per stored weight.
     pub const fn weight_bytes(self) -> usize {
         match self {
@@ -89,7 +108,8 @@ impl Activation {
 pub struct Header {
     /// What the encoder reads per transition.
     pub kind: ModelKind,
-    /// Weight and activation storage.
+    /// Weight and activation storage: the blob's lowest precision (each layer names its own,
+    /// never coarser).
     pub quant: Quant,
     /// Observation dimension.
     pub obs_dim: u16,
@@ -147,6 +167,8 @@ pub(crate) struct LayerRecord<'a> {
     pub in_dim: u16,
     pub out_dim: u16,
     pub activation: Activation,
+    /// How this layer's weights and input are stored and computed.
+    pub quant: Quant,
     /// `[out][in]` weights: `f32` LE (F32) or `i8` (W8A32, W8A8).
     #[serde(borrow)]
     pub weights: Bytes<'a>,
@@ -169,7 +191,7 @@ pub(crate) struct LayerRecord<'a> {
 /// The layers of one MLP: at most [`MAX_LAYERS`] are kept. A stored list that is longer is
 /// still read to its end (each extra record is decoded and dropped, without a heap), and
 /// [`Layers::stored`] lets the validator refuse it by name
-/// ([`BlobError::TooManyLayers`](crate::BlobError::TooManyLayers)) instead of as a decode error.
+/// ([`Error::TooManyLayers`](crate::Error::TooManyLayers)) instead of as a decode error.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub(crate) struct Layers<'a> {
     kept: heapless::Vec<LayerRecord<'a>, MAX_LAYERS>,

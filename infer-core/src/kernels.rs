@@ -113,12 +113,12 @@ pub(crate) fn quantize(x: f32, scale: f32) -> i8 {
 
 /// One dense layer: `y = act(W x + b)`. `x` has `in_dim` values, `y` gets `out_dim`;
 /// `q` is scratch for the quantized input (W8A8 only). Shapes were validated at load time.
-pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f32], q: &mut [u8]) {
+pub(crate) fn dense(layer: &LayerRecord<'_>, x: &[f32], y: &mut [f32], q: &mut [u8]) {
     let (n_in, n_out) = (layer.in_dim as usize, layer.out_dim as usize);
     let x = &x[..n_in];
     let bias = F32s(layer.bias.0);
     let w = layer.weights.0;
-    match quant {
+    match layer.quant {
         Quant::F32 => {
             for (o, y_o) in y[..n_out].iter_mut().enumerate() {
                 let row = &w[4 * o * n_in..4 * (o + 1) * n_in];
@@ -167,19 +167,13 @@ pub(crate) fn dense(layer: &LayerRecord<'_>, quant: Quant, x: &[f32], y: &mut [f
 
 /// Runs a whole MLP. The input is in `a[..in_dim]`; returns which buffer holds the output
 /// (`false`: `a`, `true`: `b`) so callers avoid a copy.
-pub(crate) fn mlp(
-    layers: &[LayerRecord<'_>],
-    quant: Quant,
-    a: &mut [f32],
-    b: &mut [f32],
-    q: &mut [u8],
-) -> bool {
+pub(crate) fn mlp(layers: &[LayerRecord<'_>], a: &mut [f32], b: &mut [f32], q: &mut [u8]) -> bool {
     let mut in_b = false;
     for layer in layers {
         if in_b {
-            dense(layer, quant, b, a, q);
+            dense(layer, b, a, q);
         } else {
-            dense(layer, quant, a, b, q);
+            dense(layer, a, b, q);
         }
         in_b = !in_b;
     }

@@ -4,20 +4,22 @@
 #![forbid(unsafe_code)]
 
 mod error;
-pub mod estimator;
-pub mod format;
+mod estimator;
+mod format;
 mod kernels;
 mod model;
 mod runner;
 #[cfg(feature = "alloc")]
 mod writer;
 
-pub use error::{BlobError, InferError};
-pub use estimator::{Channel, Estimator, EstimatorConfig, EstimatorError, StepReport};
-pub use format::{Activation, Header, ModelKind, Quant};
+pub use error::{Error, Result};
+pub use estimator::{Channel, Estimator, EstimatorConfig, StepReport};
+pub use format::{
+    Activation, ENVELOPE_LEN, FORMAT_VERSION, Header, MAGIC, MAX_LAYERS, ModelKind, Quant, crc32,
+};
 pub use model::Model;
 pub use runner::{ContextEncoder, Policy};
 #[cfg(feature = "alloc")]
 pub use writer::{
-    Calibration, Dims, FloatLayer, FloatModel, WriteError, write_blob, write_blob_with,
+    Calibration, Dims, FloatLayer, FloatModel, WriteOptions, write_blob, write_blob_with,
 };

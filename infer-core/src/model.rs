@@ -1,7 +1,7 @@
 //! Loading and validating a blob: after [`Model::from_bytes`] succeeds, every length, dimension
 //! and scale has been checked, so the kernels index without further checks failing.
 
-use crate::error::BlobError;
+use crate::error::{Error, Result};
 use crate::format::{
     self, Activation, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC, MAX_LAYERS,
     Payload, Quant,
@@ -41,24 +41,24 @@ pub struct Model<'a> {
 impl<'a> Model<'a> {
     /// Parses and validates a blob. Any byte string gives either a valid model or an error;
     /// nothing here panics.
-    pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, BlobError> {
+    pub fn from_bytes(bytes: &'a [u8]) -> Result<Self> {
         if bytes.len() < ENVELOPE_LEN {
-            return Err(BlobError::TooShort { len: bytes.len() });
+            return Err(Error::TooShort { len: bytes.len() });
         }
         if bytes[0..4] != MAGIC {
-            return Err(BlobError::BadMagic);
+            return Err(Error::BadMagic);
         }
         let version = u16::from_le_bytes([bytes[4], bytes[5]]);
         if (1..FORMAT_VERSION).contains(&version) {
-            return Err(BlobError::OutdatedVersion { found: version });
+            return Err(Error::OutdatedVersion { found: version });
         }
         if version != FORMAT_VERSION {
-            return Err(BlobError::UnsupportedVersion { found: version });
+            return Err(Error::UnsupportedVersion { found: version });
         }
         let declared = u32::from_le_bytes([bytes[6], bytes[7], bytes[8], bytes[9]]) as usize;
         let payload = &bytes[ENVELOPE_LEN..];
         if declared != payload.len() {
-            return Err(BlobError::LengthMismatch {
+            return Err(Error::LengthMismatch {
                 declared,
                 actual: payload.len(),
             });
@@ -66,15 +66,15 @@ impl<'a> Model<'a> {
         let declared_crc = u32::from_le_bytes([bytes[10], bytes[11], bytes[12], bytes[13]]);
         let computed = format::crc32(payload);
         if declared_crc != computed {
-            return Err(BlobError::ChecksumMismatch {
+            return Err(Error::ChecksumMismatch {
                 declared: declared_crc,
                 computed,
             });
         }
         let (payload, rest): (Payload<'a>, _) =
-            postcard::take_from_bytes(payload).map_err(|_| BlobError::Decode)?;
+            postcard::take_from_bytes(payload).map_err(|_| Error::Decode)?;
         if !rest.is_empty() {
-            return Err(BlobError::TrailingBytes);
+            return Err(Error::TrailingBytes);
         }
         validate(&payload)?;
         Ok(Model { payload })
@@ -95,6 +95,16 @@ impl<'a> Model<'a> {
             .map(|l| (l.in_dim as usize).max(l.out_dim as usize))
             .max()
             .unwrap_or(0)
+    }
+
+    /// The quantization of every layer: the encoder's, the z head's, then the policy's, each
+    /// from its first layer to its last. None is coarser than [`Header::quant`].
+    pub fn layer_quants(&self) -> impl Iterator<Item = Quant> + '_ {
+        let p = &self.payload;
+        [&p.encoder, &p.z_head, &p.policy]
+            .into_iter()
+            .flat_map(|layers| layers.iter())
+            .map(|l| l.quant)
     }
 
     /// Number of weights in the three MLPs together.
@@ -121,7 +131,7 @@ impl<'a> Model<'a> {
     }
 }
 
-fn validate(p: &Payload<'_>) -> Result<(), BlobError> {
+fn validate(p: &Payload<'_>) -> Result<()> {
     let h = &p.header;
     for (part, dim) in [
         ("obs_dim", h.obs_dim),
@@ -130,7 +140,7 @@ fn validate(p: &Payload<'_>) -> Result<(), BlobError> {
         ("z_dim", h.z_dim),
     ] {
         if dim == 0 {
-            return Err(BlobError::DimMismatch {
+            return Err(Error::DimMismatch {
                 part,
                 expected: 1,
                 found: 0,
@@ -161,14 +171,9 @@ fn validate(p: &Payload<'_>) -> Result<(), BlobError> {
     Ok(())
 }
 
-fn check_vector(
-    part: &'static str,
-    bytes: &[u8],
-    len: usize,
-    positive: bool,
-) -> Result<(), BlobError> {
+fn check_vector(part: &'static str, bytes: &[u8], len: usize, positive: bool) -> Result<()> {
     if bytes.len() != 4 * len {
-        return Err(BlobError::TensorLength {
+        return Err(Error::TensorLength {
             part,
             expected: 4 * len,
             found: bytes.len(),
@@ -176,10 +181,10 @@ fn check_vector(
     }
     for v in F32s(bytes).iter() {
         if !v.is_finite() {
-            return Err(BlobError::NonFinite { part });
+            return Err(Error::NonFinite { part });
         }
         if positive && v <= 0.0 {
-            return Err(BlobError::NonPositiveScale { part });
+            return Err(Error::NonPositiveScale { part });
         }
     }
     Ok(())
@@ -191,27 +196,27 @@ fn check_mlp(
     quant: Quant,
     input: usize,
     output: usize,
-) -> Result<(), BlobError> {
+) -> Result<()> {
     if layers.stored() > MAX_LAYERS {
-        return Err(BlobError::TooManyLayers {
+        return Err(Error::TooManyLayers {
             part,
             found: layers.stored(),
         });
     }
     let Some(last) = layers.last() else {
-        return Err(BlobError::EmptyMlp { part });
+        return Err(Error::EmptyMlp { part });
     };
     let mut width = input;
     for layer in layers.iter() {
         if layer.in_dim as usize != width {
-            return Err(BlobError::DimMismatch {
+            return Err(Error::DimMismatch {
                 part,
                 expected: width,
                 found: layer.in_dim as usize,
             });
         }
         if layer.out_dim == 0 {
-            return Err(BlobError::DimMismatch {
+            return Err(Error::DimMismatch {
                 part,
                 expected: 1,
                 found: 0,
@@ -221,7 +226,7 @@ fn check_mlp(
         width = layer.out_dim as usize;
     }
     if last.out_dim as usize != output {
-        return Err(BlobError::DimMismatch {
+        return Err(Error::DimMismatch {
             part,
             expected: output,
             found: last.out_dim as usize,
@@ -230,16 +235,24 @@ fn check_mlp(
     // A tanh or ReLU after the last layer would be harmless for the encoder but makes the
     // policy's tanh-mean wrong; only the policy's last activation is fixed.
     if part == "policy" && last.activation != Activation::Identity {
-        return Err(BlobError::PolicyOutputActivation);
+        return Err(Error::PolicyOutputActivation);
     }
     Ok(())
 }
 
-fn check_layer(part: &'static str, l: &LayerRecord<'_>, quant: Quant) -> Result<(), BlobError> {
+fn check_layer(part: &'static str, l: &LayerRecord<'_>, header: Quant) -> Result<()> {
+    let quant = l.quant;
+    if !quant.at_least(header) {
+        return Err(Error::LayerBelowHeader {
+            part,
+            layer: quant,
+            header,
+        });
+    }
     let (i, o) = (l.in_dim as usize, l.out_dim as usize);
     let expected = i * o * quant.weight_bytes();
     if l.weights.0.len() != expected {
-        return Err(BlobError::TensorLength {
+        return Err(Error::TensorLength {
             part,
             expected,
             found: l.weights.0.len(),
@@ -252,7 +265,7 @@ fn check_layer(part: &'static str, l: &LayerRecord<'_>, quant: Quant) -> Result<
     match quant {
         Quant::F32 => {
             if !l.weight_scale.0.is_empty() {
-                return Err(BlobError::TensorLength {
+                return Err(Error::TensorLength {
                     part,
                     expected: 0,
                     found: l.weight_scale.0.len(),
@@ -267,7 +280,7 @@ fn check_layer(part: &'static str, l: &LayerRecord<'_>, quant: Quant) -> Result<
         check_vector(part, l.input_scale.0, n, true)?;
     } else if !l.input_scale.0.is_empty() || l.unsigned_input {
         // Canonical form: one encoding per model, so equal models have equal bytes.
-        return Err(BlobError::TensorLength {
+        return Err(Error::TensorLength {
             part,
             expected: 0,
             found: l.input_scale.0.len(),

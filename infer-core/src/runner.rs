@@ -2,15 +2,15 @@
 //! `(obs, z)` into an action. Both own fixed-size buffers of capacity `W` (the widest layer
 //! they can run), so nothing allocates and memory does not grow with the context length.
 
-use crate::error::{BlobError, InferError};
+use crate::error::{Error, Result};
 use crate::format::ModelKind;
 use crate::kernels;
 use crate::model::Model;
 
-fn check_capacity<const W: usize>(model: &Model<'_>) -> Result<(), BlobError> {
+fn check_capacity<const W: usize>(model: &Model<'_>) -> Result<()> {
     let needed = model.max_width();
     if needed > W {
-        return Err(BlobError::CapacityExceeded {
+        return Err(Error::CapacityExceeded {
             needed,
             capacity: W,
         });
@@ -18,16 +18,16 @@ fn check_capacity<const W: usize>(model: &Model<'_>) -> Result<(), BlobError> {
     Ok(())
 }
 
-fn check_input(input: &'static str, x: &[f32], expected: usize) -> Result<(), InferError> {
+fn check_input(input: &'static str, x: &[f32], expected: usize) -> Result<()> {
     if x.len() != expected {
-        return Err(InferError::WrongLength {
+        return Err(Error::WrongLength {
             input,
             expected,
             found: x.len(),
         });
     }
     if x.iter().any(|v| !v.is_finite()) {
-        return Err(InferError::NonFiniteInput { input });
+        return Err(Error::NonFiniteInput { input });
     }
     Ok(())
 }
@@ -61,7 +61,7 @@ pub struct Policy<'m, 'a, const W: usize> {
 
 impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
     /// A policy runner for `model`; fails if a layer is wider than `W`.
-    pub fn new(model: &'m Model<'a>) -> Result<Self, BlobError> {
+    pub fn new(model: &'m Model<'a>) -> Result<Self> {
         check_capacity::<W>(model)?;
         Ok(Self {
             model,
@@ -87,11 +87,11 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
     ///
     /// On a non-finite input or output, writes [`safe_action`](Self::safe_action) and returns
     /// the error, so a caller that ignores it still never sends NaN to an actuator.
-    pub fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<(), InferError> {
+    pub fn act(&mut self, obs: &[f32], z: &[f32], action: &mut [f32]) -> Result<()> {
         let h = *self.model.header();
         let (obs_dim, z_dim, act_dim) = (h.obs_dim as usize, h.z_dim as usize, h.act_dim as usize);
         if action.len() != act_dim {
-            return Err(InferError::WrongLength {
+            return Err(Error::WrongLength {
                 input: "action",
                 expected: act_dim,
                 found: action.len(),
@@ -105,7 +105,6 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
         self.a[obs_dim..obs_dim + z_dim].copy_from_slice(z);
         let in_b = kernels::mlp(
             &self.model.payload.policy,
-            h.quant,
             &mut self.a,
             &mut self.b,
             &mut self.q,
@@ -117,7 +116,7 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
         }
         if action.iter().any(|a| !a.is_finite()) {
             self.safe_action(action);
-            return Err(InferError::NonFiniteOutput);
+            return Err(Error::NonFiniteOutput);
         }
         Ok(())
     }
@@ -143,7 +142,7 @@ pub struct ContextEncoder<'m, 'a, const W: usize> {
 
 impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
     /// An empty encoder for `model`; fails if a layer is wider than `W`.
-    pub fn new(model: &'m Model<'a>) -> Result<Self, BlobError> {
+    pub fn new(model: &'m Model<'a>) -> Result<Self> {
         check_capacity::<W>(model)?;
         Ok(Self {
             model,
@@ -178,12 +177,7 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
     /// Adds one transition of the current trajectory. State-only models ignore `action`
     /// (pass `&[]`). A transition with a wrong length or a non-finite value is refused and
     /// leaves the encoder unchanged.
-    pub fn push(
-        &mut self,
-        obs: &[f32],
-        action: &[f32],
-        next_obs: &[f32],
-    ) -> Result<(), InferError> {
+    pub fn push(&mut self, obs: &[f32], action: &[f32], next_obs: &[f32]) -> Result<()> {
         let h = *self.model.header();
         let (obs_dim, act_dim) = (h.obs_dim as usize, h.act_dim as usize);
         check_input("obs", obs, obs_dim)?;
@@ -198,7 +192,6 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
         normalise(self.model, next_obs, &mut self.a[at..at + obs_dim]);
         let in_b = kernels::mlp(
             &self.model.payload.encoder,
-            h.quant,
             &mut self.a,
             &mut self.b,
             &mut self.q,
@@ -233,18 +226,18 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
 
     /// Writes the posterior mean of `z` for the context so far into `z`. An open trajectory
     /// counts as if it had been closed (without closing it).
-    pub fn latent(&mut self, z: &mut [f32]) -> Result<(), InferError> {
+    pub fn latent(&mut self, z: &mut [f32]) -> Result<()> {
         let h = *self.model.header();
         let (r_dim, z_dim) = (h.r_dim as usize, h.z_dim as usize);
         if z.len() != z_dim {
-            return Err(InferError::WrongLength {
+            return Err(Error::WrongLength {
                 input: "z",
                 expected: z_dim,
                 found: z.len(),
             });
         }
         if self.trajectories == 0 && self.trajectory_steps == 0 {
-            return Err(InferError::EmptyContext);
+            return Err(Error::EmptyContext);
         }
         let n = self.trajectory_steps as f32;
         for i in 0..r_dim {
@@ -257,7 +250,6 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
         }
         let in_b = kernels::mlp(
             &self.model.payload.z_head,
-            h.quant,
             &mut self.a,
             &mut self.b,
             &mut self.q,
@@ -265,7 +257,7 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
         let out = if in_b { &self.b } else { &self.a };
         z.copy_from_slice(&out[..z_dim]);
         if z.iter().any(|v| !v.is_finite()) {
-            return Err(InferError::NonFiniteOutput);
+            return Err(Error::NonFiniteOutput);
         }
         Ok(())
     }

@@ -5,14 +5,13 @@ extern crate alloc;
 
 use alloc::vec::Vec;
 
+use crate::error::{Error, Result};
 use crate::format::{
     self, Activation, Bytes, ENVELOPE_LEN, FORMAT_VERSION, Header, LayerRecord, Layers, MAGIC,
     ModelKind, Payload, Quant,
 };
 
 mod check;
-
-pub use check::WriteError;
 
 /// One float dense layer, `y = act(W x + b)`, weights row-major `[out][in]`.
 #[derive(Debug, Clone, PartialEq)]
@@ -243,6 +242,7 @@ fn f32_bytes(v: &[f32]) -> Vec<u8> {
 /// Owned bytes of one quantized layer, before they are borrowed into a [`LayerRecord`].
 struct EncodedLayer {
     layer: (u16, u16, Activation),
+    quant: Quant,
     weights: Vec<u8>,
     bias: Vec<u8>,
     weight_scale: Vec<u8>,
@@ -280,16 +280,17 @@ fn encode_layer(
     quant: Quant,
     input_range: &[f32],
     unsigned_input: bool,
-) -> Result<EncodedLayer, WriteError> {
+) -> Result<EncodedLayer> {
     let dims = (
-        u16::try_from(l.in_dim).map_err(|_| WriteError::TooLarge)?,
-        u16::try_from(l.out_dim).map_err(|_| WriteError::TooLarge)?,
+        u16::try_from(l.in_dim).map_err(|_| Error::TooLarge)?,
+        u16::try_from(l.out_dim).map_err(|_| Error::TooLarge)?,
         l.activation,
     );
     let bias = f32_bytes(&l.bias);
     let encoded = match quant {
         Quant::F32 => EncodedLayer {
             layer: dims,
+            quant,
             weights: f32_bytes(&l.weights),
             bias,
             weight_scale: Vec::new(),
@@ -300,6 +301,7 @@ fn encode_layer(
             let (weights, scales) = quantize_rows(&l.weights, l.in_dim);
             EncodedLayer {
                 layer: dims,
+                quant,
                 weights,
                 bias,
                 weight_scale: f32_bytes(&scales),
@@ -343,6 +345,7 @@ fn encode_layer(
             };
             EncodedLayer {
                 layer: dims,
+                quant,
                 weights,
                 bias,
                 weight_scale: f32_bytes(&scales),
@@ -362,6 +365,7 @@ fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
             in_dim: e.layer.0,
             out_dim: e.layer.1,
             activation: e.layer.2,
+            quant: e.quant,
             weights: Bytes(&e.weights),
             bias: Bytes(&e.bias),
             weight_scale: Bytes(&e.weight_scale),
@@ -372,51 +376,73 @@ fn records(encoded: &[EncodedLayer]) -> Layers<'_> {
     layers
 }
 
-/// Quantizes `model` with `quant` and returns the blob bytes. `calibration` is required for
-/// [`Quant::W8A8`] (every row of the model's dimension, finite) and ignored otherwise. The blob is loaded back before it is returned.
-pub fn write_blob(
-    model: &FloatModel,
-    quant: Quant,
-    calibration: &Calibration,
-) -> Result<Vec<u8>, WriteError> {
-    write_blob_with(model, quant, calibration, 1.0)
+/// How [`write_blob_with`] quantizes, beyond the blob's scheme.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WriteOptions {
+    /// `w8a8`'s activation ranges capped at each layer's `range_quantile` of |input| on the
+    /// calibration (1.0: the maximum). A quantile below 1 gives up the rarest values (clipped)
+    /// for a finer step on all the others.
+    pub range_quantile: f32,
+    /// A higher precision for the first and last layer of each MLP, where int8 activations
+    /// cost the most (the raw observations, actions and latents in; the action mean out);
+    /// `None` stores every layer at the blob's quantization.
+    pub edges: Option<Quant>,
 }
 
-/// [`write_blob`] with w8a8's activation ranges capped at each layer's `range_quantile` of
-/// |input| on the calibration (1.0: the maximum, as [`write_blob`]); the blob format is the
-/// same, only its scales differ.
+impl Default for WriteOptions {
+    fn default() -> Self {
+        WriteOptions {
+            range_quantile: 1.0,
+            edges: None,
+        }
+    }
+}
+
+/// Quantizes `model` with `quant` and returns the blob bytes. `calibration` is required for
+/// [`Quant::W8A8`] (every row of the model's dimension, finite) and ignored otherwise. The blob is loaded back before it is returned.
+pub fn write_blob(model: &FloatModel, quant: Quant, calibration: &Calibration) -> Result<Vec<u8>> {
+    write_blob_with(model, quant, calibration, &WriteOptions::default())
+}
+
+/// [`write_blob`] with [`WriteOptions`]: capped activation ranges, higher-precision edges.
 pub fn write_blob_with(
     model: &FloatModel,
     quant: Quant,
     calibration: &Calibration,
-    range_quantile: f32,
-) -> Result<Vec<u8>, WriteError> {
+    options: &WriteOptions,
+) -> Result<Vec<u8>> {
     model.check()?;
+    let edges = options.edges.unwrap_or(quant);
+    if !edges.at_least(quant) {
+        return Err(Error::EdgesBelowQuant { edges, quant });
+    }
     if quant == Quant::W8A8 {
         calibration.check(model)?;
     }
     let ranges = if quant == Quant::W8A8 {
-        model.input_ranges_at(calibration, range_quantile.clamp(0.5, 1.0))
+        model.input_ranges_at(calibration, options.range_quantile.clamp(0.5, 1.0))
     } else {
         Default::default()
     };
     let encode = |layers: &[FloatLayer], ranges: &[Vec<f32>]| {
+        let last = layers.len().saturating_sub(1);
         layers
             .iter()
             .enumerate()
             .map(|(i, l)| {
                 let range = ranges.get(i).map_or(&[][..], Vec::as_slice);
+                let q = if i == 0 || i == last { edges } else { quant };
                 // Only an input produced by a ReLU of the same MLP is known to be >= 0.
                 let unsigned =
-                    quant == Quant::W8A8 && i > 0 && layers[i - 1].activation == Activation::Relu;
-                encode_layer(l, quant, range, unsigned)
+                    q == Quant::W8A8 && i > 0 && layers[i - 1].activation == Activation::Relu;
+                encode_layer(l, q, range, unsigned)
             })
-            .collect::<Result<Vec<_>, WriteError>>()
+            .collect::<Result<Vec<_>>>()
     };
     let encoder = encode(&model.encoder, &ranges[0])?;
     let z_head = encode(&model.z_head, &ranges[1])?;
     let policy = encode(&model.policy, &ranges[2])?;
-    let dim = |d: usize| u16::try_from(d).map_err(|_| WriteError::TooLarge);
+    let dim = |d: usize| u16::try_from(d).map_err(|_| Error::TooLarge);
     let (mean, std) = (f32_bytes(&model.obs_mean), f32_bytes(&model.obs_std));
     let (scale, offset) = (f32_bytes(&model.act_scale), f32_bytes(&model.act_offset));
     let payload = Payload {
@@ -436,15 +462,16 @@ pub fn write_blob_with(
         z_head: records(&z_head),
         policy: records(&policy),
     };
-    let body = postcard::to_allocvec(&payload).map_err(|_| WriteError::Shape("postcard"))?;
-    let len = u32::try_from(body.len()).map_err(|_| WriteError::TooLarge)?;
+    let body = postcard::to_allocvec(&payload).map_err(|_| Error::Shape("postcard"))?;
+    let len = u32::try_from(body.len()).map_err(|_| Error::TooLarge)?;
     let mut blob = Vec::with_capacity(ENVELOPE_LEN + body.len());
     blob.extend_from_slice(&MAGIC);
     blob.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
     blob.extend_from_slice(&len.to_le_bytes());
     blob.extend_from_slice(&format::crc32(&body).to_le_bytes());
     blob.extend_from_slice(&body);
-    crate::Model::from_bytes(&blob).map_err(WriteError::SelfCheck)?;
+    // Loaded back: a failure here is a writer bug, returned as the loader's error.
+    crate::Model::from_bytes(&blob)?;
     Ok(blob)
 }
 

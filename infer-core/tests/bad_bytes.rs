@@ -4,8 +4,8 @@
 
 mod common;
 
-use infer_core::format::{ENVELOPE_LEN, crc32};
-use infer_core::{BlobError, ContextEncoder, Model, ModelKind, Policy, Quant, write_blob};
+use infer_core::{ContextEncoder, Error, Model, ModelKind, Policy, Quant, write_blob};
+use infer_core::{ENVELOPE_LEN, crc32};
 use proptest::prelude::*;
 
 fn blob(quant: Quant) -> Vec<u8> {
@@ -101,11 +101,11 @@ proptest! {
     fn extended_blobs_are_refused(q in quant(), extra in proptest::collection::vec(any::<u8>(), 1..64)) {
         let mut bytes = blob(q);
         bytes.extend_from_slice(&extra);
-        let is_length_mismatch = matches!(Model::from_bytes(&bytes), Err(BlobError::LengthMismatch { .. }));
+        let is_length_mismatch = matches!(Model::from_bytes(&bytes), Err(Error::LengthMismatch { .. }));
         prop_assert!(is_length_mismatch);
         // With the envelope patched, postcard would silently ignore the tail: we must not.
         refresh_checksum(&mut bytes);
-        prop_assert_eq!(Model::from_bytes(&bytes).err(), Some(BlobError::TrailingBytes));
+        prop_assert_eq!(Model::from_bytes(&bytes).err(), Some(Error::TrailingBytes));
     }
 }
 
@@ -115,22 +115,22 @@ fn each_envelope_error_is_named() {
     assert!(Model::from_bytes(&good).is_ok());
     assert_eq!(
         Model::from_bytes(&good[..3]).err(),
-        Some(BlobError::TooShort { len: 3 })
+        Some(Error::TooShort { len: 3 })
     );
     let mut bad = good.clone();
     bad[0] = b'X';
-    assert_eq!(Model::from_bytes(&bad).err(), Some(BlobError::BadMagic));
+    assert_eq!(Model::from_bytes(&bad).err(), Some(Error::BadMagic));
     let mut bad = good.clone();
-    bad[4] = 3;
+    bad[4] = 4;
     assert_eq!(
         Model::from_bytes(&bad).err(),
-        Some(BlobError::UnsupportedVersion { found: 3 })
+        Some(Error::UnsupportedVersion { found: 4 })
     );
     // A v1 blob (per-layer activation scales) is refused by name, with what to do.
     let mut old = good.clone();
     old[4] = 1;
     let e = Model::from_bytes(&old).unwrap_err();
-    assert_eq!(e, BlobError::OutdatedVersion { found: 1 });
+    assert_eq!(e, Error::OutdatedVersion { found: 1 });
     assert!(e.to_string().contains("re-export"), "{e}");
     // The same for a real v1 blob, kept from the v1 golden vectors.
     let v1 = std::fs::read(concat!(
@@ -140,14 +140,26 @@ fn each_envelope_error_is_named() {
     .unwrap();
     assert_eq!(
         Model::from_bytes(&v1).err(),
-        Some(BlobError::OutdatedVersion { found: 1 })
+        Some(Error::OutdatedVersion { found: 1 })
+    );
+    // And a real v2 blob (one quantization for every layer), kept from the v2 golden vectors:
+    // its layer records lack the v3 per-layer quantization, so it is refused by version,
+    // before its bytes are misread.
+    let v2 = std::fs::read(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/golden/v2-w8a8.blob"
+    ))
+    .unwrap();
+    assert_eq!(
+        Model::from_bytes(&v2).err(),
+        Some(Error::OutdatedVersion { found: 2 })
     );
     let mut bad = good.clone();
     let last = bad.len() - 1;
     bad[last] ^= 1;
     assert!(matches!(
         Model::from_bytes(&bad),
-        Err(BlobError::ChecksumMismatch { .. })
+        Err(Error::ChecksumMismatch { .. })
     ));
     let msg = Model::from_bytes(&bad).unwrap_err().to_string();
     assert!(msg.contains("corrupt"), "{msg}");

@@ -3,9 +3,7 @@
 mod common;
 
 use common::{Rng, blob_act, blob_latent, context, model};
-use infer_core::{
-    BlobError, Calibration, ContextEncoder, InferError, Model, ModelKind, Policy, Quant, write_blob,
-};
+use infer_core::{Calibration, ContextEncoder, Error, Model, ModelKind, Policy, Quant, write_blob};
 
 fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
     a.iter().zip(b).fold(0.0, |m, (x, y)| m.max((x - y).abs()))
@@ -63,7 +61,7 @@ fn open_trajectory_counts_like_a_closed_one_and_reset_forgets() {
     let closed = blob_latent(&m, &ctx);
     let mut enc = ContextEncoder::<64>::new(&m).unwrap();
     let mut z = vec![0.0; 16];
-    assert_eq!(enc.latent(&mut z), Err(InferError::EmptyContext));
+    assert_eq!(enc.latent(&mut z), Err(Error::EmptyContext));
     for t in &ctx[0] {
         enc.push(&t[..20], &t[20..26], &t[26..]).unwrap();
     }
@@ -71,7 +69,7 @@ fn open_trajectory_counts_like_a_closed_one_and_reset_forgets() {
     assert_eq!(z, closed);
     assert_eq!(enc.trajectories(), 0);
     enc.reset();
-    assert_eq!(enc.latent(&mut z), Err(InferError::EmptyContext));
+    assert_eq!(enc.latent(&mut z), Err(Error::EmptyContext));
 }
 
 #[test]
@@ -87,7 +85,7 @@ fn bad_inputs_give_errors_and_a_safe_action() {
     obs[3] = f32::NAN;
     assert_eq!(
         policy.act(&obs, &z, &mut action),
-        Err(InferError::NonFiniteInput { input: "obs" })
+        Err(Error::NonFiniteInput { input: "obs" })
     );
     assert_eq!(action, [0.25; 6]);
     obs[3] = f32::INFINITY;
@@ -96,11 +94,11 @@ fn bad_inputs_give_errors_and_a_safe_action() {
     assert_eq!(action, [0.25; 6]);
     assert!(matches!(
         policy.act(&obs[..19], &z, &mut action),
-        Err(InferError::WrongLength { input: "obs", .. })
+        Err(Error::WrongLength { input: "obs", .. })
     ));
     assert!(matches!(
         policy.act(&[0.0; 20], &z, &mut [0.0; 5]),
-        Err(InferError::WrongLength {
+        Err(Error::WrongLength {
             input: "action",
             ..
         })
@@ -109,7 +107,7 @@ fn bad_inputs_give_errors_and_a_safe_action() {
     assert!(enc.push(&obs, &[0.0; 6], &[0.0; 20]).is_err());
     assert!(matches!(
         enc.push(&[0.0; 20], &[0.0; 5], &[0.0; 20]),
-        Err(InferError::WrongLength {
+        Err(Error::WrongLength {
             input: "action",
             ..
         })
@@ -134,7 +132,7 @@ fn runner_capacity_is_checked_before_running() {
     assert_eq!(m.max_width(), 128);
     assert_eq!(
         Policy::<64>::new(&m).err(),
-        Some(BlobError::CapacityExceeded {
+        Some(Error::CapacityExceeded {
             needed: 128,
             capacity: 64
         })
@@ -174,12 +172,12 @@ fn writer_refuses_bad_models() {
     let mut float = model(ModelKind::StateAction, 32, 10);
     assert_eq!(
         write_blob(&float, Quant::W8A8, &Calibration::default()),
-        Err(infer_core::WriteError::MissingCalibration)
+        Err(infer_core::Error::MissingCalibration)
     );
     float.policy[0].weights[0] = f32::NAN;
     assert!(matches!(
         write_blob(&float, Quant::F32, &Calibration::default()),
-        Err(infer_core::WriteError::NonFinite(_))
+        Err(infer_core::Error::NonFinite { .. })
     ));
     let mut float = model(ModelKind::StateAction, 32, 10);
     float.obs_std[0] = 0.0;

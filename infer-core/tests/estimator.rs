@@ -1,6 +1,6 @@
 //! The position-only state estimator against known trajectories, and its fault handling.
 
-use infer_core::{Channel, Estimator, EstimatorConfig, EstimatorError};
+use infer_core::{Channel, Error, Estimator, EstimatorConfig};
 
 const PV: [Channel; 2] = [Channel::Position, Channel::Rate { of: 0, scale: 1.0 }];
 
@@ -216,7 +216,7 @@ fn no_estimate_is_given_before_a_valid_reading() {
     let mut obs = [-9.0f32; 2];
     assert_eq!(
         estimator.step(&[f32::NAN], &mut obs),
-        Err(EstimatorError::NotReady { index: 0 })
+        Err(Error::NotReady { index: 0 })
     );
     assert_eq!(obs, [-9.0, -9.0], "nothing written without an estimate");
     estimator.step(&[0.5], &mut obs).unwrap();
@@ -235,12 +235,12 @@ fn bad_layouts_configs_and_lengths_are_typed_errors() {
     ];
     assert_eq!(
         Estimator::<4>::new(&rate_of_rate, ok).err(),
-        Some(EstimatorError::BadRate { index: 2, of: 1 })
+        Some(Error::BadRate { index: 2, of: 1 })
     );
     let dangling = [Channel::Rate { of: 5, scale: 1.0 }];
     assert!(matches!(
         Estimator::<4>::new(&dangling, ok),
-        Err(EstimatorError::BadRate { index: 0, of: 5 })
+        Err(Error::BadRate { index: 0, of: 5 })
     ));
     let nan_scale = [
         Channel::Position,
@@ -252,7 +252,7 @@ fn bad_layouts_configs_and_lengths_are_typed_errors() {
     assert!(Estimator::<4>::new(&nan_scale, ok).is_err());
     assert_eq!(
         Estimator::<1>::new(&PV, ok).err(),
-        Some(EstimatorError::ChannelCount {
+        Some(Error::ChannelCount {
             found: 2,
             capacity: 1
         })
@@ -286,14 +286,14 @@ fn bad_layouts_configs_and_lengths_are_typed_errors() {
     ] {
         assert_eq!(
             Estimator::<4>::new(&PV, bad).err(),
-            Some(EstimatorError::BadConfig { field })
+            Some(Error::BadConfig { field })
         );
     }
     let mut estimator = Estimator::<4>::new(&PV, ok).unwrap();
     let mut obs = [0.0f32; 2];
     assert!(matches!(
         estimator.step(&[0.0, 0.0], &mut obs),
-        Err(EstimatorError::WrongLength {
+        Err(Error::WrongLength {
             input: "readings",
             expected: 1,
             found: 2
@@ -301,7 +301,7 @@ fn bad_layouts_configs_and_lengths_are_typed_errors() {
     ));
     assert!(matches!(
         estimator.step(&[0.0], &mut obs[..1]),
-        Err(EstimatorError::WrongLength {
+        Err(Error::WrongLength {
             input: "obs",
             expected: 2,
             found: 1

@@ -13,7 +13,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 
 use common::{Rng, blob_act, blob_latent};
-use infer_core::{Dims, FloatModel, Model, ModelKind, Quant, write_blob};
+use infer_core::{Dims, FloatModel, Model, ModelKind, Quant, WriteOptions, write_blob_with};
 
 const DIMS: Dims = Dims {
     obs: 4,
@@ -27,13 +27,13 @@ fn dir() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/golden")
 }
 
-fn name(q: Quant) -> &'static str {
-    match q {
-        Quant::F32 => "f32",
-        Quant::W8A32 => "w8a32",
-        Quant::W8A8 => "w8a8",
-    }
-}
+/// The golden blobs: the three schemes, and w8a8 with its first and last layers in w8a32.
+const CASES: [(&str, Quant, Option<Quant>); 4] = [
+    ("f32", Quant::F32, None),
+    ("w8a32", Quant::W8A32, None),
+    ("w8a8", Quant::W8A8, None),
+    ("w8a8-edges-w8a32", Quant::W8A8, Some(Quant::W8A32)),
+];
 
 fn hex(v: &[f32]) -> String {
     v.iter()
@@ -64,10 +64,14 @@ fn golden_blobs_and_outputs_are_bit_exact() {
     let float = FloatModel::random(ModelKind::StateAction, DIMS, 42);
     let calib = common::calibration(&mut Rng(77), &float);
     let regen = std::env::var_os("INFER_CORE_REGEN_GOLDEN").is_some();
-    for quant in [Quant::F32, Quant::W8A32, Quant::W8A8] {
-        let blob_path = dir().join(format!("{}.blob", name(quant)));
-        let out_path = dir().join(format!("{}.expected", name(quant)));
-        let written = write_blob(&float, quant, &calib).unwrap();
+    for (name, quant, edges) in CASES {
+        let blob_path = dir().join(format!("{name}.blob"));
+        let out_path = dir().join(format!("{name}.expected"));
+        let options = WriteOptions {
+            edges,
+            ..WriteOptions::default()
+        };
+        let written = write_blob_with(&float, quant, &calib, &options).unwrap();
         if regen {
             std::fs::write(&blob_path, &written).unwrap();
             std::fs::write(&out_path, outputs(&written, &float)).unwrap();
@@ -76,13 +80,13 @@ fn golden_blobs_and_outputs_are_bit_exact() {
             .expect("golden blob missing: see the module docs to regenerate");
         assert_eq!(
             written, golden,
-            "{quant:?}: the writer no longer produces the golden blob bytes"
+            "{name}: the writer no longer produces the golden blob bytes"
         );
         let expected = std::fs::read_to_string(&out_path).unwrap();
         assert_eq!(
             outputs(&golden, &float),
             expected,
-            "{quant:?}: outputs differ from the golden bits"
+            "{name}: outputs differ from the golden bits"
         );
     }
 }

@@ -1,10 +1,10 @@
-//! The writer's answer to inputs that do not fit the model: a named `WriteError` saying
+//! The writer's answer to inputs that do not fit the model: a named `Error` saying
 //! what was expected and what came, never a panic (a user once got "range end index 17 out
 //! of range for slice of length 10" from the (since removed) equaliser for point-goal calibration rows given
 //! to a cheetah-sized model).
 
 use infer_core::{
-    Activation, Calibration, Dims, FloatLayer, FloatModel, ModelKind, Quant, WriteError, write_blob,
+    Activation, Calibration, Dims, Error, FloatLayer, FloatModel, ModelKind, Quant, write_blob,
 };
 use proptest::prelude::*;
 
@@ -68,7 +68,7 @@ fn observation_rows_of_another_dimension_are_named_not_a_panic() {
         let err = write_blob(&model(kind), Quant::W8A8, &short).unwrap_err();
         assert_eq!(
             err,
-            WriteError::CalibrationLength {
+            Error::CalibrationLength {
                 what: "observation",
                 index: 0,
                 expected: 17,
@@ -83,7 +83,7 @@ fn observation_rows_of_another_dimension_are_named_not_a_panic() {
         long.observations[5] = row(18, 5);
         assert_eq!(
             write_blob(&model(kind), Quant::W8A8, &long),
-            Err(WriteError::CalibrationLength {
+            Err(Error::CalibrationLength {
                 what: "observation",
                 index: 5,
                 expected: 17,
@@ -96,7 +96,7 @@ fn observation_rows_of_another_dimension_are_named_not_a_panic() {
 #[test]
 fn context_transitions_of_another_width_are_named_not_a_panic() {
     let (sa, so) = (ModelKind::StateAction, ModelKind::StateOnly);
-    let transition = |index, expected, got| WriteError::CalibrationLength {
+    let transition = |index, expected, got| Error::CalibrationLength {
         what: "context transition",
         index,
         expected,
@@ -135,13 +135,17 @@ fn non_finite_calibration_values_are_refused() {
     bad.observations[3][2] = f32::NAN;
     assert_eq!(
         write_blob(&model(kind), Quant::W8A8, &bad),
-        Err(WriteError::NonFinite("calibration observations"))
+        Err(Error::NonFinite {
+            part: "calibration observations"
+        })
     );
     let mut bad = good(kind);
     bad.contexts[1][0][2][7] = f32::INFINITY;
     assert_eq!(
         write_blob(&model(kind), Quant::W8A8, &bad),
-        Err(WriteError::NonFinite("calibration contexts"))
+        Err(Error::NonFinite {
+            part: "calibration contexts"
+        })
     );
 }
 
@@ -168,7 +172,7 @@ fn square(n: usize) -> FloatLayer {
 fn layers_that_do_not_chain_are_named_not_a_panic() {
     let kind = ModelKind::StateAction;
     let calib = good(kind);
-    let width = |part, layer, side, expected, got| WriteError::LayerWidth {
+    let width = |part, layer, side, expected, got| Error::LayerWidth {
         part,
         layer,
         side,
@@ -224,13 +228,13 @@ fn layers_that_do_not_chain_are_named_not_a_panic() {
         m.policy.clear();
         assert_eq!(
             write_blob(&m, quant, &calib),
-            Err(WriteError::EmptyMlp { part: "policy" })
+            Err(Error::EmptyMlp { part: "policy" })
         );
         let mut m = model(kind);
         m.z_dim = 0;
         assert!(matches!(
             write_blob(&m, quant, &calib),
-            Err(WriteError::Shape(_))
+            Err(Error::Shape(_))
         ));
     }
 }
@@ -255,7 +259,7 @@ proptest! {
         let fits = obs_len.iter().all(|&n| n == DIMS.obs) && t_len.iter().all(|&n| n == t_dim);
         match write_blob(&model(kind), Quant::W8A8, &calib) {
             Ok(_) => prop_assert!(fits),
-            Err(WriteError::CalibrationLength { expected, got, .. }) => {
+            Err(Error::CalibrationLength { expected, got, .. }) => {
                 prop_assert!(!fits);
                 prop_assert_ne!(expected, got);
             }
@@ -276,7 +280,7 @@ fn a_parameter_too_large_for_the_blob_is_refused_by_layer() {
         assert!(
             matches!(
                 e,
-                WriteError::OutOfRange {
+                Error::OutOfRange {
                     part: "policy",
                     layer: 1,
                     ..

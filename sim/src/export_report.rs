@@ -57,6 +57,10 @@ pub struct ExportReport {
     pub blob_sha256: String,
     /// `f32`, `w8a32` or `w8a8`.
     pub quant: String,
+    /// The higher precision of the first and last layer of each MLP (`w8a32` or `f32`) when
+    /// the blob keeps them finer than `quant` (`smile export --edges`); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub edges: Option<String>,
     /// Algorithm of the exported policy.
     pub algo: String,
     /// The family, written by its name.

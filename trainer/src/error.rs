@@ -121,15 +121,11 @@ pub enum Error {
     /// An export report (`<blob>.json`) that cannot be read or written.
     #[error("{0}")]
     Report(#[from] sim::ReportError),
-    /// infer-core could not write a blob from the policy.
-    #[error("blob writer: {0}")]
-    BlobWrite(#[from] infer_core::WriteError),
-    /// infer-core refused a blob (corrupt, truncated, of another version or shape).
-    #[error("blob does not load: {0}")]
-    Blob(#[from] infer_core::BlobError),
-    /// infer-core could not run a loaded blob on an input (wrong length, non-finite).
-    #[error("blob inference: {0}")]
-    Inference(#[from] infer_core::InferError),
+    /// infer-core could not write the policy as a blob, refused a blob (corrupt, truncated,
+    /// of another version or shape), or could not run it on an input (wrong length,
+    /// non-finite).
+    #[error("blob: {0}")]
+    Blob(#[from] infer_core::Error),
     /// The simulated device (firmware-sim) refused the blob or failed to run it.
     #[error("device: {0}")]
     Device(String),

@@ -209,7 +209,10 @@ impl RunEvent {
             RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
                 "early stop at {word} {s}: the held-out selection metric stopped improving"
             )),
-            RunEvent::Progress(Progress::Steps(_) | Progress::Checkpoint(_), _) => None,
+            RunEvent::Progress(
+                Progress::Steps(_) | Progress::Episode { .. } | Progress::Checkpoint(_),
+                _,
+            ) => None,
         }
     }
 }

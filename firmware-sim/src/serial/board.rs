@@ -122,10 +122,7 @@ impl Board<'_> {
 
 /// The committed blob's length and CRC-32.
 fn blob_id(device: &Device) -> Option<(usize, u32)> {
-    device
-        .blob()
-        .ok()
-        .map(|b| (b.len(), infer_core::format::crc32(b)))
+    device.blob().ok().map(|b| (b.len(), infer_core::crc32(b)))
 }
 
 /// A frame's packet, or `None` for a damaged one (not answered: the host resends).

@@ -322,7 +322,7 @@ impl<'a> RemoteDevice<'a> {
         let mut remote = Self {
             link,
             blob,
-            blob_id: (blob.len() as u32, infer_core::format::crc32(blob)),
+            blob_id: (blob.len() as u32, infer_core::crc32(blob)),
             context,
             dims,
             safe,

@@ -57,7 +57,7 @@ fn seal(body: &[u8]) -> Vec<u8> {
 }
 
 /// Re-encodes `payload` as a blob and loads it.
-fn reload(payload: &impl Serialize) -> Result<(), BlobError> {
+fn reload(payload: &impl Serialize) -> Result<()> {
     let bytes = seal(&postcard::to_allocvec(payload).unwrap());
     Model::from_bytes(&bytes).map(|_| ())
 }
@@ -84,30 +84,30 @@ fn non_finite_values_are_refused_naming_the_part() {
     {
         let mut p = decode(&good);
         p.obs_mean = Bytes(&nan);
-        assert_eq!(reload(&p), Err(BlobError::NonFinite { part: "obs_mean" }));
+        assert_eq!(reload(&p), Err(Error::NonFinite { part: "obs_mean" }));
     }
     {
         let mut p = decode(&good);
         p.act_offset = Bytes(&inf_pair);
-        assert_eq!(reload(&p), Err(BlobError::NonFinite { part: "act_offset" }));
+        assert_eq!(reload(&p), Err(Error::NonFinite { part: "act_offset" }));
     }
     let mut weights = decode(&good).encoder[1].weights.0.to_vec();
     weights[4..8].copy_from_slice(&f32::NAN.to_le_bytes());
     {
         let mut p = decode(&good);
         p.encoder[1].weights = Bytes(&weights);
-        assert_eq!(reload(&p), Err(BlobError::NonFinite { part: "encoder" }));
+        assert_eq!(reload(&p), Err(Error::NonFinite { part: "encoder" }));
     }
     {
         let mut p = decode(&good);
         p.policy[2].bias = Bytes(&inf_pair);
-        assert_eq!(reload(&p), Err(BlobError::NonFinite { part: "policy" }));
+        assert_eq!(reload(&p), Err(Error::NonFinite { part: "policy" }));
     }
     // z_head: one r -> z layer, so its weight scales are `z` floats.
     {
         let mut p = decode(&q8);
         p.z_head[0].weight_scale = Bytes(&nan);
-        assert_eq!(reload(&p), Err(BlobError::NonFinite { part: "z_head" }));
+        assert_eq!(reload(&p), Err(Error::NonFinite { part: "z_head" }));
     }
 }
 
@@ -119,10 +119,7 @@ fn non_positive_scales_are_refused_naming_the_part() {
     for std in [&zero_std, &negative_std] {
         let mut p = decode(&good);
         p.obs_std = Bytes(std);
-        assert_eq!(
-            reload(&p),
-            Err(BlobError::NonPositiveScale { part: "obs_std" })
-        );
+        assert_eq!(reload(&p), Err(Error::NonPositiveScale { part: "obs_std" }));
     }
     let q8 = blob(&float(), Quant::W8A32);
     let mut scales = decode(&q8).encoder[0].weight_scale.0.to_vec();
@@ -130,10 +127,7 @@ fn non_positive_scales_are_refused_naming_the_part() {
     {
         let mut p = decode(&q8);
         p.encoder[0].weight_scale = Bytes(&scales);
-        assert_eq!(
-            reload(&p),
-            Err(BlobError::NonPositiveScale { part: "encoder" })
-        );
+        assert_eq!(reload(&p), Err(Error::NonPositiveScale { part: "encoder" }));
     }
     let a8 = blob(&float(), Quant::W8A8);
     // The policy's first layer has one scale per input, its hidden layer a single one.
@@ -141,9 +135,9 @@ fn non_positive_scales_are_refused_naming_the_part() {
     assert_eq!(decode(&a8).policy[0].input_scale.0.len(), 4 * in_dim);
     assert_eq!(decode(&a8).policy[1].input_scale.0.len(), 4);
     for (bad, want) in [
-        (0.0, BlobError::NonPositiveScale { part: "policy" }),
-        (-1.0, BlobError::NonPositiveScale { part: "policy" }),
-        (f32::NAN, BlobError::NonFinite { part: "policy" }),
+        (0.0, Error::NonPositiveScale { part: "policy" }),
+        (-1.0, Error::NonPositiveScale { part: "policy" }),
+        (f32::NAN, Error::NonFinite { part: "policy" }),
     ] {
         let mut scales = decode(&a8).policy[0].input_scale.0.to_vec();
         scales[4 * (in_dim - 1)..].copy_from_slice(&bad.to_le_bytes());
@@ -158,7 +152,7 @@ fn non_positive_scales_are_refused_naming_the_part() {
     let first_in = decode(&a8).policy[0].in_dim as usize;
     assert_eq!(
         reload(&p),
-        Err(BlobError::TensorLength {
+        Err(Error::TensorLength {
             part: "policy",
             expected: 4 * first_in,
             found: 8
@@ -169,7 +163,7 @@ fn non_positive_scales_are_refused_naming_the_part() {
     p.policy[1].unsigned_input = true;
     assert!(matches!(
         reload(&p),
-        Err(BlobError::TensorLength { part: "policy", .. })
+        Err(Error::TensorLength { part: "policy", .. })
     ));
 }
 
@@ -182,7 +176,7 @@ fn tensor_lengths_that_disagree_with_the_shape_are_refused() {
         p.obs_mean = Bytes(&short_mean);
         assert_eq!(
             reload(&p),
-            Err(BlobError::TensorLength {
+            Err(Error::TensorLength {
                 part: "obs_mean",
                 expected: 16,
                 found: 12
@@ -195,7 +189,7 @@ fn tensor_lengths_that_disagree_with_the_shape_are_refused() {
         p.z_head[0].weight_scale = Bytes(&stray_scale);
         assert_eq!(
             reload(&p),
-            Err(BlobError::TensorLength {
+            Err(Error::TensorLength {
                 part: "z_head",
                 expected: 0,
                 found: 4
@@ -210,7 +204,7 @@ fn tensor_lengths_that_disagree_with_the_shape_are_refused() {
         p.encoder[0].weights = Bytes(&long_weights);
         assert_eq!(
             reload(&p),
-            Err(BlobError::TensorLength {
+            Err(Error::TensorLength {
                 part: "encoder",
                 expected: 80,
                 found: 81
@@ -223,7 +217,7 @@ fn tensor_lengths_that_disagree_with_the_shape_are_refused() {
         p.policy[2].bias = Bytes(&short_bias);
         assert_eq!(
             reload(&p),
-            Err(BlobError::TensorLength {
+            Err(Error::TensorLength {
                 part: "policy",
                 expected: 8,
                 found: 4
@@ -286,13 +280,16 @@ fn more_layers_than_the_format_allows_are_refused_by_name() {
     model.z_head.insert(0, square(DIMS.r));
     assert_eq!(
         write_blob(&model, Quant::F32, &calibration()),
-        Err(crate::WriteError::TooManyLayers { part: "z_head" })
+        Err(crate::Error::TooManyLayers {
+            part: "z_head",
+            found: MAX_LAYERS + 1
+        })
     );
     let mut long = LongPayload::of(&payload);
     long.z_head.insert(0, long.z_head[0]);
     assert_eq!(
         reload(&long),
-        Err(BlobError::TooManyLayers {
+        Err(Error::TooManyLayers {
             part: "z_head",
             found: MAX_LAYERS + 1
         })
@@ -303,9 +300,63 @@ fn more_layers_than_the_format_allows_are_refused_by_name() {
     long.encoder.insert(1, extra);
     assert_eq!(
         reload(&long),
-        Err(BlobError::TooManyLayers {
+        Err(Error::TooManyLayers {
             part: "encoder",
             found: 5
+        })
+    );
+}
+
+#[test]
+fn edge_layers_take_their_own_precision_and_none_is_coarser_than_the_header() {
+    let options = crate::WriteOptions {
+        edges: Some(Quant::W8A32),
+        ..Default::default()
+    };
+    let mixed = crate::write_blob_with(&float(), Quant::W8A8, &calibration(), &options).unwrap();
+    let p = decode(&mixed);
+    assert_eq!(p.header.quant, Quant::W8A8);
+    for (part, layers) in [
+        ("encoder", &p.encoder),
+        ("z_head", &p.z_head),
+        ("policy", &p.policy),
+    ] {
+        let last = layers.len() - 1;
+        for (i, l) in layers.iter().enumerate() {
+            let want = if i == 0 || i == last {
+                Quant::W8A32
+            } else {
+                Quant::W8A8
+            };
+            assert_eq!(l.quant, want, "{part} layer {i}");
+        }
+    }
+    // The edges' precision is their own: the same layers of a whole-w8a32 blob, byte for byte.
+    let w8a32 = blob(&float(), Quant::W8A32);
+    assert_eq!(p.policy[0], decode(&w8a32).policy[0]);
+    // A layer coarser than the header is refused by name, before it runs.
+    let plain = blob(&float(), Quant::W8A32);
+    let a8 = blob(&float(), Quant::W8A8);
+    let mut p = decode(&plain);
+    p.policy[1] = decode(&a8).policy[1];
+    assert_eq!(
+        reload(&p),
+        Err(Error::LayerBelowHeader {
+            part: "policy",
+            layer: Quant::W8A8,
+            header: Quant::W8A32
+        })
+    );
+    // The writer refuses edges coarser than the blob.
+    let coarse = crate::WriteOptions {
+        edges: Some(Quant::W8A8),
+        ..Default::default()
+    };
+    assert_eq!(
+        crate::write_blob_with(&float(), Quant::W8A32, &calibration(), &coarse),
+        Err(crate::Error::EdgesBelowQuant {
+            edges: Quant::W8A8,
+            quant: Quant::W8A32
         })
     );
 }

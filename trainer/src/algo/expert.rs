@@ -20,7 +20,6 @@ use sim::{EnvConfig, Environment, EpisodeMetric, Family, Physics, Task};
 
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::ReplayBuffer;
-use crate::data::better;
 mod demos;
 mod set;
 use crate::error::{Error, Result};
@@ -30,7 +29,9 @@ use crate::threads::LearnerPool;
 pub use demos::{DemoSpec, record, record_with};
 pub use set::{EvalReport, ExpertSet, evaluate, evaluate_under_noise, trained_task_value};
 
+mod fit;
 mod policy;
+pub use fit::train;
 use policy::write_policy;
 pub use policy::{Expert, export_scripted_linclass, export_scripted_pd};
 
@@ -454,114 +455,5 @@ impl ExpertTrainer {
             physics: self.cfg.physics,
             policy: self.sac.actor.clone(),
         }
-    }
-}
-
-/// What [`train`] reports to its caller (progress bars).
-#[derive(Debug, Clone, Copy)]
-pub enum Event {
-    /// One env step done; the value is the env step count.
-    Step(u64),
-    /// An episode finished; steps per second since the start of this call.
-    Episode(EpisodeReport, f64),
-    /// A checkpoint was written at this env step.
-    Checkpoint(u64),
-}
-
-/// Train until `total_steps`, logging to `dir/metrics.jsonl`, checkpointing to `dir` every
-/// `checkpoint_every` env steps (at episode ends) and at the end, then exporting the policy to
-/// `dir/policy.safetensors`. A non-finite loss returns [`Error::NonFinite`]; the last
-/// checkpoint on disk is the last good one.
-pub fn train(run: &mut ExpertTrainer, dir: &Path, on: &mut dyn FnMut(Event)) -> Result<()> {
-    let mut log = crate::io::MetricsLog::open_at(dir, run.env_steps)?;
-    let every = run.cfg.checkpoint_every.max(1);
-    let mut next_ckpt = (run.env_steps / every + 1) * every;
-    let eval_every = run.cfg.eval_every;
-    let mut next_eval = (run.env_steps / eval_every.max(1) + 1) * eval_every.max(1);
-    let eval_tasks = match (run.cfg.task_index, run.cfg.task_value) {
-        (None, None) => run.family.test_tasks(),
-        _ => run.tasks.clone(),
-    };
-    let (t0, s0) = (std::time::Instant::now(), run.env_steps);
-    while !run.finished() {
-        let rep = run.run_episode(&mut |s| on(Event::Step(s)))?;
-        let sps = (rep.env_steps - s0) as f64 / t0.elapsed().as_secs_f64().max(1e-9);
-        let mut fields = vec![
-            ("charts/episodic_return", rep.episodic_return as f64),
-            ("charts/metric", rep.metric as f64),
-            ("charts/sps", sps),
-            ("charts/updates", run.sac.updates() as f64),
-        ];
-        if let Some(s) = &rep.last_update {
-            fields.extend(s.fields());
-        }
-        log.log(rep.env_steps, &fields)?;
-        on(Event::Episode(rep, sps));
-        if eval_every > 0 && rep.env_steps >= next_eval {
-            // Deterministic, on its own environment: does not touch the run's state or RNG.
-            let ev = evaluate(
-                &run.expert(),
-                &eval_tasks,
-                run.cfg.eval_episodes,
-                run.cfg.env_config(),
-            )?;
-            let fields = [
-                ("eval/metric", ev.mean as f64),
-                ("eval/final_sample", ev.final_sample_mean as f64),
-            ];
-            log.log(rep.env_steps, &fields)?;
-            next_eval = (rep.env_steps / eval_every + 1) * eval_every;
-            if run.cfg.keep_best
-                && run
-                    .best
-                    .is_none_or(|b| better(run.family.metric_kind(), ev.mean, b.metric))
-            {
-                run.export_policy_as(dir, BEST_POLICY_FILE)?;
-                run.best = Some(BestEval {
-                    metric: ev.mean,
-                    env_steps: rep.env_steps,
-                });
-            }
-        }
-        if rep.env_steps >= next_ckpt || run.finished() {
-            run.save_checkpoint(dir)?;
-            on(Event::Checkpoint(rep.env_steps));
-            next_ckpt = (rep.env_steps / every + 1) * every;
-        }
-    }
-    finish_policy(run, dir, &eval_tasks, &mut log)
-}
-
-/// Export `policy.safetensors`: the final weights, or with `keep_best` the best-evaluated
-/// ones if the final weights evaluate worse (same tasks and episodes as the periodic
-/// evaluations).
-fn finish_policy(
-    run: &ExpertTrainer,
-    dir: &Path,
-    eval_tasks: &[Task],
-    log: &mut crate::io::MetricsLog,
-) -> Result<()> {
-    let best_file = dir.join(BEST_POLICY_FILE);
-    let best = match run.best {
-        Some(b) if run.cfg.keep_best && best_file.exists() => b,
-        _ => return run.export_policy(dir),
-    };
-    let last = evaluate(
-        &run.expert(),
-        eval_tasks,
-        run.cfg.eval_episodes,
-        run.cfg.env_config(),
-    )?;
-    log.log(run.env_steps, &[("eval/metric", last.mean as f64)])?;
-    if better(run.family.metric_kind(), best.metric, last.mean) {
-        let io = |e: std::io::Error| Error::Io {
-            path: dir.join(POLICY_FILE),
-            source: e,
-        };
-        let tmp = dir.join(".policy-best-copy");
-        std::fs::copy(&best_file, &tmp).map_err(io)?;
-        std::fs::rename(&tmp, dir.join(POLICY_FILE)).map_err(io)
-    } else {
-        run.export_policy(dir)
     }
 }

@@ -1,17 +1,18 @@
-//! The one fit loop every meta-learner trains through, in the way of burn's `Learner::fit` or
-//! SB3's `learn`: the metrics log, progress, held-out evaluation and keeping the best policy,
-//! checkpoints, the budget and the learner's own stopping rule, and the final policies
-//! (`last/` and the kept one) are written here once. A learner is its update step and its
-//! models; it tells the loop when its evaluations and checkpoints are due through [`Fit`].
+//! The one fit loop every learner trains through (SAC experts, SMILe, Meta-BC, Meta-DAgger), in
+//! the way of burn's `Learner::fit` or SB3's `learn`: the metrics log, the cadence of
+//! held-out evaluations and checkpoints, keeping the best policy, progress, and the end of the
+//! run are here once. A learner is its unit of work, its evaluation, its state and its
+//! policy files, behind [`Fit`].
 //!
 //! ```text
 //! begin                      (warm start, the untrained policy's evaluation)
 //! while !finished:
-//!     advance                (SMILe: one iteration of Algorithm 1; Meta-BC: one step)
+//!     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
+//!                             Meta-BC: one step)
 //!     log its metrics
-//!     if eval_due: evaluate; keep the policy if best; log; report
-//!     if checkpoint_due: checkpoint; report
-//! last/meta_policy.safetensors, the kept policy marked finished
+//!     if an evaluation is due: evaluate; keep the policy if best; log; report
+//!     if a checkpoint is due: checkpoint; report
+//! finish                     (the final policy files)
 //! ```
 
 use std::path::Path;
@@ -23,11 +24,23 @@ use crate::model::{META_POLICY_FILE, MetaPolicy, TrainingMark};
 /// What a learner reports while it trains.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Progress {
-    /// Updates done so far: SMILe's update pairs, Meta-BC's gradient steps.
+    /// Units of work done so far: SMILe's update pairs, Meta-BC's gradient steps, an
+    /// expert's env steps.
     Steps(u64),
-    /// An evaluation on the held-out train tasks.
+    /// An expert's episode ended.
+    Episode {
+        /// Env steps done.
+        step: u64,
+        /// The episode's undiscounted return.
+        episodic_return: f32,
+        /// The family's metric for the episode.
+        metric: f32,
+        /// Env steps per second since this process started training.
+        sps: f64,
+    },
+    /// A held-out evaluation.
     Eval {
-        /// Updates done.
+        /// Units of work done.
         step: u64,
         /// The family's metric now.
         metric: f32,
@@ -57,14 +70,66 @@ pub(crate) struct Evaluation {
     pub stopped: bool,
 }
 
-/// A learner inside [`fit`]: its steps and its rules. The loop's own state (clocks, the next
-/// evaluation) lives in the implementing type, a learner borrowed for one fit.
+/// When a learner wants its evaluations and checkpoints, in its own units of work.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Cadence {
+    /// An evaluation once the work done reaches each multiple of this; 0: never.
+    pub eval_every: u64,
+    /// Also evaluate when training ends (when `eval_every` > 0).
+    pub eval_at_end: bool,
+    /// A checkpoint at each multiple of this (at least 1), and always when training ends.
+    pub checkpoint_every: u64,
+}
+
+/// The next multiple of `every` after `done`: where an event falls due again. `every` 0 is
+/// never.
+fn next_multiple(done: u64, every: u64) -> u64 {
+    done.checked_div(every)
+        .map_or(u64::MAX, |k| (k + 1).saturating_mul(every))
+}
+
+/// One recurring event of the loop: due at each multiple of `every` that the work reaches
+/// (a unit of work may pass several; the event happens once) and, if asked, at the end.
+struct Schedule {
+    every: u64,
+    next: u64,
+    at_end: bool,
+}
+
+impl Schedule {
+    fn new(every: u64, done: u64, at_end: bool) -> Self {
+        let at_end = at_end && every > 0;
+        Self {
+            every,
+            next: next_multiple(done, every),
+            at_end,
+        }
+    }
+
+    /// Whether the event is due after `done` units (`finished`: training has ended); moves
+    /// the schedule on when it is.
+    fn due(&mut self, done: u64, finished: bool) -> bool {
+        let due = done >= self.next || (finished && self.at_end);
+        if due {
+            self.next = next_multiple(done, self.every);
+        }
+        due
+    }
+}
+
+/// A learner inside [`fit`]: its work, its rules and its files. The learner's own clocks
+/// (throughput, compute budget) live in the implementing type, a learner borrowed for one fit.
 pub(crate) trait Fit {
-    /// Updates done.
+    /// Units of work done.
     fn done(&self) -> u64;
 
+    /// When evaluations and checkpoints are due.
+    fn cadence(&self) -> Cadence;
+
     /// Before the loop: a warm start, the untrained policy's evaluation.
-    fn begin(&mut self, log: &mut MetricsLog) -> Result<()>;
+    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
+        Ok(())
+    }
 
     /// Whether training is over: the budget, a compute budget or the stopping rule.
     fn finished(&self) -> bool;
@@ -72,47 +137,38 @@ pub(crate) trait Fit {
     /// One unit of work; returns the metrics to log at [`Fit::done`] (none: no line).
     fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields>;
 
-    /// Whether a held-out evaluation is due now (the learner moves its schedule on).
-    fn eval_due(&mut self) -> bool;
-
     /// The held-out evaluation; `None` when there is nothing to evaluate on.
     fn evaluate(&mut self) -> Result<Option<Evaluation>>;
-
-    /// Whether a checkpoint is due now (the learner moves its schedule on).
-    fn checkpoint_due(&mut self) -> bool;
 
     /// Writes the checkpoint to `dir`.
     fn save_checkpoint(&self, dir: &Path) -> Result<()>;
 
-    /// The current policy.
-    fn policy(&self) -> MetaPolicy;
+    /// Writes the current policy as the one kept so far (an evaluation judged it best).
+    fn save_kept(&self, dir: &Path) -> Result<()>;
 
-    /// The training mark of a policy saved now.
-    fn mark(&self, finished: bool) -> TrainingMark;
-
-    /// Whether the final policy replaces a kept one at the end (SMILe without held-out
-    /// tasks, whose evaluations keep nothing).
-    fn final_replaces_kept(&self) -> bool {
-        false
-    }
+    /// After the loop: the final policy files.
+    fn finish(&mut self, dir: &Path, log: &mut MetricsLog) -> Result<()>;
 }
 
-/// Trains `run` in `dir` to its end: the metrics log `dir/metrics.jsonl`, the best held-out
-/// policy in `dir/meta_policy.safetensors` (marked finished at the end), the last one in
-/// `dir/last/`, checkpoints as the learner schedules them.
+/// Trains `run` in `dir` to its end: the metrics log `dir/metrics.jsonl`, evaluations and
+/// checkpoints at the learner's [`Cadence`], the kept policy at each evaluation that judges it
+/// best, then the learner's final files ([`Fit::finish`]).
 pub(crate) fn fit(run: &mut impl Fit, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
+    let cadence = run.cadence();
+    let mut evals = Schedule::new(cadence.eval_every, run.done(), cadence.eval_at_end);
+    let mut checkpoints = Schedule::new(cadence.checkpoint_every.max(1), run.done(), true);
     while !run.finished() {
         let fields = run.advance(on)?;
         if !fields.is_empty() {
             log.log(run.done(), &fields)?;
         }
-        if run.eval_due()
+        if evals.due(run.done(), run.finished())
             && let Some(ev) = run.evaluate()?
         {
             if ev.keep {
-                run.policy().save_marked(dir, Some(run.mark(false)))?;
+                run.save_kept(dir)?;
             }
             if ev.stopped {
                 on(Progress::Stopped(run.done()));
@@ -120,22 +176,58 @@ pub(crate) fn fit(run: &mut impl Fit, dir: &Path, on: &mut dyn FnMut(Progress)) 
             log.log(run.done(), &ev.fields)?;
             on(ev.progress);
         }
-        if run.checkpoint_due() {
+        if checkpoints.due(run.done(), run.finished()) {
             run.save_checkpoint(dir)?;
             on(Progress::Checkpoint(run.done()));
         }
     }
+    run.finish(dir, &mut log)
+}
+
+/// A meta-learner's end of training: the last policy in `dir/last/`, and the kept (best)
+/// policy in `dir/meta_policy.safetensors` marked finished; the last one takes its place when
+/// no evaluation kept one, or when `final_replaces_kept` (SMILe without held-out tasks, whose
+/// evaluations keep nothing).
+pub(crate) fn finish_meta_policy(
+    policy: &MetaPolicy,
+    mark: TrainingMark,
+    dir: &Path,
+    final_replaces_kept: bool,
+) -> Result<()> {
     let last = dir.join("last");
     std::fs::create_dir_all(&last).map_err(|e| Error::Io {
         path: last.clone(),
         source: e,
     })?;
-    run.policy().save_marked(&last, Some(run.mark(true)))?;
-    if run.final_replaces_kept() || !dir.join(META_POLICY_FILE).exists() {
-        run.policy().save_marked(dir, Some(run.mark(true)))?;
+    policy.save_marked(&last, Some(mark))?;
+    if final_replaces_kept || !dir.join(META_POLICY_FILE).exists() {
+        policy.save_marked(dir, Some(mark))
     } else {
         // The kept (best) policy was written mid-run, marked unfinished: now it is final.
-        MetaPolicy::mark_finished(dir)?;
+        MetaPolicy::mark_finished(dir)
     }
-    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_schedule_falls_due_once_per_multiple_and_at_the_end() {
+        let mut s = Schedule::new(100, 0, true);
+        let due: Vec<u64> = [50, 100, 150, 250, 260, 300]
+            .into_iter()
+            .filter(|&d| s.due(d, false))
+            .collect();
+        // 250 passes 200 (once), the next multiple after 250 is 300.
+        assert_eq!(due, [100, 250, 300]);
+        assert!(s.due(301, true), "the end is due when asked");
+        assert!(!Schedule::new(100, 0, false).due(1, true));
+        // Resumed at a multiple: the next one is due, not the one it stands on.
+        let mut r = Schedule::new(100, 200, false);
+        assert!(!r.due(201, false) && r.due(300, false));
+        // every 0: never, even at the end.
+        let mut never = Schedule::new(0, 0, true);
+        assert!(!never.due(u64::MAX - 1, true));
+    }
 }

@@ -142,6 +142,12 @@ pub fn verify(
         bytes: blob.len(),
         blob_sha256: crate::io::checkpoint::sha256_hex(blob),
         quant: quant.into(),
+        // The finest layer the blob keeps above its own quantization (its edge layers).
+        edges: model
+            .layer_quants()
+            .filter(|q| *q != model.header().quant)
+            .max_by_key(|q| q.weight_bytes())
+            .map(crate::io::export::quant_name),
         algo: mp.algo.clone(),
         env: family,
         physics: mp.physics,

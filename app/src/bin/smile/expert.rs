@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use sim::{EnvConfig, Family};
-use trainer::expert::{self, Event, Expert, ExpertConfig, ExpertTrainer};
+use trainer::Progress;
+use trainer::expert::{self, Expert, ExpertConfig, ExpertTrainer};
 
 /// Which expert `smile expert` produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -292,12 +293,17 @@ pub fn run(a: ExpertArgs) -> Result<()> {
     let pb = trainer::progress_bar(run.config().total_steps, a.quiet, "steps");
     pb.set_position(run.env_steps());
     let result = expert::train(&mut run, &dir, &mut |ev| match ev {
-        Event::Step(s) => pb.set_position(s),
-        Event::Episode(r, sps) => pb.set_message(format!(
-            "sps {sps:.0} return {:.2} metric {:.3}",
-            r.episodic_return, r.metric
+        Progress::Steps(s) => pb.set_position(s),
+        Progress::Episode {
+            episodic_return,
+            metric,
+            sps,
+            ..
+        } => pb.set_message(format!(
+            "sps {sps:.0} return {episodic_return:.2} metric {metric:.3}"
         )),
-        Event::Checkpoint(s) => pb.println(format!("checkpoint at step {s}")),
+        Progress::Checkpoint(s) => pb.println(format!("checkpoint at step {s}")),
+        _ => {}
     });
     pb.finish_and_clear();
     if result.is_ok()

@@ -37,6 +37,12 @@ pub struct ExportArgs {
     /// clipped, for a finer step on all the others).
     #[arg(long, default_value_t = 1.0, value_parser = quantile)]
     range_quantile: f32,
+    /// The precision of the first and last layer of each MLP (encoder, z head, policy): raw
+    /// observations, actions and latents go in there and the action mean comes out, where
+    /// int8 activations cost most. `f32`, `w8a32` or the blob's own quantization (every layer
+    /// alike) [default: w8a32 for a w8a8 blob, the same flash; otherwise the blob's own].
+    #[arg(long)]
+    edges: Option<String>,
     /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
     #[arg(long)]
     demos: Option<PathBuf>,
@@ -95,6 +101,11 @@ fn run_onnx(a: &ExportArgs, mp: &MetaPolicy) -> Result<()> {
         bail!(
             "--quant {q} quantizes a blob; the ONNX graphs are float32 (drop --quant, or \
              --format blob for a {q} blob)"
+        );
+    }
+    if let Some(e) = &a.edges {
+        bail!(
+            "--edges {e} sets a blob's layer precision; the ONNX graphs are float32 (drop --edges)"
         );
     }
     if let Some(path) = &a.demos {
@@ -164,7 +175,15 @@ pub fn run(a: ExportArgs) -> Result<()> {
         };
         (env, 1)
     });
-    let blob = export::export_blob_with(&mp, quant, demos.as_ref(), closed_loop, a.range_quantile)?;
+    let edges = match a.edges.as_deref() {
+        Some(e) => Some(export::parse_quant(e)?),
+        None => export::default_edges(quant),
+    };
+    let options = infer_core::WriteOptions {
+        range_quantile: a.range_quantile,
+        edges,
+    };
+    let blob = export::export_blob_with(&mp, quant, demos.as_ref(), closed_loop, &options)?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -198,11 +217,14 @@ pub fn run(a: ExportArgs) -> Result<()> {
     // extension once got its report at `<blob>.blob.json`, which the device never found).
     let json = export::ExportReport::path_beside(&a.out);
     land_blob_and_report(&a.out, &blob, &json, &report)?;
+    let edges = report
+        .edges
+        .as_deref()
+        .map_or(String::new(), |e| format!(", first and last layers {e}"));
     eprintln!(
-        "wrote {} ({} bytes, {}) and {}",
+        "wrote {} ({} bytes, {quant_name}{edges}) and {}",
         a.out.display(),
         blob.len(),
-        quant_name,
         json.display()
     );
     Ok(())

@@ -7,12 +7,12 @@ use sim::Family;
 
 use super::{MetaBc, MetaBcConfig, Selection};
 use crate::algo::expert::ExpertSet;
-use crate::algo::fit::{Evaluation, Fields, Fit, Progress, fit};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_policy, fit};
 use crate::algo::learner::{Algo, MetaLearner};
 use crate::data::{MetaData, better, quick_eval};
 use crate::error::Result;
 use crate::io::MetricsLog;
-use crate::model::{MetaPolicy, TrainingMark};
+use crate::model::MetaPolicy;
 
 /// Trains until `total_steps` or the stopping rule through the shared fit loop ([`fit`]);
 /// logs `losses/bc_mse`, `eval/val_mse`, `eval/val_metric`; keeps the best weights by
@@ -41,8 +41,12 @@ impl Fit for MetaBcFit<'_> {
         self.run.steps
     }
 
-    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
-        Ok(())
+    fn cadence(&self) -> Cadence {
+        Cadence {
+            eval_every: self.run.cfg.eval_every,
+            eval_at_end: true,
+            checkpoint_every: self.run.cfg.checkpoint_every,
+        }
     }
 
     fn finished(&self) -> bool {
@@ -66,11 +70,6 @@ impl Fit for MetaBcFit<'_> {
             ("charts/sps", sps),
             ("charts/dataset_size", run.dataset_size() as f64),
         ])
-    }
-
-    fn eval_due(&mut self) -> bool {
-        let every = self.run.cfg.eval_every;
-        every > 0 && (self.run.steps.is_multiple_of(every) || self.at_end())
     }
 
     fn evaluate(&mut self) -> Result<Option<Evaluation>> {
@@ -123,21 +122,18 @@ impl Fit for MetaBcFit<'_> {
         }))
     }
 
-    fn checkpoint_due(&mut self) -> bool {
-        let every = self.run.cfg.checkpoint_every.max(1);
-        self.run.steps.is_multiple_of(every) || self.at_end() || self.run.stopped
-    }
-
     fn save_checkpoint(&self, dir: &Path) -> Result<()> {
         self.run.save_checkpoint(dir)
     }
 
-    fn policy(&self) -> MetaPolicy {
-        self.run.meta_policy()
+    fn save_kept(&self, dir: &Path) -> Result<()> {
+        self.run
+            .meta_policy()
+            .save_marked(dir, Some(self.run.mark(false)))
     }
 
-    fn mark(&self, finished: bool) -> TrainingMark {
-        self.run.mark(finished)
+    fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
+        finish_meta_policy(&self.run.meta_policy(), self.run.mark(true), dir, false)
     }
 }
 

@@ -7,12 +7,12 @@ use sim::Family;
 
 use super::{Smile, SmileConfig};
 use crate::algo::expert::ExpertSet;
-use crate::algo::fit::{Evaluation, Fields, Fit, Progress, fit};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_policy, fit};
 use crate::algo::learner::{Algo, MetaLearner};
 use crate::data::{MetaData, better};
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
-use crate::model::{DiscStats, MetaPolicy, TrainingMark};
+use crate::model::{DiscStats, MetaPolicy};
 
 /// Trains until `total_updates` (or the `cpu_budget_s` compute budget) through the shared fit
 /// loop ([`fit`]): metrics in `dir/metrics.jsonl`, an evaluation on held-out train tasks every
@@ -31,8 +31,6 @@ struct SmileFit<'a> {
     /// Wall clock and update count when this process started training.
     t0: std::time::Instant,
     u0: u64,
-    next_ckpt: u64,
-    next_eval: u64,
     done: bool,
 }
 
@@ -55,8 +53,6 @@ impl<'a> SmileFit<'a> {
             cpu0,
             t0: std::time::Instant::now(),
             u0,
-            next_ckpt: 0,
-            next_eval: 0,
             done,
         })
     }
@@ -67,19 +63,20 @@ impl Fit for SmileFit<'_> {
         self.run.updates
     }
 
+    fn cadence(&self) -> Cadence {
+        Cadence {
+            eval_every: self.run.cfg.eval_every,
+            eval_at_end: true,
+            checkpoint_every: self.run.cfg.checkpoint_every,
+        }
+    }
+
     fn begin(&mut self, log: &mut MetricsLog) -> Result<()> {
         let run = &mut *self.run;
         if run.updates == 0 && run.replay.total_len() == 0 {
             run.warm_start()?;
         }
-        let cfg = &run.cfg;
         (self.t0, self.u0) = (std::time::Instant::now(), run.updates);
-        let every = cfg.checkpoint_every.max(1);
-        self.next_ckpt = (run.updates / every + 1) * every;
-        self.next_eval = run
-            .updates
-            .checked_div(cfg.eval_every)
-            .map_or(u64::MAX, |k| (k + 1) * cfg.eval_every);
         if !run.data.val.is_empty() && run.updates == 0 {
             // The untrained policy as the first point of the validation curve.
             let m = run.validate()?;
@@ -131,15 +128,6 @@ impl Fit for SmileFit<'_> {
         Ok(fields)
     }
 
-    fn eval_due(&mut self) -> bool {
-        let (updates, every) = (self.run.updates, self.run.cfg.eval_every);
-        let due = updates >= self.next_eval || (self.done && every > 0);
-        if due {
-            self.next_eval = (updates / every + 1) * every;
-        }
-        due
-    }
-
     fn evaluate(&mut self) -> Result<Option<Evaluation>> {
         let run = &mut *self.run;
         if run.data.val.is_empty() {
@@ -166,29 +154,19 @@ impl Fit for SmileFit<'_> {
         }))
     }
 
-    fn checkpoint_due(&mut self) -> bool {
-        let every = self.run.cfg.checkpoint_every.max(1);
-        let due = self.run.updates >= self.next_ckpt || self.done;
-        if due {
-            self.next_ckpt = (self.run.updates / every + 1) * every;
-        }
-        due
-    }
-
     fn save_checkpoint(&self, dir: &Path) -> Result<()> {
         self.run.save_checkpoint(dir)
     }
 
-    fn policy(&self) -> MetaPolicy {
-        self.run.meta_policy()
+    fn save_kept(&self, dir: &Path) -> Result<()> {
+        self.run
+            .meta_policy()
+            .save_marked(dir, Some(self.run.mark(false)))
     }
 
-    fn mark(&self, finished: bool) -> TrainingMark {
-        self.run.mark(finished)
-    }
-
-    fn final_replaces_kept(&self) -> bool {
-        self.run.data.val.is_empty()
+    fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
+        let replaces = self.run.data.val.is_empty();
+        finish_meta_policy(&self.run.meta_policy(), self.run.mark(true), dir, replaces)
     }
 }
 
