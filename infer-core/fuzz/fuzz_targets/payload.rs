@@ -6,7 +6,7 @@
 #[path = "exercise.rs"]
 mod exercise;
 
-use infer_core::format::{ENVELOPE_LEN, FORMAT_VERSION, MAGIC, crc32};
+use infer_core::{ENVELOPE_LEN, FORMAT_VERSION, MAGIC, crc32};
 
 libfuzzer_sys::fuzz_target!(|payload: &[u8]| {
     let mut blob = Vec::with_capacity(ENVELOPE_LEN + payload.len());
