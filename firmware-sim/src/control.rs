@@ -143,132 +143,230 @@ impl Brain for Controller<'_, '_> {
     }
 }
 
-/// Runs `controller` against `plant` on `task`.
+/// The loop's timing: the control rate, plant steps per tick, and ticks to run.
+struct Timing {
+    rate: f32,
+    steps_per_tick: usize,
+    ticks: usize,
+}
+
+impl Timing {
+    /// Checks the configured rate against the plant's (a whole number of plant steps per
+    /// tick) and the tick count against the episode.
+    fn of(plant: &dyn Environment, config: &LoopConfig) -> Result<Self, LoopError> {
+        let plant_rate = 1.0 / plant.control_dt();
+        let rate = config.rate_hz.unwrap_or(plant_rate);
+        let ratio = plant_rate / rate;
+        let steps_per_tick = ratio.round() as usize;
+        if steps_per_tick == 0 || (ratio - steps_per_tick as f32).abs() > 1e-3 {
+            return Err(LoopError::Rate {
+                rate,
+                plant: plant_rate,
+            });
+        }
+        let most = plant.horizon().div_ceil(steps_per_tick);
+        let ticks = config.ticks.unwrap_or(most);
+        if ticks == 0 || ticks > most {
+            return Err(LoopError::Ticks { ticks, most });
+        }
+        Ok(Self {
+            rate,
+            steps_per_tick,
+            ticks,
+        })
+    }
+}
+
+/// The sensors between the plant and the brain: noise and the ADC on every reading, and with
+/// position-only sensing the device's estimator.
+struct Sensors<'c> {
+    config: &'c LoopConfig,
+    noise: Normal<f32>,
+    rng: ChaCha8Rng,
+    estimated: Option<SensorPath>,
+}
+
+impl<'c> Sensors<'c> {
+    fn new(config: &'c LoopConfig, task: &Task, rate: f32) -> Result<Self, LoopError> {
+        if let Some(bits) = config.adc_bits
+            && !((1..=24).contains(&bits) && config.adc_range.is_finite() && config.adc_range > 0.0)
+        {
+            return Err(LoopError::Adc {
+                bits,
+                range: config.adc_range,
+            });
+        }
+        if !(config.noise_std.is_finite() && config.noise_std >= 0.0) {
+            return Err(LoopError::Noise(config.noise_std));
+        }
+        let noise = Normal::new(0.0f32, config.noise_std)
+            .map_err(|_| LoopError::Noise(config.noise_std))?;
+        Ok(Self {
+            config,
+            noise,
+            rng: ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45),
+            estimated: SensorPath::new(config, task.family(), rate)?,
+        })
+    }
+
+    /// Reads the plant's true observation at `tick`: into `sensed` with full sensing, into
+    /// the estimator's readings otherwise (a configured NaN tick corrupts the first reading).
+    fn read(&mut self, tick: usize, truth: &[f32], sensed: &mut [f32]) {
+        let (config, noise, rng) = (self.config, &self.noise, &mut self.rng);
+        let nan = config.nan_ticks.contains(&tick);
+        match self.estimated.as_mut() {
+            Some(path) => {
+                path.read(truth, |x| sense(x, config, noise, rng));
+                if nan {
+                    path.readings[0] = f32::NAN;
+                }
+            }
+            None => {
+                for (s, &x) in sensed.iter_mut().zip(truth) {
+                    *s = sense(x, config, noise, rng);
+                }
+                if nan {
+                    sensed[0] = f32::NAN;
+                }
+            }
+        }
+    }
+
+    /// The brain's action for this tick into `computed`, and whether a sensor faulted. With
+    /// position-only sensing and no estimate yet, the safe action.
+    fn decide(
+        &mut self,
+        brain: &mut dyn Brain,
+        tick: usize,
+        sensed: &mut [f32],
+        computed: &mut [f32],
+        safe: &[f32],
+    ) -> Result<(Outcome, bool), LoopError> {
+        let Some(path) = self.estimated.as_mut() else {
+            return Ok((brain.act(tick, sensed, computed)?, false));
+        };
+        match path.estimate(sensed)? {
+            Some(rejected) => Ok((brain.act(tick, sensed, computed)?, rejected)),
+            None => {
+                computed.copy_from_slice(safe);
+                let on_time = Outcome {
+                    fault: false,
+                    late: None,
+                };
+                Ok((on_time, true))
+            }
+        }
+    }
+
+    /// The raw readings the estimator got (empty with full sensing).
+    fn measured(&self) -> Vec<f32> {
+        self.estimated
+            .as_ref()
+            .map_or_else(Vec::new, |p| p.readings.clone())
+    }
+}
+
+/// The actuators: the action applied this tick, given the fresh one (or, when it came late,
+/// the last applied); with latency the bus delivers the previous tick's action. Fixed
+/// buffers: no allocation per tick.
+struct Actuators {
+    latency: bool,
+    pending: Vec<f32>,
+    applied: Vec<f32>,
+    last_applied: Vec<f32>,
+}
+
+impl Actuators {
+    fn new(latency: bool, safe: &[f32]) -> Self {
+        Self {
+            latency,
+            pending: safe.to_vec(),
+            applied: safe.to_vec(),
+            last_applied: safe.to_vec(),
+        }
+    }
+
+    fn apply(&mut self, computed: &[f32], late: bool) {
+        let fresh = if late { &self.last_applied } else { computed };
+        if self.latency {
+            self.applied.copy_from_slice(&self.pending);
+            self.pending.copy_from_slice(fresh);
+        } else {
+            self.applied.copy_from_slice(fresh);
+        }
+    }
+}
+
+/// Steps the plant `steps` times with `action`: the tick's summed reward, the last step's
+/// info, and whether the episode ended.
+fn step_plant(
+    plant: &mut dyn Environment,
+    action: &[f32],
+    steps: usize,
+    metric: &mut EpisodeMetric,
+) -> Result<(f32, sim::StepInfo, bool), LoopError> {
+    let mut reward = 0.0;
+    let mut info = sim::StepInfo::default();
+    for _ in 0..steps {
+        let t = plant.step(action)?;
+        reward += t.reward;
+        info = t.info;
+        metric.record(&t.info);
+        if t.done {
+            return Ok((reward, info, true));
+        }
+    }
+    Ok((reward, info, false))
+}
+
+/// Runs `controller` against `plant` on `task`: each tick reads the sensors, computes the
+/// action (timed against the budget), applies it, steps the plant and records the tick.
 pub fn run(
     controller: &mut dyn Brain,
     plant: &mut dyn Environment,
     task: &Task,
     config: &LoopConfig,
 ) -> Result<RunReport, LoopError> {
-    let plant_rate = 1.0 / plant.control_dt();
-    let rate = config.rate_hz.unwrap_or(plant_rate);
-    let ratio = plant_rate / rate;
-    let steps_per_tick = ratio.round() as usize;
-    if steps_per_tick == 0 || (ratio - steps_per_tick as f32).abs() > 1e-3 {
-        return Err(LoopError::Rate {
-            rate,
-            plant: plant_rate,
-        });
-    }
-    let most = plant.horizon().div_ceil(steps_per_tick);
-    let ticks = config.ticks.unwrap_or(most);
-    if ticks == 0 || ticks > most {
-        return Err(LoopError::Ticks { ticks, most });
-    }
-    if let Some(bits) = config.adc_bits
-        && !((1..=24).contains(&bits) && config.adc_range.is_finite() && config.adc_range > 0.0)
-    {
-        return Err(LoopError::Adc {
-            bits,
-            range: config.adc_range,
-        });
-    }
-    let mut noise_rng = ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45);
-    if !(config.noise_std.is_finite() && config.noise_std >= 0.0) {
-        return Err(LoopError::Noise(config.noise_std));
-    }
-    let noise =
-        Normal::new(0.0f32, config.noise_std).map_err(|_| LoopError::Noise(config.noise_std))?;
-    let act_dim = plant.act_dim();
+    let timing = Timing::of(plant, config)?;
+    let mut sensors = Sensors::new(config, task, timing.rate)?;
     let mut metric = EpisodeMetric::new(task.family());
-    let mut safe = vec![0.0; act_dim];
+    let mut safe = vec![0.0; plant.act_dim()];
     controller.safe_action(&mut safe);
-    let mut last_applied = safe.clone();
-    let mut pending = safe.clone();
-    let mut applied = safe.clone();
+    let mut actuators = Actuators::new(config.latency, &safe);
     let mut sensed = plant.reset(task, config.seed)?.to_vec();
-    let mut estimated = SensorPath::new(config, task.family(), rate)?;
-    let (mut records, mut compute_ns) = (Vec::with_capacity(ticks), Vec::with_capacity(ticks));
+    let mut computed = vec![0.0; safe.len()];
+    let (mut records, mut compute_ns) = (
+        Vec::with_capacity(timing.ticks),
+        Vec::with_capacity(timing.ticks),
+    );
     let (mut overruns, mut faults) = (0, 0);
-    let mut computed = vec![0.0; act_dim];
-    let mut plant_done = false;
-    for tick in 0..ticks {
-        if plant_done {
-            break;
-        }
+    for tick in 0..timing.ticks {
         controller.start_tick(tick);
-        // Sensors.
-        if let Some(path) = estimated.as_mut() {
-            // Position-only sensing: the device gets the measured entries and estimates the
-            // observation the policy needs; a bad reading never reaches it.
-            path.read(plant.observation(), |x| {
-                sense(x, config, &noise, &mut noise_rng)
-            });
-            if config.nan_ticks.contains(&tick) {
-                path.readings[0] = f32::NAN;
-            }
-        } else {
-            for (s, &x) in sensed.iter_mut().zip(plant.observation()) {
-                *s = sense(x, config, &noise, &mut noise_rng);
-            }
-            if config.nan_ticks.contains(&tick) {
-                sensed[0] = f32::NAN;
-            }
-        }
-        // Compute.
+        sensors.read(tick, plant.observation(), &mut sensed);
         let start = Instant::now();
-        let (outcome, sensor_fault) = match estimated.as_mut() {
-            None => (controller.act(tick, &sensed, &mut computed)?, false),
-            Some(path) => match path.estimate(&mut sensed)? {
-                Some(rejected) => (controller.act(tick, &sensed, &mut computed)?, rejected),
-                None => {
-                    // No estimate yet: the safe action.
-                    computed.copy_from_slice(&safe);
-                    let on_time = Outcome {
-                        fault: false,
-                        late: None,
-                    };
-                    (on_time, true)
-                }
-            },
-        };
+        let (outcome, sensor_fault) =
+            sensors.decide(controller, tick, &mut sensed, &mut computed, &safe)?;
         let ns = start.elapsed().as_nanos() as u64;
         compute_ns.push(ns);
         let fault = outcome.fault || sensor_fault;
         faults += fault as usize;
         let overrun = outcome.late.unwrap_or(ns as f64 > config.budget_us * 1e3);
         overruns += overrun as usize;
-        // Actuators. A late action is dropped (hold the last one); with latency the bus
-        // delivers the previous tick's action. Fixed buffers: no allocation per tick here.
-        let fresh = if overrun { &last_applied } else { &computed };
-        if config.latency {
-            applied.copy_from_slice(&pending);
-            pending.copy_from_slice(fresh);
-        } else {
-            applied.copy_from_slice(fresh);
-        }
-        let mut reward = 0.0;
-        let mut info = sim::StepInfo::default();
-        for _ in 0..steps_per_tick {
-            let t = plant.step(&applied)?;
-            reward += t.reward;
-            info = t.info;
-            metric.record(&t.info);
-            if t.done {
-                plant_done = true;
-                break;
-            }
-        }
+        actuators.apply(&computed, overrun);
+        let (reward, info, done) = step_plant(
+            plant,
+            &actuators.applied,
+            timing.steps_per_tick,
+            &mut metric,
+        )?;
         // The trace is the host's view of the run, not part of the device.
         records.push(TickRecord {
             tick,
-            time: tick as f32 / rate,
+            time: tick as f32 / timing.rate,
             sensed: sensed.clone(),
-            measured: estimated
-                .as_ref()
-                .map_or_else(Vec::new, |p| p.readings.clone()),
+            measured: sensors.measured(),
             computed: computed.clone(),
-            applied: applied.clone(),
+            applied: actuators.applied.clone(),
             reward,
             metric_sample: info.metric_sample,
             forward_velocity: info.forward_velocity,
@@ -276,7 +374,10 @@ pub fn run(
             fault,
             overrun,
         });
-        last_applied.copy_from_slice(&applied);
+        actuators.last_applied.copy_from_slice(&actuators.applied);
+        if done {
+            break;
+        }
     }
     Ok(RunReport {
         records,
@@ -284,7 +385,7 @@ pub fn run(
         overruns,
         faults,
         compute_ns,
-        steps_per_tick,
+        steps_per_tick: timing.steps_per_tick,
         task: *task,
     })
 }

@@ -175,16 +175,20 @@ fn check_task_floats(
     Ok(())
 }
 
-impl DemoDataset {
-    /// Parses and validates safetensors bytes written by [`DemoDataset::to_bytes`].
-    pub fn from_bytes(bytes: &[u8]) -> Result<DemoDataset, DatasetError> {
-        check_length(bytes)?;
-        let file =
-            SafeTensors::deserialize(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
-        let (_, header) =
-            SafeTensors::read_metadata(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
-        let empty = HashMap::new();
-        let map = header.metadata().as_ref().unwrap_or(&empty);
+/// The metadata of a demo file: what it holds and its dimensions, checked against its family.
+struct Meta {
+    family: Family,
+    physics: Physics,
+    split: Split,
+    expert: String,
+    obs_dim: usize,
+    act_dim: usize,
+    task_dim: usize,
+    subsample_factor: usize,
+}
+
+impl Meta {
+    fn read(map: &HashMap<String, String>) -> Result<Self, DatasetError> {
         let format = map.get("format").map(String::as_str);
         if format != Some(FORMAT_NAME) {
             return Err(DatasetError::NotADemoFile(format!("format is {format:?}")));
@@ -202,21 +206,26 @@ impl DemoDataset {
                 key: "physics",
                 reason: e.to_string(),
             })?;
-        let split: Split = meta_parse(map, "split")?;
-        let obs_dim: usize = meta_parse(map, "obs_dim")?;
-        let act_dim: usize = meta_parse(map, "act_dim")?;
-        let task_dim: usize = meta_parse(map, "task_dim")?;
-        let subsample_factor: usize = meta_parse(map, "subsample_factor")?;
-        if subsample_factor == 0 {
+        let meta = Meta {
+            family,
+            physics,
+            split: meta_parse(map, "split")?,
+            expert: meta(map, "expert")?.to_string(),
+            obs_dim: meta_parse(map, "obs_dim")?,
+            act_dim: meta_parse(map, "act_dim")?,
+            task_dim: meta_parse(map, "task_dim")?,
+            subsample_factor: meta_parse(map, "subsample_factor")?,
+        };
+        if meta.subsample_factor == 0 {
             return Err(DatasetError::BadMetadata {
                 key: "subsample_factor",
                 reason: "must be at least 1".into(),
             });
         }
         let dims = [
-            ("obs_dim", family.obs_dim(), obs_dim),
-            ("act_dim", family.act_dim(), act_dim),
-            ("task_dim", family.task_dim(), task_dim),
+            ("obs_dim", family.obs_dim(), meta.obs_dim),
+            ("act_dim", family.act_dim(), meta.act_dim),
+            ("task_dim", family.task_dim(), meta.task_dim),
         ];
         for (what, expected, got) in dims {
             if expected != got {
@@ -227,22 +236,31 @@ impl DemoDataset {
                 });
             }
         }
+        Ok(meta)
+    }
+}
 
-        let (rewards, shape) = tensor(&file, names::REWARDS, Dtype::F32, &[None])?;
+/// The per-row tensors: every transition of every trajectory, in file order.
+struct Rows {
+    obs: Vec<f32>,
+    next_obs: Vec<f32>,
+    actions: Vec<f32>,
+    rewards: Vec<f32>,
+    dones: Vec<u8>,
+    time_steps: Vec<u32>,
+}
+
+impl Rows {
+    fn read(file: &SafeTensors<'_>, m: &Meta) -> Result<Self, DatasetError> {
+        let (rewards, shape) = tensor(file, names::REWARDS, Dtype::F32, &[None])?;
         let n = shape[0];
-        let obs = f32s(tensor(&file, names::OBS, Dtype::F32, &[Some(n), Some(obs_dim)])?.0);
-        let next_obs = f32s(
-            tensor(
-                &file,
-                names::NEXT_OBS,
-                Dtype::F32,
-                &[Some(n), Some(obs_dim)],
-            )?
-            .0,
-        );
-        let actions = f32s(tensor(&file, names::ACTIONS, Dtype::F32, &[Some(n), Some(act_dim)])?.0);
-        let rewards = f32s(rewards);
-        let dones = tensor(&file, names::DONES, Dtype::U8, &[Some(n)])?.0;
+        let rows_of = |name, width| tensor(file, name, Dtype::F32, &[Some(n), Some(width)]);
+        let obs = f32s(rows_of(names::OBS, m.obs_dim)?.0);
+        let next_obs = f32s(rows_of(names::NEXT_OBS, m.obs_dim)?.0);
+        let actions = f32s(rows_of(names::ACTIONS, m.act_dim)?.0);
+        let dones = tensor(file, names::DONES, Dtype::U8, &[Some(n)])?
+            .0
+            .to_vec();
         // A flag is 0 or 1: any other byte is a corrupt or foreign file, not "done".
         if let Some(i) = dones.iter().position(|&d| d > 1) {
             return Err(DatasetError::Inconsistent(format!(
@@ -252,7 +270,7 @@ impl DemoDataset {
             )));
         }
         let time_steps = indices(
-            tensor(&file, names::TIME_STEPS, Dtype::I64, &[Some(n)])?.0,
+            tensor(file, names::TIME_STEPS, Dtype::I64, &[Some(n)])?.0,
             names::TIME_STEPS,
         )?
         .into_iter()
@@ -263,77 +281,121 @@ impl DemoDataset {
             })
         })
         .collect::<Result<Vec<u32>, _>>()?;
-        let (values, shape) = tensor(&file, names::TASK_VALUES, Dtype::F64, &[None])?;
+        Ok(Rows {
+            obs,
+            next_obs,
+            actions,
+            rewards: f32s(rewards),
+            dones,
+            time_steps,
+        })
+    }
+
+    fn len(&self) -> usize {
+        self.rewards.len()
+    }
+}
+
+/// The index tensors: each task's value and parameters, which trajectories are its, and
+/// where each trajectory's rows are.
+struct Index {
+    values: Vec<f64>,
+    task_offsets: Vec<usize>,
+    row_offsets: Vec<usize>,
+    seeds: Vec<u64>,
+    sub_offsets: Vec<usize>,
+}
+
+impl Index {
+    fn read(file: &SafeTensors<'_>, m: &Meta, rows: usize) -> Result<Self, DatasetError> {
+        let (values, shape) = tensor(file, names::TASK_VALUES, Dtype::F64, &[None])?;
         let k = shape[0];
-        let parameters = f32s(
-            tensor(
-                &file,
-                names::TASK_PARAMETERS,
-                Dtype::F32,
-                &[Some(k), Some(task_dim)],
-            )?
-            .0,
-        );
+        let shape = [Some(k), Some(m.task_dim)];
+        let parameters = f32s(tensor(file, names::TASK_PARAMETERS, Dtype::F32, &shape)?.0);
         let values: Vec<f64> = words(values).map(f64::from_le_bytes).collect();
-        check_task_floats(&values, &parameters, task_dim)?;
+        check_task_floats(&values, &parameters, m.task_dim)?;
         let task_offsets = indices(
-            tensor(&file, names::TASK_TRAJ_OFFSETS, Dtype::I64, &[Some(k + 1)])?.0,
+            tensor(file, names::TASK_TRAJ_OFFSETS, Dtype::I64, &[Some(k + 1)])?.0,
             names::TASK_TRAJ_OFFSETS,
         )?;
-        let (row_offsets, shape) = tensor(&file, names::TRAJ_OFFSETS, Dtype::I64, &[None])?;
+        let (row_offsets, shape) = tensor(file, names::TRAJ_OFFSETS, Dtype::I64, &[None])?;
         let t_count = shape[0].checked_sub(1).ok_or(DatasetError::BadTensor {
             name: names::TRAJ_OFFSETS,
             reason: "empty (needs trajectories + 1 entries)".into(),
         })?;
         let row_offsets = indices(row_offsets, names::TRAJ_OFFSETS)?;
         let seeds: Vec<u64> =
-            words(tensor(&file, names::TRAJ_SEEDS, Dtype::U64, &[Some(t_count)])?.0)
+            words(tensor(file, names::TRAJ_SEEDS, Dtype::U64, &[Some(t_count)])?.0)
                 .map(u64::from_le_bytes)
                 .collect();
+        let sub_name = names::TRAJ_SUBSAMPLE_OFFSETS;
         let sub_offsets = indices(
-            tensor(
-                &file,
-                names::TRAJ_SUBSAMPLE_OFFSETS,
-                Dtype::I64,
-                &[Some(t_count)],
-            )?
-            .0,
-            names::TRAJ_SUBSAMPLE_OFFSETS,
+            tensor(file, sub_name, Dtype::I64, &[Some(t_count)])?.0,
+            sub_name,
         )?;
-        check_offsets(&row_offsets, n, names::TRAJ_OFFSETS)?;
+        check_offsets(&row_offsets, rows, names::TRAJ_OFFSETS)?;
         check_offsets(&task_offsets, t_count, names::TASK_TRAJ_OFFSETS)?;
+        Ok(Index {
+            values,
+            task_offsets,
+            row_offsets,
+            seeds,
+            sub_offsets,
+        })
+    }
+}
 
-        let mut tasks = Vec::with_capacity(k);
-        for (task_index, &value) in values.iter().enumerate() {
-            let task = family
-                .task_from_value(value)
-                .map_err(|e| DatasetError::Inconsistent(format!("task {task_index}: {e}")))?;
-            let trajectories = (task_offsets[task_index]..task_offsets[task_index + 1])
-                .map(|j| {
-                    let rows = row_offsets[j]..row_offsets[j + 1];
-                    let (o0, o1) = (rows.start * obs_dim, rows.end * obs_dim);
-                    Trajectory {
-                        seed: seeds[j],
-                        subsample_offset: sub_offsets[j],
-                        time_steps: time_steps[rows.clone()].to_vec(),
-                        obs: obs[o0..o1].to_vec(),
-                        actions: actions[rows.start * act_dim..rows.end * act_dim].to_vec(),
-                        rewards: rewards[rows.clone()].to_vec(),
-                        next_obs: next_obs[o0..o1].to_vec(),
-                        dones: dones[rows].iter().map(|&d| d != 0).collect(),
-                    }
-                })
-                .collect();
-            tasks.push(TaskDemos { task, trajectories });
-        }
+/// Cuts the rows into trajectories and the trajectories into tasks, as the index says.
+fn assemble(m: &Meta, rows: &Rows, index: &Index) -> Result<Vec<TaskDemos>, DatasetError> {
+    let (od, ad) = (m.obs_dim, m.act_dim);
+    let mut tasks = Vec::with_capacity(index.values.len());
+    for (task_index, &value) in index.values.iter().enumerate() {
+        let task = m
+            .family
+            .task_from_value(value)
+            .map_err(|e| DatasetError::Inconsistent(format!("task {task_index}: {e}")))?;
+        let trajectories = (index.task_offsets[task_index]..index.task_offsets[task_index + 1])
+            .map(|j| {
+                let r = index.row_offsets[j]..index.row_offsets[j + 1];
+                Trajectory {
+                    seed: index.seeds[j],
+                    subsample_offset: index.sub_offsets[j],
+                    time_steps: rows.time_steps[r.clone()].to_vec(),
+                    obs: rows.obs[r.start * od..r.end * od].to_vec(),
+                    actions: rows.actions[r.start * ad..r.end * ad].to_vec(),
+                    rewards: rows.rewards[r.clone()].to_vec(),
+                    next_obs: rows.next_obs[r.start * od..r.end * od].to_vec(),
+                    dones: rows.dones[r].iter().map(|&d| d != 0).collect(),
+                }
+            })
+            .collect();
+        tasks.push(TaskDemos { task, trajectories });
+    }
+    Ok(tasks)
+}
+
+impl DemoDataset {
+    /// Parses and validates safetensors bytes written by [`DemoDataset::to_bytes`]: the
+    /// metadata, the per-row tensors, the index, then the dataset as a whole.
+    pub fn from_bytes(bytes: &[u8]) -> Result<DemoDataset, DatasetError> {
+        check_length(bytes)?;
+        let file =
+            SafeTensors::deserialize(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
+        let (_, header) =
+            SafeTensors::read_metadata(bytes).map_err(|e| DatasetError::Corrupt(e.to_string()))?;
+        let empty = HashMap::new();
+        let m = Meta::read(header.metadata().as_ref().unwrap_or(&empty))?;
+        let rows = Rows::read(&file, &m)?;
+        let index = Index::read(&file, &m, rows.len())?;
+        let tasks = assemble(&m, &rows, &index)?;
         let dataset = DemoDataset {
-            family,
-            physics,
-            split,
-            expert: meta(map, "expert")?.to_string(),
-            obs_dim,
-            act_dim,
-            subsample_factor,
+            family: m.family,
+            physics: m.physics,
+            split: m.split,
+            expert: m.expert,
+            obs_dim: m.obs_dim,
+            act_dim: m.act_dim,
+            subsample_factor: m.subsample_factor,
             tasks,
         };
         dataset.check()?;

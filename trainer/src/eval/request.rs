@@ -5,10 +5,10 @@
 
 use std::path::{Path, PathBuf};
 
-use sim::{Family, Split};
+use sim::{Family, Split, Task};
 
 use super::norm::References;
-use super::{EvalReport, Protocol};
+use super::{EvalReport, MethodResult, Protocol, ReferenceReturns};
 use crate::error::{Error, Result};
 use crate::model::MetaPolicy;
 
@@ -96,10 +96,70 @@ pub enum EvalEvent {
     MethodDone,
 }
 
-/// Evaluates `req` and writes its report files; returns the report.
+/// Evaluates `req` and writes its report files; returns the report. Everything is loaded and
+/// checked before any rollout, so a wrong policy, context file, base or expert fails fast.
 pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<EvalReport> {
     let family = req.family;
     let ctx = crate::run::read_demos_of(&req.contexts, "--contexts", family)?;
+    check_contexts(req, &ctx)?;
+    let mut protocol = protocol_of(req, on)?;
+    let policies = load_policies(req)?;
+    // The episodes run on the plant the policies were trained on.
+    if let Some((_, mp)) = policies.first() {
+        protocol.physics = mp.physics;
+    }
+    let in_contexts =
+        |e: Error| Error::Usage(format!("--contexts {}: {e}", req.contexts.display()));
+    ctx.ensure_physics(protocol.physics)
+        .map_err(|e| Error::Usage(format!("--contexts {}: {e}", req.contexts.display())))?;
+    let tasks = match req.contexts_tasks {
+        true => ctx.tasks.iter().map(|t| t.task).collect(),
+        false => family.tasks(req.split),
+    };
+    super::contexts_for(&ctx, family, &tasks).map_err(in_contexts)?;
+    let references = match &req.base {
+        Some(base) => Some(References::load(family, base, &req.experts)?),
+        None => None,
+    };
+    std::fs::create_dir_all(&req.out).map_err(|e| Error::Io {
+        path: req.out.clone(),
+        source: e,
+    })?;
+    let reference = match &references {
+        Some(refs) => Some(reference_returns(
+            refs,
+            req.split,
+            &protocol,
+            tasks.len(),
+            on,
+        )?),
+        None => None,
+    };
+    let mut methods = Vec::new();
+    for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
+        let run = Method {
+            req,
+            ctx: &ctx,
+            tasks: &tasks,
+            protocol: &protocol,
+        };
+        methods.push(run.evaluate(idx, p, &mut mp, on)?);
+    }
+    let mut report = EvalReport::new(family, req.split, protocol, methods);
+    if req.contexts_tasks {
+        report.split = "the contexts' own tasks".into();
+    }
+    if let Some(r) = reference {
+        report = report.with_reference(r)?;
+        note_normalised(&report, on);
+    }
+    write_report(&report, &req.out)?;
+    Ok(report)
+}
+
+/// Refuses contexts that cannot serve the request: a split other than the one asked for, or
+/// the contexts' own tasks with a base (which normalises over a split's tasks).
+fn check_contexts(req: &EvalRequest, ctx: &sim::DemoDataset) -> Result<()> {
     if req.contexts_tasks && req.base.is_some() {
         return Err(Error::Usage(
             "--base normalises over a split's tasks; the contexts' own tasks have no base and \
@@ -117,6 +177,12 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
             req.split
         )));
     }
+    Ok(())
+}
+
+/// The family's protocol with the request's overrides.
+fn protocol_of(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<Protocol> {
+    let family = req.family;
     let mut protocol = Protocol::for_family(family);
     if let Some(r) = req.rollouts {
         protocol.rollouts = r;
@@ -139,8 +205,13 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
             protocol.label()
         )));
     }
-    // Everything is loaded and checked before any rollout, so a wrong policy, context file,
-    // base or expert fails fast.
+    Ok(protocol)
+}
+
+/// The request's policies, each finished (unless allowed) and of the request's family, all
+/// trained on one plant.
+fn load_policies(req: &EvalRequest) -> Result<Vec<(&PathBuf, MetaPolicy)>> {
+    let family = req.family;
     let mut policies = Vec::with_capacity(req.policies.len());
     for p in &req.policies {
         let mp = MetaPolicy::load(p)
@@ -156,69 +227,75 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
         }
         policies.push((p, mp));
     }
-    // The episodes run on the plant the policies were trained on; all of them the same one.
-    if let Some((first, mp)) = policies.first() {
-        protocol.physics = mp.physics;
-        if let Some((p, other)) = policies.iter().find(|(_, m)| m.physics != mp.physics) {
-            return Err(Error::Usage(format!(
-                "{} was trained on the {} plant, {} on {}: evaluate each plant's policies apart",
-                first.display(),
-                mp.physics,
-                p.display(),
-                other.physics
-            )));
-        }
+    if let Some((first, mp)) = policies.first()
+        && let Some((p, other)) = policies.iter().find(|(_, m)| m.physics != mp.physics)
+    {
+        return Err(Error::Usage(format!(
+            "{} was trained on the {} plant, {} on {}: evaluate each plant's policies apart",
+            first.display(),
+            mp.physics,
+            p.display(),
+            other.physics
+        )));
     }
-    let in_contexts =
-        |e: Error| Error::Usage(format!("--contexts {}: {e}", req.contexts.display()));
-    ctx.ensure_physics(protocol.physics)
-        .map_err(|e| Error::Usage(format!("--contexts {}: {e}", req.contexts.display())))?;
-    let tasks = match req.contexts_tasks {
-        true => ctx.tasks.iter().map(|t| t.task).collect(),
-        false => family.tasks(req.split),
-    };
-    super::contexts_for(&ctx, family, &tasks).map_err(in_contexts)?;
-    let references = match &req.base {
-        Some(base) => Some(References::load(family, base, &req.experts)?),
-        None => None,
-    };
-    std::fs::create_dir_all(&req.out).map_err(|e| Error::Io {
-        path: req.out.clone(),
-        source: e,
-    })?;
-    let reference = match &references {
-        Some(refs) => {
-            on(EvalEvent::Method {
-                name: "base + expert".into(),
-                tasks: tasks.len(),
-            });
-            let r = refs.returns(req.split, &protocol, &mut |i, _| on(EvalEvent::Task(i)))?;
-            on(EvalEvent::MethodDone);
-            on(EvalEvent::Note(format!(
-                "base {}: mean return {:.4}; expert {}: mean return {:.4}",
-                r.base,
-                r.base_mean(),
-                r.expert,
-                r.expert_mean()
-            )));
-            Some(r)
-        }
-        None => None,
-    };
-    let mut methods = Vec::new();
-    for (idx, (p, mut mp)) in policies.into_iter().enumerate() {
-        let name = super::display_name(&mp.algo, p);
+    Ok(policies)
+}
+
+/// The base's and the experts' returns on the split's tasks (the normalised metric's ends).
+fn reference_returns(
+    refs: &References,
+    split: Split,
+    protocol: &Protocol,
+    tasks: usize,
+    on: &mut dyn FnMut(EvalEvent),
+) -> Result<ReferenceReturns> {
+    on(EvalEvent::Method {
+        name: "base + expert".into(),
+        tasks,
+    });
+    let r = refs.returns(split, protocol, &mut |i, _| on(EvalEvent::Task(i)))?;
+    on(EvalEvent::MethodDone);
+    on(EvalEvent::Note(format!(
+        "base {}: mean return {:.4}; expert {}: mean return {:.4}",
+        r.base,
+        r.base_mean(),
+        r.expert,
+        r.expert_mean()
+    )));
+    Ok(r)
+}
+
+/// What every method of one request is evaluated on.
+struct Method<'r> {
+    req: &'r EvalRequest,
+    ctx: &'r sim::DemoDataset,
+    tasks: &'r [Task],
+    protocol: &'r Protocol,
+}
+
+impl Method<'_> {
+    /// The metric of policy number `idx` (at `path`) on every task, and with `--render` its
+    /// first task's episode as an SVG.
+    fn evaluate(
+        &self,
+        idx: usize,
+        path: &Path,
+        mp: &mut MetaPolicy,
+        on: &mut dyn FnMut(EvalEvent),
+    ) -> Result<MethodResult> {
+        let (family, tasks) = (self.req.family, self.tasks);
+        let name = super::display_name(&mp.algo, path);
         on(EvalEvent::Method {
             name: name.clone(),
             tasks: tasks.len(),
         });
         let r = super::evaluate_tasks(
-            &mut mp,
+            mp,
             &name,
             family,
-            &tasks,
-            &ctx,
-            &protocol,
+            tasks,
+            self.ctx,
+            self.protocol,
             &mut |i, _| on(EvalEvent::Task(i)),
         )?;
         on(EvalEvent::MethodDone);
@@ -226,44 +303,39 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
             "{name}: mean {:.4} +- {:.4} over tasks",
             r.mean, r.std_over_tasks
         )));
-        if req.render {
+        if self.req.render {
             let task = tasks[0];
-            let tds = super::contexts_for(&ctx, family, &[task])?;
-            let path = req.out.join(format!("episode-{idx}-{}.svg", mp.algo));
+            let tds = super::contexts_for(self.ctx, family, &[task])?;
+            let svg = self.req.out.join(format!("episode-{idx}-{}.svg", mp.algo));
             let m = super::render_episode(
-                &mut mp,
+                mp,
                 family,
                 &task,
                 &[&tds[0].trajectories[0]],
-                protocol.env_config(),
-                &path,
+                self.protocol.env_config(),
+                &svg,
             )?;
             on(EvalEvent::Note(format!(
                 "rendered {} (metric {m:.3})",
-                path.display()
+                svg.display()
             )));
         }
-        methods.push(r);
+        Ok(r)
     }
-    let mut report = EvalReport::new(family, req.split, protocol, methods);
-    if req.contexts_tasks {
-        report.split = "the contexts' own tasks".into();
-    }
-    if let Some(r) = reference {
-        report = report.with_reference(r)?;
-        for m in &report.methods {
-            if let Some(n) = &m.normalised {
-                let score = n.score.map_or("none".into(), |x| format!("{x:.4}"));
-                on(EvalEvent::Note(format!(
-                    "{}: normalised score {score} over {} tasks ({} skipped: expert not better \
-                     than base)",
-                    m.name, n.tasks_used, n.tasks_skipped
-                )));
-            }
+}
+
+/// One line per method with a normalised score.
+fn note_normalised(report: &EvalReport, on: &mut dyn FnMut(EvalEvent)) {
+    for m in &report.methods {
+        if let Some(n) = &m.normalised {
+            let score = n.score.map_or("none".into(), |x| format!("{x:.4}"));
+            on(EvalEvent::Note(format!(
+                "{}: normalised score {score} over {} tasks ({} skipped: expert not better \
+                 than base)",
+                m.name, n.tasks_used, n.tasks_skipped
+            )));
         }
     }
-    write_report(&report, &req.out)?;
-    Ok(report)
 }
 
 /// `eval.md`, `eval.svg`, then `eval.json` (last: a sweep counts a cell done by it, so it
