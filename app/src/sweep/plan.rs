@@ -261,15 +261,70 @@ impl Sweep {
         })?;
         let plan: Plan = toml::from_str(&text)
             .map_err(|e| Error::Config(format!("plan {}: {e}", path.display())))?;
-        let base = path.parent().unwrap_or(Path::new("."));
-        let rel = |p: &Path| {
-            if p.is_absolute() {
-                p.to_path_buf()
-            } else {
-                base.join(p)
-            }
+        let at = PlanText {
+            path,
+            text: &text,
+            base: path.parent().unwrap_or(Path::new(".")),
         };
-        let err = |needle: Option<&str>, msg: String| plan_err(path, &text, needle, msg);
+        at.check_axes_and_files(&plan, require_data)?;
+        let out = plan.out.clone().unwrap_or_else(|| {
+            let stem = path
+                .file_stem()
+                .map_or("sweep".into(), |s| s.to_string_lossy());
+            PathBuf::from("runs").join(stem.as_ref())
+        });
+        let mut cells = Vec::new();
+        for (name, m) in &plan.algo {
+            at.expand(&plan, name, m, &mut cells)?;
+        }
+        at.key_cells(&mut cells)?;
+        let family = plan.env;
+        let mut plan = plan;
+        plan.eval.contexts = at.rel(&plan.eval.contexts);
+        plan.eval.base = plan.eval.base.as_deref().map(|p| at.rel(p));
+        plan.eval.experts = plan.eval.experts.iter().map(|p| at.rel(p)).collect();
+        Ok(Self {
+            path: path.to_path_buf(),
+            plan,
+            family,
+            out,
+            cells,
+        })
+    }
+
+    /// The directory of cell `i`.
+    pub fn cell_dir(&self, cell: &Cell) -> PathBuf {
+        self.out.join(&cell.name)
+    }
+}
+
+/// A plan file being read: its path and text (errors point at the plan line), and the
+/// folder its relative paths start from.
+struct PlanText<'a> {
+    path: &'a Path,
+    text: &'a str,
+    base: &'a Path,
+}
+
+impl PlanText<'_> {
+    /// `p` relative to the plan's folder (absolute paths as they are).
+    fn rel(&self, p: &Path) -> PathBuf {
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.base.join(p)
+        }
+    }
+
+    /// An error naming the plan line that holds `needle`.
+    fn err(&self, needle: Option<&str>, msg: String) -> Error {
+        plan_err(self.path, self.text, needle, msg)
+    }
+
+    /// Refuses empty axes, a base without experts (or the reverse), a base for a family
+    /// without a normalised metric, and files that do not exist (demos and contexts only
+    /// when `require_data`).
+    fn check_axes_and_files(&self, plan: &Plan, require_data: bool) -> Result<()> {
         let family = plan.env;
         for (axis, empty) in [
             ("demos", plan.demos.is_empty()),
@@ -277,24 +332,25 @@ impl Sweep {
             ("algo", plan.algo.is_empty()),
         ] {
             if empty {
-                return Err(err(Some(axis), format!("the axis `{axis}` is empty")));
+                return Err(self.err(Some(axis), format!("the axis `{axis}` is empty")));
             }
         }
         let mut files: Vec<(&str, PathBuf)> =
-            plan.demos.iter().map(|d| ("demos", rel(d))).collect();
-        files.push(("contexts", rel(&plan.eval.contexts)));
+            plan.demos.iter().map(|d| ("demos", self.rel(d))).collect();
+        files.push(("contexts", self.rel(&plan.eval.contexts)));
         if plan.eval.base.is_some() == plan.eval.experts.is_empty() {
-            return Err(err(
-                Some(if plan.eval.base.is_some() {
-                    "base"
-                } else {
-                    "experts"
-                }),
+            let key = if plan.eval.base.is_some() {
+                "base"
+            } else {
+                "experts"
+            };
+            return Err(self.err(
+                Some(key),
                 "[eval] `base` and `experts` go together (the walker-dyn normalised metric)".into(),
             ));
         }
         if plan.eval.base.is_some() && family.spec().nominal_task.is_none() {
-            return Err(err(
+            return Err(self.err(
                 Some("base"),
                 format!(
                     "[eval] `base` is for a normalised metric (walker-dyn's); {family} has none"
@@ -302,17 +358,17 @@ impl Sweep {
             ));
         }
         for p in plan.eval.base.iter().chain(&plan.eval.experts) {
-            files.push(("expert", rel(p)));
+            files.push(("expert", self.rel(p)));
         }
         for (name, m) in &plan.algo {
             if let Some(c) = &m.config {
-                files.push(("config", rel(c)));
+                files.push(("config", self.rel(c)));
             }
             if let Some(e) = &m.expert {
-                files.push(("expert", rel(e)));
+                files.push(("expert", self.rel(e)));
             }
             if let Some((k, _)) = m.axes.iter().find(|(_, v)| v.is_empty()) {
-                return Err(err(
+                return Err(self.err(
                     Some(k),
                     format!("the axis `{k}` of [algo.{name}] is empty"),
                 ));
@@ -322,111 +378,122 @@ impl Sweep {
             let data = matches!(*what, "demos" | "contexts");
             if !f.exists() && (require_data || !data) {
                 let needle = f.file_name().map(|n| n.to_string_lossy().into_owned());
-                return Err(err(
+                return Err(self.err(
                     needle.as_deref(),
                     format!("{what} file {} does not exist", f.display()),
                 ));
             }
         }
-        let out = plan.out.clone().unwrap_or_else(|| {
-            let stem = path
-                .file_stem()
-                .map_or("sweep".into(), |s| s.to_string_lossy());
-            PathBuf::from("runs").join(stem.as_ref())
-        });
-        let mut cells = Vec::new();
-        for (name, m) in &plan.algo {
-            let algo = m.algo.clone().unwrap_or_else(|| name.clone());
-            let kind: Algo = algo
-                .parse()
-                .map_err(|e| err(Some(&format!("[algo.{name}]")), message(e)))?;
-            if !kind.needs_expert() && m.expert.is_some() {
-                return Err(err(
-                    Some(&format!("[algo.{name}]")),
-                    format!("{algo} takes no `expert` (only meta-dagger relabels with one)"),
-                ));
+        Ok(())
+    }
+
+    /// The algorithm of `[algo.name]`, with its expert checked: only Meta-DAgger takes one,
+    /// and needs one except on point-goal (whose scripted PD controller relabels).
+    fn algo_of(&self, family: Family, name: &str, m: &Method) -> Result<(String, Algo)> {
+        let algo = m.algo.clone().unwrap_or_else(|| name.to_string());
+        let at = format!("[algo.{name}]");
+        let kind: Algo = algo
+            .parse()
+            .map_err(|e| self.err(Some(&at), message(e)))?;
+        if !kind.needs_expert() && m.expert.is_some() {
+            return Err(self.err(
+                Some(&at),
+                format!("{algo} takes no `expert` (only meta-dagger relabels with one)"),
+            ));
+        }
+        if kind.needs_expert() && m.expert.is_none() && family != Family::PointGoal {
+            return Err(self.err(Some(&at), format!("meta-dagger on {family} needs `expert`")));
+        }
+        Ok((algo, kind))
+    }
+
+    /// The method's config file (if any) with its `set` keys applied.
+    fn method_table(&self, m: &Method) -> Result<toml::Table> {
+        let mut table = match &m.config {
+            Some(c) => {
+                let p = self.rel(c);
+                let s = std::fs::read_to_string(&p).map_err(|e| Error::Io {
+                    path: p.clone(),
+                    source: e,
+                })?;
+                toml::from_str::<toml::Table>(&s)
+                    .map_err(|e| self.err(Some("config"), format!("{}: {e}", p.display())))?
             }
-            // Point-goal's scripted PD controller relabels when no expert is named.
-            if kind.needs_expert() && m.expert.is_none() && family != Family::PointGoal {
-                return Err(err(
-                    Some(&format!("[algo.{name}]")),
-                    format!("meta-dagger on {family} needs `expert`"),
-                ));
-            }
-            let mut table = match &m.config {
-                Some(c) => {
-                    let p = rel(c);
-                    let s = std::fs::read_to_string(&p).map_err(|e| Error::Io {
-                        path: p.clone(),
-                        source: e,
-                    })?;
-                    toml::from_str::<toml::Table>(&s)
-                        .map_err(|e| err(Some("config"), format!("{}: {e}", p.display())))?
-                }
-                None => toml::Table::new(),
-            };
-            for (k, v) in &m.set {
-                trainer::set_config_key(&mut table, k, v.clone()).map_err(|e| err(Some(k), e))?;
-            }
-            for demos in &plan.demos {
-                for point in product(&m.axes) {
-                    for &seed in &plan.seeds {
-                        let mut t = table.clone();
-                        for (k, v) in &point {
-                            trainer::set_config_key(&mut t, k, v.clone())
-                                .map_err(|e| err(Some(k), e))?;
-                        }
-                        t.insert("seed".into(), toml::Value::Integer(seed as i64));
-                        t.insert("env".into(), toml::Value::String(family.name().into()));
-                        check_config(kind, &t, family).map_err(|e| {
-                            let key = point
-                                .iter()
-                                .map(|(k, _)| k.as_str())
-                                .chain(m.set.keys().map(String::as_str));
-                            let needle =
-                                key.into_iter().find(|k| e.contains(k)).map(str::to_string);
-                            err(
-                                Some(needle.as_deref().unwrap_or(&format!("[algo.{name}]"))),
-                                format!("[algo.{name}]: {e}"),
-                            )
-                        })?;
-                        let params: BTreeMap<String, String> =
-                            point.iter().map(|(k, v)| (k.clone(), short(v))).collect();
-                        let mut cell_name = name.clone();
-                        if plan.demos.len() > 1 {
-                            cell_name.push_str(&format!("-{}", stem(demos)));
-                        }
-                        for (k, v) in &params {
-                            cell_name.push_str(&format!("-{k}={v}"));
-                        }
-                        cell_name.push_str(&format!("-s{seed}"));
-                        cells.push(Cell {
-                            index: cells.len(),
-                            name: cell_name.replace(['/', ' '], "_"),
-                            method: name.clone(),
-                            algo: algo.clone(),
-                            demos: rel(demos),
-                            seed,
-                            params,
-                            config: toml::to_string(&t).map_err(|e| Error::Serialise {
-                                what: "cell config",
-                                reason: e.to_string(),
-                            })?,
-                            expert: m.expert.as_ref().map(|e| rel(e)),
-                            key: String::new(),
-                        });
+            None => toml::Table::new(),
+        };
+        for (k, v) in &m.set {
+            trainer::set_config_key(&mut table, k, v.clone()).map_err(|e| self.err(Some(k), e))?;
+        }
+        Ok(table)
+    }
+
+    /// Appends the cells of `[algo.name]`: every demo file x axis point x seed, each config
+    /// checked by its algorithm.
+    fn expand(&self, plan: &Plan, name: &str, m: &Method, cells: &mut Vec<Cell>) -> Result<()> {
+        let family = plan.env;
+        let (algo, kind) = self.algo_of(family, name, m)?;
+        let table = self.method_table(m)?;
+        for demos in &plan.demos {
+            for point in product(&m.axes) {
+                for &seed in &plan.seeds {
+                    let mut t = table.clone();
+                    for (k, v) in &point {
+                        trainer::set_config_key(&mut t, k, v.clone())
+                            .map_err(|e| self.err(Some(k), e))?;
                     }
+                    t.insert("seed".into(), toml::Value::Integer(seed as i64));
+                    t.insert("env".into(), toml::Value::String(family.name().into()));
+                    check_config(kind, &t, family).map_err(|e| {
+                        let key = point
+                            .iter()
+                            .map(|(k, _)| k.as_str())
+                            .chain(m.set.keys().map(String::as_str));
+                        let needle = key.into_iter().find(|k| e.contains(k)).map(str::to_string);
+                        self.err(
+                            Some(needle.as_deref().unwrap_or(&format!("[algo.{name}]"))),
+                            format!("[algo.{name}]: {e}"),
+                        )
+                    })?;
+                    let params: BTreeMap<String, String> =
+                        point.iter().map(|(k, v)| (k.clone(), short(v))).collect();
+                    let mut cell_name = name.to_string();
+                    if plan.demos.len() > 1 {
+                        cell_name.push_str(&format!("-{}", stem(demos)));
+                    }
+                    for (k, v) in &params {
+                        cell_name.push_str(&format!("-{k}={v}"));
+                    }
+                    cell_name.push_str(&format!("-s{seed}"));
+                    cells.push(Cell {
+                        index: cells.len(),
+                        name: cell_name.replace(['/', ' '], "_"),
+                        method: name.to_string(),
+                        algo: algo.clone(),
+                        demos: self.rel(demos),
+                        seed,
+                        params,
+                        config: toml::to_string(&t).map_err(|e| Error::Serialise {
+                            what: "cell config",
+                            reason: e.to_string(),
+                        })?,
+                        expert: m.expert.as_ref().map(|e| self.rel(e)),
+                        key: String::new(),
+                    });
                 }
             }
         }
-        // Keys: one training listed twice is refused; cells whose names collide (the same demo
-        // file name in two folders) get their key's first 8 digits appended.
-        for c in &mut cells {
+        Ok(())
+    }
+
+    /// Keys: one training listed twice is refused; cells whose names collide (the same demo
+    /// file name in two folders) get their key's first 8 digits appended.
+    fn key_cells(&self, cells: &mut [Cell]) -> Result<()> {
+        for c in cells.iter_mut() {
             c.key = c.training_key();
         }
         for (i, c) in cells.iter().enumerate() {
             if let Some(d) = cells[..i].iter().find(|d| d.key == c.key) {
-                return Err(err(
+                return Err(self.err(
                     Some("seeds"),
                     format!(
                         "cells {} and {} are the same training ({}, seed {}, demos {}): a \
@@ -441,27 +508,12 @@ impl Sweep {
             }
         }
         let names: Vec<String> = cells.iter().map(|c| c.name.clone()).collect();
-        for c in &mut cells {
+        for c in cells.iter_mut() {
             if names.iter().filter(|n| **n == c.name).count() > 1 {
                 c.name = format!("{}-{}", c.name, &c.key[..8]);
             }
         }
-        let mut plan = plan;
-        plan.eval.contexts = rel(&plan.eval.contexts);
-        plan.eval.base = plan.eval.base.as_deref().map(rel);
-        plan.eval.experts = plan.eval.experts.iter().map(|p| rel(p)).collect();
-        Ok(Self {
-            path: path.to_path_buf(),
-            plan,
-            family,
-            out,
-            cells,
-        })
-    }
-
-    /// The directory of cell `i`.
-    pub fn cell_dir(&self, cell: &Cell) -> PathBuf {
-        self.out.join(&cell.name)
+        Ok(())
     }
 }
 
