@@ -534,31 +534,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
             reason: e.to_string(),
         })?,
     )?;
-    eprintln!(
-        "smile quickstart: {} ({:?} budget, seed {}) -> {}",
-        args.env,
-        args.budget,
-        args.seed,
-        out.display()
-    );
-    let scripted = args.recipe.expert == ExpertSource::Scripted;
-    if args.budget == Budget::Short && scripted {
-        eprintln!("expected time on 2 cores: {}", short_budget_estimate());
-    } else if let Some(assets) = &args.shipped {
-        eprintln!(
-            "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
-             (SMILe, {}k update pairs on {}-step episodes, is the long stage)",
-            assets.display(),
-            smile_config(args)?.total_updates / 1000,
-            args.horizon().unwrap_or_else(
-                || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
-            )
-        );
-    } else if args.budget == Budget::Long && !scripted {
-        eprintln!(
-            "expected time on 2 cores: 2-4 hours (SAC expert, then SMILe); checkpoints are in the run directory"
-        );
-    }
+    announce(args)?;
 
     stage(1, "expert");
     let (expert, expert_note) = train_expert(args, &out.join("expert"))?;
@@ -586,27 +562,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         "SMILe (state-action) and Meta-BC (early-stopped on held-out train tasks) on the \
          meta-train demos, at the same time",
     );
-    let (smile_dir, bc_dir) = (out.join("smile"), out.join("meta-bc"));
-    for d in [&smile_dir, &bc_dir] {
-        std::fs::create_dir_all(d).map_err(io(d))?;
-    }
-    // Two learners at once, candle single-threaded in each (trainer::threads); SMILe's update
-    // pairs on two threads (`learner_threads = 2`): deterministic either way.
-    let bars = if args.quiet {
-        MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
-    } else {
-        MultiProgress::new()
-    };
-    let (smile_res, bc_res) = std::thread::scope(|s| {
-        let smile = s.spawn(|| train_smile(args, &train, &smile_dir, &bars));
-        let bc = s.spawn(|| train_meta_bc(args, &train, &bc_dir, &bars));
-        (smile.join(), bc.join())
-    });
-    let joined = |r: std::thread::Result<Result<MetaPolicy>>| {
-        r.unwrap_or_else(|p| std::panic::resume_unwind(p))
-    };
-    let mut smile_policy = joined(smile_res)?;
-    let mut bc_policy = joined(bc_res)?;
+    let (mut smile_policy, mut bc_policy) = train_both(args, &train)?;
 
     stage(4, "evaluation on the held-out meta-test tasks");
     let smile_result = evaluate(args, &mut smile_policy, "SMILe", &test)?;
@@ -616,45 +572,12 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         5,
         "export a w8a8 blob and check it against the float policy",
     );
-    let blob = export::export_blob(&smile_policy, infer_core::Quant::W8A8, Some(&train))?;
-    write(&out.join("policy.blob"), &blob)?;
-    let model = export::load_blob(&blob)?;
-    let mut actor = BlobActor::new(&model)?;
-    let parity = export::parity(&smile_policy, &mut actor, &test)?;
-    eprintln!(
-        "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
-        blob.len(),
-        parity.action_max_abs_diff,
-        parity.action_mean_abs_diff,
-        parity.actions
-    );
-    let blob_result = evaluate(args, &mut actor, "SMILe w8a8 blob", &test)?;
-    // The same report `smile export` writes next to a blob, so that
-    // `firmware-sim compare --blob policy.blob` works on the quickstart's blob as it is.
-    let export_report = export::ExportReport {
-        bytes: blob.len(),
-        blob_sha256: trainer::checkpoint::sha256_hex(&blob),
-        quant: "w8a8".into(),
-        edges: export::default_edges(infer_core::Quant::W8A8).map(export::quant_name),
-        algo: smile_policy.algo.clone(),
-        env: args.env,
-        physics: smile_policy.physics,
-        parity: parity.clone(),
-        metric: eval::metric_name(args.env.metric_kind()).into(),
-        split: Split::Test.to_string(),
-        metric_blob: blob_result.mean,
-        metric_candle: smile_result.mean,
-        metric_relative_difference: (blob_result.mean - smile_result.mean)
-            / smile_result.mean.abs().max(1e-9),
-        per_task_blob: blob_result.tasks.clone(),
-        per_task_candle: smile_result.tasks.clone(),
-    };
-    export_report.write(&export::ExportReport::path_beside(&out.join("policy.blob")))?;
+    let exported = export_blob(args, &smile_policy, &smile_result, &train, &test)?;
     let report = EvalReport::new(
         args.env,
         Split::Test,
         protocol(args),
-        vec![smile_result.clone(), bc_result.clone(), blob_result.clone()],
+        vec![smile_result.clone(), bc_result, exported.result.clone()],
     );
     // eval.md, eval.svg and eval.json, as `smile eval` writes them.
     eval::write_report(&report, out)?;
@@ -663,7 +586,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         6,
         "firmware-sim: the blob on a simulated device, taught one test demo",
     );
-    let device = device::device_run(args, &blob, &test, &out.join("device"))?;
+    let device = device::device_run(args, &exported.blob, &test, &out.join("device"))?;
 
     let (_, median, p99, _) = device.compute_percentiles();
     let summary = Summary {
@@ -676,10 +599,10 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
             .iter()
             .map(|m| (m.name.clone(), m.mean, m.std_over_tasks))
             .collect(),
-        blob_bytes: blob.len(),
+        blob_bytes: exported.blob.len(),
         blob_quant: "w8a8".into(),
-        parity,
-        blob_metric: blob_result.mean,
+        parity: exported.parity,
+        blob_metric: exported.result.mean,
         float_metric: smile_result.mean,
         device_task: device.task.label(),
         device_metric: device.metric,
@@ -702,6 +625,119 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     Ok(summary)
+}
+
+/// The run's first lines: what it does, where, and how long it should take.
+fn announce(args: &Quickstart<'_>) -> Result<()> {
+    eprintln!(
+        "smile quickstart: {} ({:?} budget, seed {}) -> {}",
+        args.env,
+        args.budget,
+        args.seed,
+        args.out.display()
+    );
+    let scripted = args.recipe.expert == ExpertSource::Scripted;
+    if args.budget == Budget::Short && scripted {
+        eprintln!("expected time on 2 cores: {}", short_budget_estimate());
+    } else if let Some(assets) = &args.shipped {
+        eprintln!(
+            "from the shipped expert and demos in {}; expected time on 2 cores: 10-20 minutes \
+             (SMILe, {}k update pairs on {}-step episodes, is the long stage)",
+            assets.display(),
+            smile_config(args)?.total_updates / 1000,
+            args.horizon().unwrap_or_else(
+                || sim::make_env(args.env, EnvConfig::default()).map_or(0, |e| e.horizon())
+            )
+        );
+    } else if args.budget == Budget::Long && !scripted {
+        eprintln!(
+            "expected time on 2 cores: 2-4 hours (SAC expert, then SMILe); checkpoints are in the run directory"
+        );
+    }
+    Ok(())
+}
+
+/// SMILe and Meta-BC on the meta-train demos, at the same time: two learners, candle
+/// single-threaded in each (trainer::threads); SMILe's update pairs on two threads
+/// (`learner_threads = 2`): deterministic either way.
+fn train_both(args: &Quickstart<'_>, train: &DemoDataset) -> Result<(MetaPolicy, MetaPolicy)> {
+    let (smile_dir, bc_dir) = (args.out.join("smile"), args.out.join("meta-bc"));
+    for d in [&smile_dir, &bc_dir] {
+        std::fs::create_dir_all(d).map_err(io(d))?;
+    }
+    let bars = if args.quiet {
+        MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
+    } else {
+        MultiProgress::new()
+    };
+    let (smile_res, bc_res) = std::thread::scope(|s| {
+        let smile = s.spawn(|| train_smile(args, train, &smile_dir, &bars));
+        let bc = s.spawn(|| train_meta_bc(args, train, &bc_dir, &bars));
+        (smile.join(), bc.join())
+    });
+    let joined = |r: std::thread::Result<Result<MetaPolicy>>| {
+        r.unwrap_or_else(|p| std::panic::resume_unwind(p))
+    };
+    Ok((joined(smile_res)?, joined(bc_res)?))
+}
+
+/// What stage 5 made: the blob, its parity with the float policy, its evaluation.
+struct Exported {
+    blob: Vec<u8>,
+    parity: export::Parity,
+    result: eval::MethodResult,
+}
+
+/// Exports the SMILe policy as the deployed w8a8 blob, checks it against the float policy and
+/// evaluates it; writes `policy.blob` and the report `smile export` writes beside a blob, so
+/// that `firmware-sim compare --blob policy.blob` works on it as it is.
+fn export_blob(
+    args: &Quickstart<'_>,
+    policy: &MetaPolicy,
+    float: &eval::MethodResult,
+    train: &DemoDataset,
+    test: &DemoDataset,
+) -> Result<Exported> {
+    let out = &args.out;
+    let blob = export::export_blob(policy, infer_core::Quant::W8A8, Some(train))?;
+    write(&out.join("policy.blob"), &blob)?;
+    let (parity, result) = {
+        let model = export::load_blob(&blob)?;
+        let mut actor = BlobActor::new(&model)?;
+        let parity = export::parity(policy, &mut actor, test)?;
+        eprintln!(
+            "  {} bytes; actions vs float: max {:.4}, mean {:.5} over {} actions",
+            blob.len(),
+            parity.action_max_abs_diff,
+            parity.action_mean_abs_diff,
+            parity.actions
+        );
+        (parity, evaluate(args, &mut actor, "SMILe w8a8 blob", test)?)
+    };
+    let export_report = export::ExportReport {
+        bytes: blob.len(),
+        blob_sha256: trainer::checkpoint::sha256_hex(&blob),
+        quant: "w8a8".into(),
+        edges: export::default_edges(infer_core::Quant::W8A8).map(export::quant_name),
+        context: export::default_context(infer_core::Quant::W8A8).map(export::quant_name),
+        algo: policy.algo.clone(),
+        env: args.env,
+        physics: policy.physics,
+        parity: parity.clone(),
+        metric: eval::metric_name(args.env.metric_kind()).into(),
+        split: Split::Test.to_string(),
+        metric_blob: result.mean,
+        metric_candle: float.mean,
+        metric_relative_difference: (result.mean - float.mean) / float.mean.abs().max(1e-9),
+        per_task_blob: result.tasks.clone(),
+        per_task_candle: float.tasks.clone(),
+    };
+    export_report.write(&export::ExportReport::path_beside(&out.join("policy.blob")))?;
+    Ok(Exported {
+        blob,
+        parity,
+        result,
+    })
 }
 
 #[cfg(test)]

@@ -30,6 +30,7 @@ fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
         blob_sha256: blob_sha256.into(),
         quant: "w8a8".into(),
         edges: None,
+        context: None,
         algo: "scripted-pd".into(),
         env: Family::PointGoal,
         physics: sim::Physics::Rapier,

@@ -208,9 +208,10 @@ pub enum Error {
         /// The largest magnitude found.
         value: f32,
     },
-    /// The higher precision asked for the edge layers is coarser than the blob's own.
+    /// A higher precision asked for some layers (the edges, or the context encoder and z
+    /// head) is coarser than the blob's own.
     EdgesBelowQuant {
-        /// The edge layers' quantization asked for.
+        /// The quantization asked for those layers.
         edges: crate::format::Quant,
         /// The blob's quantization.
         quant: crate::format::Quant,
@@ -222,6 +223,8 @@ pub enum Error {
 pub(crate) const MAX_PARAMETER: f32 = 1.0e6;
 
 impl fmt::Display for Error {
+    // Over 100 lines on purpose: one arm per variant of the crate's one error enum, each
+    // message beside the others so their wording stays alike.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match *self {
             Self::TooShort { len } => write!(
@@ -355,8 +358,8 @@ impl fmt::Display for Error {
             ),
             Self::EdgesBelowQuant { edges, quant } => write!(
                 f,
-                "edge layers as {edges:?} would be coarser than the blob's {quant:?}: \
-                 the edges take a higher precision, not a lower one"
+                "layers as {edges:?} would be coarser than the blob's {quant:?}: the edges and \
+                 the context encoder take a higher precision, not a lower one"
             ),
         }
     }

@@ -72,6 +72,11 @@ impl Quant {
         self.rank() >= other.rank()
     }
 
+    /// The finer of `self` and `other`.
+    pub const fn max_precision(self, other: Quant) -> Quant {
+        if self.at_least(other) { self } else { other }
+    }
+
     /// Bytes per stored weight.
     pub const fn weight_bytes(self) -> usize {
         match self {

@@ -17,7 +17,7 @@ pub use estimator::{Channel, Estimator, EstimatorConfig, StepReport};
 pub use format::{
     Activation, ENVELOPE_LEN, FORMAT_VERSION, Header, MAGIC, MAX_LAYERS, ModelKind, Quant, crc32,
 };
-pub use model::Model;
+pub use model::{Mlp, Model};
 pub use runner::{ContextEncoder, Policy};
 #[cfg(feature = "alloc")]
 pub use writer::{

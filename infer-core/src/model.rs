@@ -28,6 +28,17 @@ impl<'a> F32s<'a> {
     }
 }
 
+/// One of a blob's three MLPs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mlp {
+    /// The per-transition context encoder (runs while the device is taught).
+    Encoder,
+    /// The head from the summed representation to the latent (once per teaching).
+    ZHead,
+    /// The conditioned policy (every control tick).
+    Policy,
+}
+
 /// A validated policy blob, borrowing its weights from the bytes it was loaded from.
 ///
 /// Loading copies no weights: on a microcontroller the bytes can live in flash. The model
@@ -97,14 +108,16 @@ impl<'a> Model<'a> {
             .unwrap_or(0)
     }
 
-    /// The quantization of every layer: the encoder's, the z head's, then the policy's, each
-    /// from its first layer to its last. None is coarser than [`Header::quant`].
-    pub fn layer_quants(&self) -> impl Iterator<Item = Quant> + '_ {
+    /// The quantization of each layer of one of the three MLPs, from its first layer to its
+    /// last. None is coarser than [`Header::quant`].
+    pub fn layer_quants(&self, mlp: Mlp) -> impl Iterator<Item = Quant> + '_ {
         let p = &self.payload;
-        [&p.encoder, &p.z_head, &p.policy]
-            .into_iter()
-            .flat_map(|layers| layers.iter())
-            .map(|l| l.quant)
+        let layers = match mlp {
+            Mlp::Encoder => &p.encoder,
+            Mlp::ZHead => &p.z_head,
+            Mlp::Policy => &p.policy,
+        };
+        layers.iter().map(|l| l.quant)
     }
 
     /// Number of weights in the three MLPs together.

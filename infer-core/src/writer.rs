@@ -387,6 +387,10 @@ pub struct WriteOptions {
     /// cost the most (the raw observations, actions and latents in; the action mean out);
     /// `None` stores every layer at the blob's quantization.
     pub edges: Option<Quant>,
+    /// A higher precision for every layer of the context encoder and the z head: they run
+    /// once per teaching, not per control tick, so their cost does not matter at run time;
+    /// `None` stores them as the policy (with its edges).
+    pub context: Option<Quant>,
 }
 
 impl Default for WriteOptions {
@@ -394,6 +398,7 @@ impl Default for WriteOptions {
         WriteOptions {
             range_quantile: 1.0,
             edges: None,
+            context: None,
         }
     }
 }
@@ -413,8 +418,16 @@ pub fn write_blob_with(
 ) -> Result<Vec<u8>> {
     model.check()?;
     let edges = options.edges.unwrap_or(quant);
-    if !edges.at_least(quant) {
-        return Err(Error::EdgesBelowQuant { edges, quant });
+    let context = options.context;
+    if let Some(finer) = [Some(edges), context]
+        .into_iter()
+        .flatten()
+        .find(|q| !q.at_least(quant))
+    {
+        return Err(Error::EdgesBelowQuant {
+            edges: finer,
+            quant,
+        });
     }
     if quant == Quant::W8A8 {
         calibration.check(model)?;
@@ -424,14 +437,18 @@ pub fn write_blob_with(
     } else {
         Default::default()
     };
-    let encode = |layers: &[FloatLayer], ranges: &[Vec<f32>]| {
+    let encode = |layers: &[FloatLayer], ranges: &[Vec<f32>], whole: Option<Quant>| {
         let last = layers.len().saturating_sub(1);
         layers
             .iter()
             .enumerate()
             .map(|(i, l)| {
                 let range = ranges.get(i).map_or(&[][..], Vec::as_slice);
-                let q = if i == 0 || i == last { edges } else { quant };
+                let q = match whole {
+                    Some(q) => q.max_precision(if i == 0 || i == last { edges } else { quant }),
+                    None if i == 0 || i == last => edges,
+                    None => quant,
+                };
                 // Only an input produced by a ReLU of the same MLP is known to be >= 0.
                 let unsigned =
                     q == Quant::W8A8 && i > 0 && layers[i - 1].activation == Activation::Relu;
@@ -439,9 +456,9 @@ pub fn write_blob_with(
             })
             .collect::<Result<Vec<_>>>()
     };
-    let encoder = encode(&model.encoder, &ranges[0])?;
-    let z_head = encode(&model.z_head, &ranges[1])?;
-    let policy = encode(&model.policy, &ranges[2])?;
+    let encoder = encode(&model.encoder, &ranges[0], context)?;
+    let z_head = encode(&model.z_head, &ranges[1], context)?;
+    let policy = encode(&model.policy, &ranges[2], None)?;
     let dim = |d: usize| u16::try_from(d).map_err(|_| Error::TooLarge);
     let (mean, std) = (f32_bytes(&model.obs_mean), f32_bytes(&model.obs_std));
     let (scale, offset) = (f32_bytes(&model.act_scale), f32_bytes(&model.act_offset));

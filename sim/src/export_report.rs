@@ -61,6 +61,11 @@ pub struct ExportReport {
     /// the blob keeps them finer than `quant` (`smile export --edges`); absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub edges: Option<String>,
+    /// The precision of every layer of the context encoder and z head (`w8a32` or `f32`) when
+    /// the blob keeps them finer than `quant` (`smile export --context-quant`); absent
+    /// otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub context: Option<String>,
     /// Algorithm of the exported policy.
     pub algo: String,
     /// The family, written by its name.

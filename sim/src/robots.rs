@@ -64,6 +64,8 @@ impl From<Limb> for LimbSpec {
 /// HalfCheetah: torso with head, back leg (thigh, shin, foot) and front leg; control dt 0.05
 /// as in Gymnasium, but as 2 physics steps of 0.025 s (Gymnasium: 5 of 0.01) because the
 /// multibody mass-matrix update dominates the cost; friction 0.4.
+// Over 100 lines on purpose: a robot is one declaration where every body, joint and value is
+// named beside its source in half_cheetah.xml (the rapier examples' style), not a procedure.
 pub(crate) fn half_cheetah() -> RobotSpec {
     // half_cheetah.xml's hinges turn about +y.
     const AXIS_Y: f32 = 1.0;

@@ -368,10 +368,7 @@ impl PlanText<'_> {
                 files.push(("expert", self.rel(e)));
             }
             if let Some((k, _)) = m.axes.iter().find(|(_, v)| v.is_empty()) {
-                return Err(self.err(
-                    Some(k),
-                    format!("the axis `{k}` of [algo.{name}] is empty"),
-                ));
+                return Err(self.err(Some(k), format!("the axis `{k}` of [algo.{name}] is empty")));
             }
         }
         for (what, f) in &files {
@@ -392,9 +389,7 @@ impl PlanText<'_> {
     fn algo_of(&self, family: Family, name: &str, m: &Method) -> Result<(String, Algo)> {
         let algo = m.algo.clone().unwrap_or_else(|| name.to_string());
         let at = format!("[algo.{name}]");
-        let kind: Algo = algo
-            .parse()
-            .map_err(|e| self.err(Some(&at), message(e)))?;
+        let kind: Algo = algo.parse().map_err(|e| self.err(Some(&at), message(e)))?;
         if !kind.needs_expert() && m.expert.is_some() {
             return Err(self.err(
                 Some(&at),

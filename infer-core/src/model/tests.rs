@@ -347,6 +347,23 @@ fn edge_layers_take_their_own_precision_and_none_is_coarser_than_the_header() {
             header: Quant::W8A32
         })
     );
+    // The context encoder and z head kept finer throughout (they run once per teaching): every
+    // one of their layers, the policy's hidden layers still int8.
+    let context = crate::WriteOptions {
+        edges: Some(Quant::W8A32),
+        context: Some(Quant::W8A32),
+        ..Default::default()
+    };
+    let ctx = crate::write_blob_with(&float(), Quant::W8A8, &calibration(), &context).unwrap();
+    let model = Model::from_bytes(&ctx).unwrap();
+    for mlp in [crate::Mlp::Encoder, crate::Mlp::ZHead] {
+        assert!(
+            model.layer_quants(mlp).all(|q| q == Quant::W8A32),
+            "{mlp:?}"
+        );
+    }
+    let policy: Vec<Quant> = model.layer_quants(crate::Mlp::Policy).collect();
+    assert_eq!(policy, [Quant::W8A32, Quant::W8A8, Quant::W8A32]);
     // The writer refuses edges coarser than the blob.
     let coarse = crate::WriteOptions {
         edges: Some(Quant::W8A8),

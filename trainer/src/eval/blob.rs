@@ -110,6 +110,24 @@ pub fn parity(
 /// `firmware-sim`): one definition, in `sim`.
 pub use sim::ExportReport;
 
+/// The precision the blob keeps finer than its own quantization: the first layer's of `mlps`
+/// (`first_only`, the edges), or the coarsest of all their layers (the context encoder kept
+/// finer throughout); `None` when it is the blob's own.
+fn finer_layers(
+    model: &infer_core::Model<'_>,
+    mlps: &[infer_core::Mlp],
+    first_only: bool,
+) -> Option<String> {
+    let header = model.header().quant;
+    let mut quants = mlps.iter().flat_map(|&m| model.layer_quants(m));
+    let q = if first_only {
+        quants.next()?
+    } else {
+        quants.reduce(|a, b| if a.at_least(b) { b } else { a })?
+    };
+    (q != header).then(|| crate::io::export::quant_name(q))
+}
+
 /// Loads `blob` with infer-core, measures [`parity`] on `contexts` and runs the family's
 /// metric (`protocol`) on the contexts' split with the blob and with the candle policy.
 pub fn verify(
@@ -142,12 +160,12 @@ pub fn verify(
         bytes: blob.len(),
         blob_sha256: crate::io::checkpoint::sha256_hex(blob),
         quant: quant.into(),
-        // The finest layer the blob keeps above its own quantization (its edge layers).
-        edges: model
-            .layer_quants()
-            .filter(|q| *q != model.header().quant)
-            .max_by_key(|q| q.weight_bytes())
-            .map(crate::io::export::quant_name),
+        edges: finer_layers(&model, &[infer_core::Mlp::Policy], true),
+        context: finer_layers(
+            &model,
+            &[infer_core::Mlp::Encoder, infer_core::Mlp::ZHead],
+            false,
+        ),
         algo: mp.algo.clone(),
         env: family,
         physics: mp.physics,

@@ -43,6 +43,12 @@ pub struct ExportArgs {
     /// alike) [default: w8a32 for a w8a8 blob, the same flash; otherwise the blob's own].
     #[arg(long)]
     edges: Option<String>,
+    /// The precision of every layer of the context encoder and z head, which run once per
+    /// teaching and not per control tick: `f32`, `w8a32` or the blob's own (as the policy,
+    /// with its edges) [default: w8a32 for a w8a8 blob, the same flash; otherwise the blob's
+    /// own].
+    #[arg(long)]
+    context_quant: Option<String>,
     /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
     #[arg(long)]
     demos: Option<PathBuf>,
@@ -182,6 +188,10 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let options = infer_core::WriteOptions {
         range_quantile: a.range_quantile,
         edges,
+        context: match a.context_quant.as_deref() {
+            Some(c) => Some(export::parse_quant(c)?),
+            None => export::default_context(quant),
+        },
     };
     let blob = export::export_blob_with(&mp, quant, demos.as_ref(), closed_loop, &options)?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
@@ -217,10 +227,13 @@ pub fn run(a: ExportArgs) -> Result<()> {
     // extension once got its report at `<blob>.blob.json`, which the device never found).
     let json = export::ExportReport::path_beside(&a.out);
     land_blob_and_report(&a.out, &blob, &json, &report)?;
-    let edges = report
+    let mut edges = report
         .edges
         .as_deref()
         .map_or(String::new(), |e| format!(", first and last layers {e}"));
+    if let Some(c) = &report.context {
+        edges.push_str(&format!(", context encoder {c}"));
+    }
     eprintln!(
         "wrote {} ({} bytes, {quant_name}{edges}) and {}",
         a.out.display(),

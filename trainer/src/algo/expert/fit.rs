@@ -46,6 +46,19 @@ struct ExpertFit<'a> {
     s0: u64,
 }
 
+impl ExpertFit<'_> {
+    /// The current actor, deterministic, on the evaluation tasks.
+    fn evaluate_now(&self) -> Result<super::EvalReport> {
+        let cfg = &self.run.cfg;
+        evaluate(
+            &self.run.expert(),
+            &self.eval_tasks,
+            cfg.eval_episodes,
+            cfg.env_config(),
+        )
+    }
+}
+
 impl Fit for ExpertFit<'_> {
     fn done(&self) -> u64 {
         self.run.env_steps
@@ -87,15 +100,9 @@ impl Fit for ExpertFit<'_> {
 
     // Deterministic, on its own environment: does not touch the run's state or RNG.
     fn evaluate(&mut self) -> Result<Option<Evaluation>> {
+        let ev = self.evaluate_now()?;
         let run = &mut *self.run;
-        let cfg = &run.cfg;
-        let ev = evaluate(
-            &run.expert(),
-            &self.eval_tasks,
-            cfg.eval_episodes,
-            cfg.env_config(),
-        )?;
-        let keep = cfg.keep_best
+        let keep = run.cfg.keep_best
             && run
                 .best
                 .is_none_or(|b| better(run.family.metric_kind(), ev.mean, b.metric));
@@ -139,13 +146,7 @@ impl Fit for ExpertFit<'_> {
             Some(b) if run.cfg.keep_best && best_file.exists() => b,
             _ => return run.export_policy(dir),
         };
-        let cfg = &run.cfg;
-        let last = evaluate(
-            &run.expert(),
-            &self.eval_tasks,
-            cfg.eval_episodes,
-            cfg.env_config(),
-        )?;
+        let last = self.evaluate_now()?;
         log.log(run.env_steps, &[("eval/metric", last.mean as f64)])?;
         if better(run.family.metric_kind(), best.metric, last.mean) {
             let io = |e: std::io::Error| Error::Io {
