@@ -123,10 +123,19 @@ fn row(h: &str, t: &Timing, flops: f64) -> String {
     )
 }
 
+/// What every workload's table shares: the arguments, the parsed widths, the thread counts and
+/// the table header; rows go to `rows` for `--json`.
+struct Bench<'a> {
+    a: &'a BenchArgs,
+    shapes: Vec<Vec<usize>>,
+    threads: usize,
+    pool: trainer::threads::LearnerPool,
+    header: String,
+    rows: Vec<serde_json::Value>,
+}
+
 /// Run the benchmarks and print a table per workload.
 pub fn run(a: BenchArgs) -> Result<()> {
-    let threads = trainer::threads::compute_threads();
-    let pool = trainer::threads::LearnerPool::new(a.learner_threads.into())?;
     let header = format!(
         "{:>12} {:>12} {:>10} {:>10} {:>10} {:>12} {:>8} {:>8}",
         "hidden", "median_us", "p10_us", "p90_us", "upd/s", "cpu_mean_us", "GFLOP", "GFLOP/s"
@@ -136,181 +145,201 @@ pub fn run(a: BenchArgs) -> Result<()> {
         .iter()
         .map(|h| parse_hidden(h, a.layers))
         .collect::<Result<_>>()?;
-    let mut rows = Vec::new();
+    let mut b = Bench {
+        a: &a,
+        shapes,
+        threads: trainer::threads::compute_threads(),
+        pool: trainer::threads::LearnerPool::new(a.learner_threads.into())?,
+        header,
+        rows: Vec::new(),
+    };
     for &w in &a.workload {
         match w {
-            Workload::Sac => {
-                let list: Vec<SacBenchShape> = if a.authors {
-                    vec![SacBenchShape::authors()]
-                } else {
-                    shapes
-                        .iter()
-                        .map(|h| SacBenchShape {
-                            batch: a.batch,
-                            z_dim: a.z_dim,
-                            ..SacBenchShape::with_hidden(h.clone())
-                        })
-                        .collect()
-                };
-                let first = &list[0];
-                println!(
-                    "sac update, batch {}, obs {} + z {}, act {}, candle threads {threads}, \
-                     learner threads {}",
-                    first.batch,
-                    first.obs_dim,
-                    first.z_dim,
-                    first.act_dim,
-                    pool.threads()
-                );
-                println!("{header}");
-                for shape in list {
-                    let flops = shape.flops();
-                    let t = pool.install(|| {
-                        bench_sac_update(
-                            shape.clone(),
-                            a.warmup.unwrap_or(20),
-                            a.iters.unwrap_or(200),
-                        )
-                    })?;
-                    println!("{}", row(&label(&shape.hidden), &t, flops));
-                    rows.push(serde_json::json!({"workload": "sac", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
-                }
-            }
-            Workload::Disc => {
-                let list: Vec<DiscBenchShape> = if a.authors {
-                    vec![DiscBenchShape::authors()]
-                } else {
-                    shapes
-                        .iter()
-                        .map(|h| DiscBenchShape {
-                            r_dim: a.r_dim,
-                            z_dim: a.z_dim,
-                            ..DiscBenchShape::with_hidden(
-                                h.clone(),
-                                vec![a.enc_hidden.unwrap_or(h[0]); 2],
-                            )
-                        })
-                        .collect()
-                };
-                let first = &list[0];
-                println!(
-                    "disc + encoder update, {} tasks x {} x {} context steps through the encoder \
-                     ({}) -> r {} -> z {}, {} + {} rows per task, obs {}, act {}, gp {}, \
-                     candle threads {threads}, learner threads {}",
-                    first.tasks,
-                    first.ctx_trajs,
-                    first.ctx_len,
-                    match a.enc_hidden {
-                        _ if a.authors => label(&first.enc_hidden),
-                        Some(w) => format!("{w}x2"),
-                        None => "each shape's first width x 2".into(),
-                    },
-                    first.r_dim,
-                    first.z_dim,
-                    first.samples,
-                    first.samples,
-                    first.obs_dim,
-                    first.act_dim,
-                    first.gp_weight,
-                    pool.threads()
-                );
-                println!("{header}");
-                for shape in list {
-                    let flops = shape.flops();
-                    let t = pool.install(|| {
-                        bench_disc_step(
-                            shape.clone(),
-                            a.warmup.unwrap_or(20),
-                            a.iters.unwrap_or(200),
-                        )
-                    })?;
-                    println!("{}", row(&label(&shape.hidden), &t, flops));
-                    rows.push(serde_json::json!({"workload": "disc", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
-                }
-            }
-            Workload::Pair => {
-                let demos = sim::DemoDataset::read(&a.demos)
-                    .with_context(|| format!("reading the demos {}", a.demos.display()))?;
-                let file = match &a.config {
-                    Some(p) => {
-                        let text = std::fs::read_to_string(p)
-                            .with_context(|| format!("reading {}", p.display()))?;
-                        let cfg: trainer::smile::SmileConfig =
-                            trainer::from_toml_over_defaults(&text)
-                                .with_context(|| format!("parsing {}", p.display()))?;
-                        Some(cfg)
-                    }
-                    None => None,
-                };
-                let configs: Vec<(String, trainer::smile::SmileConfig)> = match file {
-                    Some(cfg) => vec![(
-                        label(&cfg.disc_hidden),
-                        trainer::smile::SmileConfig {
-                            env: demos.family,
-                            physics: demos.physics,
-                            learner_threads: a.learner_threads.into(),
-                            ..cfg
-                        },
-                    )],
-                    None => shapes
-                        .iter()
-                        .map(|h| {
-                            let mut cfg = trainer::smile::SmileConfig {
-                                env: demos.family,
-                                physics: demos.physics,
-                                rollouts_per_iter: 4,
-                                updates_per_iter: 100,
-                                sac_per_task: 32,
-                                disc_hidden: h.clone(),
-                                learner_threads: a.learner_threads.into(),
-                                ..Default::default()
-                            };
-                            cfg.sac.hidden = h.clone();
-                            (label(h), cfg)
-                        })
-                        .collect(),
-                };
-                for (name, cfg) in configs {
-                    println!(
-                        "SMILe iterations on {} ({}, {} plant): {} rollouts + {} pairs, disc {} on {} + {} rows x {} tasks, \
-                         SAC {} on {} x {} rows, candle threads {threads}, learner threads {}",
-                        demos.family,
-                        a.demos.display(),
-                        demos.physics,
-                        cfg.rollouts_per_iter,
-                        cfg.updates_per_iter,
-                        label(&cfg.disc_hidden),
-                        cfg.disc_per_task,
-                        cfg.disc_per_task,
-                        cfg.tasks_per_batch,
-                        label(&cfg.sac.hidden),
-                        cfg.sac_per_task,
-                        cfg.tasks_per_batch,
-                        a.learner_threads
-                    );
-                    println!(
-                        "{:>12} {:>14} {:>22} {:>10}",
-                        "disc hidden", "per_pair_us", "updates_only_per_pair", "pairs/s"
-                    );
-                    let t = bench_smile_pairs(
-                        cfg,
-                        &demos,
-                        a.warmup.unwrap_or(2),
-                        a.iters.unwrap_or(20),
-                    )?;
-                    println!(
-                        "{name:>12} {:>14.1} {:>22.1} {:>10.1}",
-                        t.per_pair_us, t.updates_only_per_pair_us, t.pairs_per_s
-                    );
-                    rows.push(serde_json::json!({"workload": "pair", "hidden": name, "config": a.config, "threads": threads, "learner_threads": a.learner_threads, "timing": t}));
-                }
-            }
+            Workload::Sac => b.sac()?,
+            Workload::Disc => b.disc()?,
+            Workload::Pair => b.pair()?,
         }
     }
-    if let Some(p) = a.json {
-        std::fs::write(&p, serde_json::to_string_pretty(&rows)? + "\n")?;
+    if let Some(p) = &a.json {
+        std::fs::write(p, serde_json::to_string_pretty(&b.rows)? + "\n")?;
     }
     Ok(())
+}
+
+impl Bench<'_> {
+    /// One SAC update per shape.
+    fn sac(&mut self) -> Result<()> {
+        let (a, shapes, threads, pool, header) =
+            (self.a, &self.shapes, self.threads, &self.pool, &self.header);
+        let rows = &mut self.rows;
+        let list: Vec<SacBenchShape> = if a.authors {
+            vec![SacBenchShape::authors()]
+        } else {
+            shapes
+                .iter()
+                .map(|h| SacBenchShape {
+                    batch: a.batch,
+                    z_dim: a.z_dim,
+                    ..SacBenchShape::with_hidden(h.clone())
+                })
+                .collect()
+        };
+        let first = &list[0];
+        println!(
+            "sac update, batch {}, obs {} + z {}, act {}, candle threads {threads}, \
+             learner threads {}",
+            first.batch,
+            first.obs_dim,
+            first.z_dim,
+            first.act_dim,
+            pool.threads()
+        );
+        println!("{header}");
+        for shape in list {
+            let flops = shape.flops();
+            let t = pool.install(|| {
+                bench_sac_update(
+                    shape.clone(),
+                    a.warmup.unwrap_or(20),
+                    a.iters.unwrap_or(200),
+                )
+            })?;
+            println!("{}", row(&label(&shape.hidden), &t, flops));
+            rows.push(serde_json::json!({"workload": "sac", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
+        }
+        Ok(())
+    }
+
+    /// One discriminator + encoder step per shape.
+    fn disc(&mut self) -> Result<()> {
+        let (a, shapes, threads, pool, header) =
+            (self.a, &self.shapes, self.threads, &self.pool, &self.header);
+        let rows = &mut self.rows;
+        let list: Vec<DiscBenchShape> = if a.authors {
+            vec![DiscBenchShape::authors()]
+        } else {
+            shapes
+                .iter()
+                .map(|h| DiscBenchShape {
+                    r_dim: a.r_dim,
+                    z_dim: a.z_dim,
+                    ..DiscBenchShape::with_hidden(h.clone(), vec![a.enc_hidden.unwrap_or(h[0]); 2])
+                })
+                .collect()
+        };
+        let first = &list[0];
+        println!(
+            "disc + encoder update, {} tasks x {} x {} context steps through the encoder \
+             ({}) -> r {} -> z {}, {} + {} rows per task, obs {}, act {}, gp {}, \
+             candle threads {threads}, learner threads {}",
+            first.tasks,
+            first.ctx_trajs,
+            first.ctx_len,
+            match a.enc_hidden {
+                _ if a.authors => label(&first.enc_hidden),
+                Some(w) => format!("{w}x2"),
+                None => "each shape's first width x 2".into(),
+            },
+            first.r_dim,
+            first.z_dim,
+            first.samples,
+            first.samples,
+            first.obs_dim,
+            first.act_dim,
+            first.gp_weight,
+            pool.threads()
+        );
+        println!("{header}");
+        for shape in list {
+            let flops = shape.flops();
+            let t = pool.install(|| {
+                bench_disc_step(
+                    shape.clone(),
+                    a.warmup.unwrap_or(20),
+                    a.iters.unwrap_or(200),
+                )
+            })?;
+            println!("{}", row(&label(&shape.hidden), &t, flops));
+            rows.push(serde_json::json!({"workload": "disc", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
+        }
+        Ok(())
+    }
+
+    /// Whole SMILe iterations (rollouts and update pairs) on real demos.
+    fn pair(&mut self) -> Result<()> {
+        let (a, shapes, threads) = (self.a, &self.shapes, self.threads);
+        let rows = &mut self.rows;
+        let demos = sim::DemoDataset::read(&a.demos)
+            .with_context(|| format!("reading the demos {}", a.demos.display()))?;
+        let file = match &a.config {
+            Some(p) => {
+                let text = std::fs::read_to_string(p)
+                    .with_context(|| format!("reading {}", p.display()))?;
+                let cfg: trainer::smile::SmileConfig = trainer::from_toml_over_defaults(&text)
+                    .with_context(|| format!("parsing {}", p.display()))?;
+                Some(cfg)
+            }
+            None => None,
+        };
+        let configs: Vec<(String, trainer::smile::SmileConfig)> = match file {
+            Some(cfg) => vec![(
+                label(&cfg.disc_hidden),
+                trainer::smile::SmileConfig {
+                    env: demos.family,
+                    physics: demos.physics,
+                    learner_threads: a.learner_threads.into(),
+                    ..cfg
+                },
+            )],
+            None => shapes
+                .iter()
+                .map(|h| {
+                    let mut cfg = trainer::smile::SmileConfig {
+                        env: demos.family,
+                        physics: demos.physics,
+                        rollouts_per_iter: 4,
+                        updates_per_iter: 100,
+                        sac_per_task: 32,
+                        disc_hidden: h.clone(),
+                        learner_threads: a.learner_threads.into(),
+                        ..Default::default()
+                    };
+                    cfg.sac.hidden = h.clone();
+                    (label(h), cfg)
+                })
+                .collect(),
+        };
+        for (name, cfg) in configs {
+            println!(
+                "SMILe iterations on {} ({}, {} plant): {} rollouts + {} pairs, disc {} on {} + {} rows x {} tasks, \
+                 SAC {} on {} x {} rows, candle threads {threads}, learner threads {}",
+                demos.family,
+                a.demos.display(),
+                demos.physics,
+                cfg.rollouts_per_iter,
+                cfg.updates_per_iter,
+                label(&cfg.disc_hidden),
+                cfg.disc_per_task,
+                cfg.disc_per_task,
+                cfg.tasks_per_batch,
+                label(&cfg.sac.hidden),
+                cfg.sac_per_task,
+                cfg.tasks_per_batch,
+                a.learner_threads
+            );
+            println!(
+                "{:>12} {:>14} {:>22} {:>10}",
+                "disc hidden", "per_pair_us", "updates_only_per_pair", "pairs/s"
+            );
+            let t = bench_smile_pairs(cfg, &demos, a.warmup.unwrap_or(2), a.iters.unwrap_or(20))?;
+            println!(
+                "{name:>12} {:>14.1} {:>22.1} {:>10.1}",
+                t.per_pair_us, t.updates_only_per_pair_us, t.pairs_per_s
+            );
+            rows.push(serde_json::json!({"workload": "pair", "hidden": name, "config": a.config, "threads": threads, "learner_threads": a.learner_threads, "timing": t}));
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
