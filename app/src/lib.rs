@@ -17,6 +17,7 @@
 
 pub mod bench;
 pub mod device_table;
+pub mod progress;
 pub mod quickstart;
 pub mod report;
 pub mod sweep;

@@ -11,6 +11,7 @@ use clap::ValueEnum;
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, EnvConfig, Family, Split};
 
+use crate::progress::bar;
 use indicatif::MultiProgress;
 use trainer::MetaData;
 use trainer::MetaPolicy;
@@ -19,7 +20,6 @@ use trainer::expert::{self, Expert};
 use trainer::expert::{DemoSpec, record};
 use trainer::export::{self, BlobActor};
 use trainer::meta_bc::{MetaBc, MetaBcConfig};
-use trainer::progress_bar as bar;
 use trainer::smile::{Smile, SmileConfig};
 use trainer::{Error, Result};
 use trainer::{MetaLearner, Progress};

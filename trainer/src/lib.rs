@@ -20,8 +20,7 @@
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
-//! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export,
-//!   progress bars.
+//! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export.
 //! * [`run`]: a run directory started or resumed ([`run::train`]): configuration, demos,
 //!   expert, records and lock around a [`MetaLearner`]; what `smile train` and sweep cells call.
 //! * [`threads`]: the compute thread layout.
@@ -84,8 +83,8 @@ pub use io::os_path;
 /// One writer per output directory.
 pub use io::{DirLock, lock};
 
-/// The metrics log (JSON lines + TensorBoard events) and the progress-bar style.
+/// The metrics log (JSON lines + TensorBoard events).
 pub use io::{
-    METRICS_FILE, MetricsLog, TbWriter, bar as progress_bar, from_toml_over_defaults,
-    from_toml_with_flags, set_key as set_config_key,
+    METRICS_FILE, MetricsLog, TbWriter, from_toml_over_defaults, from_toml_with_flags,
+    set_key as set_config_key,
 };

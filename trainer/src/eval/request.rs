@@ -103,7 +103,7 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
     let ctx = crate::run::read_demos_of(&req.contexts, "--contexts", family)?;
     check_contexts(req, &ctx)?;
     let mut protocol = protocol_of(req, on)?;
-    let policies = load_policies(req)?;
+    let policies = load_policies(req, on)?;
     // The episodes run on the plant the policies were trained on.
     if let Some((_, mp)) = policies.first() {
         protocol.physics = mp.physics;
@@ -210,13 +210,18 @@ fn protocol_of(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<Proto
 
 /// The request's policies, each finished (unless allowed) and of the request's family, all
 /// trained on one plant.
-fn load_policies(req: &EvalRequest) -> Result<Vec<(&PathBuf, MetaPolicy)>> {
+fn load_policies<'r>(
+    req: &'r EvalRequest,
+    on: &mut dyn FnMut(EvalEvent),
+) -> Result<Vec<(&'r PathBuf, MetaPolicy)>> {
     let family = req.family;
     let mut policies = Vec::with_capacity(req.policies.len());
     for p in &req.policies {
         let mp = MetaPolicy::load(p)
             .map_err(|e| Error::Usage(format!("loading {}: {e}", p.display())))?;
-        MetaPolicy::ensure_finished(p, req.allow_unfinished)?;
+        if let Some(warning) = MetaPolicy::ensure_finished(p, req.allow_unfinished)? {
+            on(EvalEvent::Note(warning));
+        }
         if mp.family != family {
             return Err(Error::Usage(format!(
                 "{} was trained on {}, not {family} (--env); pass --env {}",

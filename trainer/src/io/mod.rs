@@ -1,6 +1,6 @@
 //! What the trainer writes and reads: configuration files (over the defaults), atomic
 //! checkpoints, the metrics log (JSON lines and TensorBoard events), the infer-core blob export
-//! with its verification, the ONNX export, and progress bars.
+//! with its verification, and the ONNX export.
 
 pub mod checkpoint;
 mod config;
@@ -10,10 +10,8 @@ mod metrics;
 pub mod onnx;
 pub mod os_path;
 mod policy_file;
-pub mod progress;
 
 pub use config::{from_toml_over_defaults, from_toml_with_flags, set_key};
 pub(crate) use config::{require_horizon, require_positive};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};
-pub use progress::bar;

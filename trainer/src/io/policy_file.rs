@@ -67,14 +67,15 @@ impl MetaPolicy {
     }
 
     /// Refuses a meta-policy whose training did not finish (killed, or still running), saying
-    /// how to finish it; `allow` turns the refusal into a warning on stderr.
-    pub fn ensure_finished(path: &Path, allow: bool) -> Result<()> {
+    /// how to finish it; `allow` turns the refusal into a warning, returned for the caller to
+    /// show.
+    pub fn ensure_finished(path: &Path, allow: bool) -> Result<Option<String>> {
         let file = Self::file_of(path);
         let Some(mark) = Self::training_mark(&file)? else {
-            return Ok(());
+            return Ok(None);
         };
         if mark.finished {
-            return Ok(());
+            return Ok(None);
         }
         let dir = file.parent().unwrap_or(Path::new("."));
         let err = Error::Unfinished {
@@ -84,8 +85,9 @@ impl MetaPolicy {
             resume: format!("smile train --resume -o {} --demos DEMOS", dir.display()),
         };
         if allow {
-            eprintln!("warning: {err} (used anyway: --allow-unfinished)");
-            Ok(())
+            Ok(Some(format!(
+                "warning: {err} (used anyway: --allow-unfinished)"
+            )))
         } else {
             Err(err)
         }

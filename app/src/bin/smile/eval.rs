@@ -108,7 +108,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     let report = eval::evaluate_to_dir(&req, &mut |e| match e {
         EvalEvent::Note(text) => eprintln!("{text}"),
         EvalEvent::Method { name, tasks } => {
-            let bar = trainer::progress_bar(tasks as u64, a.quiet, "tasks");
+            let bar = smile_app::progress::bar(tasks as u64, a.quiet, "tasks");
             bar.set_message(name);
             pb = Some(bar);
         }

@@ -290,7 +290,7 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         &dir.join("config.toml"),
         toml::to_string_pretty(run.config())?.as_bytes(),
     )?;
-    let pb = trainer::progress_bar(run.config().total_steps, a.quiet, "steps");
+    let pb = smile_app::progress::bar(run.config().total_steps, a.quiet, "steps");
     pb.set_position(run.env_steps());
     let result = expert::train(&mut run, &dir, &mut |ev| match ev {
         Progress::Steps(s) => pb.set_position(s),

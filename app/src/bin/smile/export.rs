@@ -147,7 +147,9 @@ fn run_onnx(a: &ExportArgs, mp: &MetaPolicy) -> Result<()> {
 pub fn run(a: ExportArgs) -> Result<()> {
     let mp =
         MetaPolicy::load(&a.policy).with_context(|| format!("loading {}", a.policy.display()))?;
-    MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)?;
+    if let Some(warning) = MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)? {
+        eprintln!("{warning}");
+    }
     if a.format == Format::Onnx {
         return run_onnx(&a, &mp);
     }

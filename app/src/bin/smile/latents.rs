@@ -52,7 +52,9 @@ pub fn run(a: LatentsArgs) -> Result<()> {
     }
     let mut policy =
         MetaPolicy::load(&a.policy).with_context(|| format!("--policy {}", a.policy.display()))?;
-    MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)?;
+    if let Some(warning) = MetaPolicy::ensure_finished(&a.policy, a.allow_unfinished)? {
+        eprintln!("{warning}");
+    }
     if policy.family != family {
         bail!(
             "--policy {} is a {} policy but --env is {family}",

@@ -141,7 +141,7 @@ pub fn run(a: SweepArgs) -> Result<()> {
         sweep.default_jobs(std::thread::available_parallelism().map_or(1, |n| n.get()))
     });
     let total = sweep.cells.len() as u64;
-    let pb = trainer::progress_bar(total, a.quiet, "cells");
+    let pb = smile_app::progress::bar(total, a.quiet, "cells");
     let running = std::sync::Mutex::new(Vec::<String>::new());
     let summary = sweep::run_local(&sweep, &plan, jobs, &exe()?, &|e| {
         let mut r = running.lock().unwrap_or_else(|p| p.into_inner());

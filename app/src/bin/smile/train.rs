@@ -109,7 +109,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
             RunEvent::Started {
                 total, done, unit, ..
             } => {
-                let bar = trainer::progress_bar(*total, a.quiet, unit);
+                let bar = smile_app::progress::bar(*total, a.quiet, unit);
                 bar.set_position(*done);
                 pb = Some(bar);
             }

@@ -1,5 +1,6 @@
-//! Progress bars shared by the long loops (experts, training, evaluation, the quickstart): one
-//! style, hidden under `--quiet` so scripts get clean output.
+//! Progress bars of the `smile` commands' long loops (experts, training, evaluation, the
+//! quickstart): one style, hidden under `--quiet` so scripts get clean output. The library
+//! reports progress through callbacks; the app draws it here.
 //!
 //! When stderr is not a terminal (a background run with its output in a log file) indicatif
 //! hides its bar; a plain line then goes to stderr every [`interval`] seconds instead (5 s by
