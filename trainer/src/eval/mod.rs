@@ -325,6 +325,70 @@ pub fn evaluate(
     evaluate_tasks(actor, name, family, &tasks, contexts, protocol, on_task)
 }
 
+/// One task's evaluation: its result, every episode's metric, and (a classifying family) the
+/// no-op rate per context size.
+struct TaskEvaluation {
+    result: TaskResult,
+    episodes: Vec<f32>,
+    no_op_by_k: Option<Vec<f32>>,
+}
+
+/// Task number `i` under `protocol`: for each context size, `draws` contexts drawn from
+/// `trajs`, `rollouts` episodes each from their fixed seeds.
+fn evaluate_task(
+    actor: &mut dyn ConditionedActor,
+    env: &mut dyn sim::Environment,
+    protocol: &Protocol,
+    task: &Task,
+    i: usize,
+    trajs: &[&Trajectory],
+) -> Result<TaskEvaluation> {
+    let mut by_k = Vec::with_capacity(protocol.context_sizes.len());
+    let mut no_op_by_k = Vec::with_capacity(protocol.context_sizes.len());
+    let mut task_eps = Vec::new();
+    let mut task_no_ops = Vec::new();
+    for &k in &protocol.context_sizes {
+        let mut eps = Vec::new();
+        let mut no_ops = Vec::new();
+        for d in 0..protocol.draws {
+            let z = actor.latent(&context_draw(trajs, i, k, d))?;
+            for r in 0..protocol.rollouts {
+                let seed = episode_seed(d, r);
+                let mut noise = ActionNoise::new(protocol.action_noise, seed);
+                let ep = run_episode(
+                    env,
+                    task,
+                    seed,
+                    &mut |o, a| {
+                        actor.act(o, &z, a)?;
+                        noise.add_to(a);
+                        Ok(())
+                    },
+                    &mut |_| Ok(()),
+                )?;
+                eps.push(ep.metric);
+                no_ops.extend(ep.no_op.map(|n| if n { 1.0 } else { 0.0 }));
+            }
+        }
+        by_k.push(mean_std(&eps).0);
+        task_eps.extend(eps);
+        no_op_by_k.push(mean_std(&no_ops).0);
+        task_no_ops.extend(no_ops);
+    }
+    let classifies = !task_no_ops.is_empty();
+    Ok(TaskEvaluation {
+        result: TaskResult {
+            task: task.label(),
+            value: task.value(),
+            metric: mean_std(&task_eps).0,
+            by_context_size: by_k,
+            no_op_rate: classifies.then(|| mean_std(&task_no_ops).0),
+        },
+        episodes: task_eps,
+        no_op_by_k: classifies.then_some(no_op_by_k),
+    })
+}
+
 /// [`evaluate`] on the given `tasks` (a split's, or the contexts file's own new tasks).
 pub fn evaluate_tasks(
     actor: &mut dyn ConditionedActor,
@@ -349,48 +413,10 @@ pub fn evaluate_tasks(
     let mut all = Vec::new();
     for (i, (task, td)) in tasks.iter().zip(&demos).enumerate() {
         let trajs: Vec<&Trajectory> = td.trajectories.iter().filter(|t| !t.is_empty()).collect();
-        let mut by_k = Vec::with_capacity(protocol.context_sizes.len());
-        let mut no_op_by_k = Vec::with_capacity(protocol.context_sizes.len());
-        let mut task_eps = Vec::new();
-        let mut task_no_ops = Vec::new();
-        for &k in &protocol.context_sizes {
-            let mut eps = Vec::new();
-            let mut no_ops = Vec::new();
-            for d in 0..protocol.draws {
-                let z = actor.latent(&context_draw(&trajs, i, k, d))?;
-                for r in 0..protocol.rollouts {
-                    let seed = episode_seed(d, r);
-                    let mut noise = ActionNoise::new(protocol.action_noise, seed);
-                    let ep = run_episode(
-                        env.as_mut(),
-                        task,
-                        seed,
-                        &mut |o, a| {
-                            actor.act(o, &z, a)?;
-                            noise.add_to(a);
-                            Ok(())
-                        },
-                        &mut |_| Ok(()),
-                    )?;
-                    eps.push(ep.metric);
-                    no_ops.extend(ep.no_op.map(|n| if n { 1.0 } else { 0.0 }));
-                }
-            }
-            by_k.push(mean_std(&eps).0);
-            task_eps.extend(eps);
-            no_op_by_k.push(mean_std(&no_ops).0);
-            task_no_ops.extend(no_ops);
-        }
-        let classifies = !task_no_ops.is_empty();
-        all.extend_from_slice(&task_eps);
-        results.push(TaskResult {
-            task: task.label(),
-            value: task.value(),
-            metric: mean_std(&task_eps).0,
-            by_context_size: by_k,
-            no_op_rate: classifies.then(|| mean_std(&task_no_ops).0),
-        });
-        no_op_rows.push(classifies.then_some(no_op_by_k));
+        let one = evaluate_task(actor, env.as_mut(), protocol, task, i, &trajs)?;
+        all.extend_from_slice(&one.episodes);
+        results.push(one.result);
+        no_op_rows.push(one.no_op_by_k);
         on_task(i + 1, tasks.len());
     }
     let per_task: Vec<f32> = results.iter().map(|t| t.metric).collect();
