@@ -701,7 +701,7 @@ fn export_blob(
     let out = &args.out;
     let blob = export::export_blob(policy, infer_core::Quant::W8A8, Some(train))?;
     write(&out.join("policy.blob"), &blob)?;
-    let (parity, result) = {
+    let (parity, result, (edges, context)) = {
         let model = export::load_blob(&blob)?;
         let mut actor = BlobActor::new(&model)?;
         let parity = export::parity(policy, &mut actor, test)?;
@@ -712,14 +712,15 @@ fn export_blob(
             parity.action_mean_abs_diff,
             parity.actions
         );
-        (parity, evaluate(args, &mut actor, "SMILe w8a8 blob", test)?)
+        let result = evaluate(args, &mut actor, "SMILe w8a8 blob", test)?;
+        (parity, result, export::finer_precisions(&model))
     };
     let export_report = export::ExportReport {
         bytes: blob.len(),
         blob_sha256: trainer::checkpoint::sha256_hex(&blob),
         quant: "w8a8".into(),
-        edges: export::default_edges(infer_core::Quant::W8A8).map(export::quant_name),
-        context: export::default_context(infer_core::Quant::W8A8).map(export::quant_name),
+        edges,
+        context,
         algo: policy.algo.clone(),
         env: args.env,
         physics: policy.physics,

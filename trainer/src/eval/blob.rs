@@ -110,6 +110,16 @@ pub fn parity(
 /// `firmware-sim`): one definition, in `sim`.
 pub use sim::ExportReport;
 
+/// What a loaded blob keeps finer than its own quantization, as an export report records it:
+/// the policy's edge layers, and the context encoder with the z head (`None`: the blob's own).
+pub fn finer_precisions(model: &infer_core::Model<'_>) -> (Option<String>, Option<String>) {
+    use infer_core::Mlp;
+    (
+        finer_layers(model, &[Mlp::Policy], true),
+        finer_layers(model, &[Mlp::Encoder, Mlp::ZHead], false),
+    )
+}
+
 /// The precision the blob keeps finer than its own quantization: the first layer's of `mlps`
 /// (`first_only`, the edges), or the coarsest of all their layers (the context encoder kept
 /// finer throughout); `None` when it is the blob's own.
@@ -156,16 +166,13 @@ pub fn verify(
     };
     let blob_m = metric(&mut actor, "blob")?;
     let float_m = metric(&mut mp.clone(), "candle")?;
+    let (edges, context) = finer_precisions(&model);
     Ok(ExportReport {
         bytes: blob.len(),
         blob_sha256: crate::io::checkpoint::sha256_hex(blob),
         quant: quant.into(),
-        edges: finer_layers(&model, &[infer_core::Mlp::Policy], true),
-        context: finer_layers(
-            &model,
-            &[infer_core::Mlp::Encoder, infer_core::Mlp::ZHead],
-            false,
-        ),
+        edges,
+        context,
         algo: mp.algo.clone(),
         env: family,
         physics: mp.physics,

@@ -167,11 +167,30 @@ pub fn run(a: BenchArgs) -> Result<()> {
 }
 
 impl Bench<'_> {
+    /// Prints the table header, then times each shape of `workload` with `bench` and prints
+    /// and records its row.
+    fn time_each<S: Clone + Send + Sync + serde::Serialize>(
+        &mut self,
+        workload: &str,
+        list: Vec<S>,
+        hidden: fn(&S) -> &Vec<usize>,
+        flops: fn(&S) -> f64,
+        bench: fn(S, usize, usize) -> trainer::Result<Timing>,
+    ) -> Result<()> {
+        println!("{}", self.header);
+        let (warmup, iters) = (self.a.warmup.unwrap_or(20), self.a.iters.unwrap_or(200));
+        for shape in list {
+            let f = flops(&shape);
+            let t = self.pool.install(|| bench(shape.clone(), warmup, iters))?;
+            println!("{}", row(&label(hidden(&shape)), &t, f));
+            self.rows.push(serde_json::json!({"workload": workload, "H": hidden(&shape)[0], "shape": shape, "threads": self.threads, "learner_threads": self.pool.threads(), "flops": f, "gflop_per_s": f / t.median_us / 1e3, "timing": t}));
+        }
+        Ok(())
+    }
+
     /// One SAC update per shape.
     fn sac(&mut self) -> Result<()> {
-        let (a, shapes, threads, pool, header) =
-            (self.a, &self.shapes, self.threads, &self.pool, &self.header);
-        let rows = &mut self.rows;
+        let (a, shapes, threads, pool) = (self.a, &self.shapes, self.threads, &self.pool);
         let list: Vec<SacBenchShape> = if a.authors {
             vec![SacBenchShape::authors()]
         } else {
@@ -194,27 +213,18 @@ impl Bench<'_> {
             first.act_dim,
             pool.threads()
         );
-        println!("{header}");
-        for shape in list {
-            let flops = shape.flops();
-            let t = pool.install(|| {
-                bench_sac_update(
-                    shape.clone(),
-                    a.warmup.unwrap_or(20),
-                    a.iters.unwrap_or(200),
-                )
-            })?;
-            println!("{}", row(&label(&shape.hidden), &t, flops));
-            rows.push(serde_json::json!({"workload": "sac", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
-        }
-        Ok(())
+        self.time_each(
+            "sac",
+            list,
+            |s| &s.hidden,
+            SacBenchShape::flops,
+            bench_sac_update,
+        )
     }
 
     /// One discriminator + encoder step per shape.
     fn disc(&mut self) -> Result<()> {
-        let (a, shapes, threads, pool, header) =
-            (self.a, &self.shapes, self.threads, &self.pool, &self.header);
-        let rows = &mut self.rows;
+        let (a, shapes, threads, pool) = (self.a, &self.shapes, self.threads, &self.pool);
         let list: Vec<DiscBenchShape> = if a.authors {
             vec![DiscBenchShape::authors()]
         } else {
@@ -249,20 +259,13 @@ impl Bench<'_> {
             first.gp_weight,
             pool.threads()
         );
-        println!("{header}");
-        for shape in list {
-            let flops = shape.flops();
-            let t = pool.install(|| {
-                bench_disc_step(
-                    shape.clone(),
-                    a.warmup.unwrap_or(20),
-                    a.iters.unwrap_or(200),
-                )
-            })?;
-            println!("{}", row(&label(&shape.hidden), &t, flops));
-            rows.push(serde_json::json!({"workload": "disc", "H": shape.hidden[0], "shape": shape, "threads": threads, "learner_threads": pool.threads(), "flops": flops, "gflop_per_s": flops / t.median_us / 1e3, "timing": t}));
-        }
-        Ok(())
+        self.time_each(
+            "disc",
+            list,
+            |s| &s.hidden,
+            DiscBenchShape::flops,
+            bench_disc_step,
+        )
     }
 
     /// Whole SMILe iterations (rollouts and update pairs) on real demos.
