@@ -210,9 +210,9 @@ pub enum Error {
     },
     /// A higher precision asked for some layers (the edges, or the context encoder and z
     /// head) is coarser than the blob's own.
-    EdgesBelowQuant {
+    FinerBelowQuant {
         /// The quantization asked for those layers.
-        edges: crate::format::Quant,
+        asked: crate::format::Quant,
         /// The blob's quantization.
         quant: crate::format::Quant,
     },
@@ -356,9 +356,9 @@ impl fmt::Display for Error {
                  {MAX_PARAMETER:e} (a diverged or corrupted network: retrain or take an earlier \
                  checkpoint)"
             ),
-            Self::EdgesBelowQuant { edges, quant } => write!(
+            Self::FinerBelowQuant { asked, quant } => write!(
                 f,
-                "layers as {edges:?} would be coarser than the blob's {quant:?}: the edges and \
+                "layers as {asked:?} would be coarser than the blob's {quant:?}: the edges and \
                  the context encoder take a higher precision, not a lower one"
             ),
         }

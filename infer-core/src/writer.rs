@@ -424,8 +424,8 @@ pub fn write_blob_with(
         .flatten()
         .find(|q| !q.at_least(quant))
     {
-        return Err(Error::EdgesBelowQuant {
-            edges: finer,
+        return Err(Error::FinerBelowQuant {
+            asked: finer,
             quant,
         });
     }

@@ -371,8 +371,8 @@ fn edge_layers_take_their_own_precision_and_none_is_coarser_than_the_header() {
     };
     assert_eq!(
         crate::write_blob_with(&float(), Quant::W8A32, &calibration(), &coarse),
-        Err(crate::Error::EdgesBelowQuant {
-            edges: Quant::W8A8,
+        Err(crate::Error::FinerBelowQuant {
+            asked: Quant::W8A8,
             quant: Quant::W8A32
         })
     );
