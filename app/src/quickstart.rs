@@ -330,59 +330,43 @@ fn demos(
     Ok(ds)
 }
 
-/// A learner's configuration: its preset file under the quickstart's own settings (family,
-/// seed and, for SMILe, two learner threads; the `tiny` budget's small nets and counts).
-fn preset<L: MetaLearner>(
+/// A learner's preset file over its defaults.
+fn preset<C: serde::Serialize + serde::de::DeserializeOwned + Default>(
     (name, text): (&str, &str),
-    args: &Quickstart<'_>,
-    extra: &[(&str, toml::Value)],
-) -> Result<L::Config> {
-    let mut flags = toml::Table::new();
-    let settings = [
-        ("env", toml::Value::from(args.env.name())),
-        ("seed", toml::Value::Integer(args.seed as i64)),
-    ];
-    for (key, v) in settings.iter().chain(extra) {
-        trainer::set_config_key(&mut flags, key, v.clone()).map_err(Error::Config)?;
-    }
-    trainer::from_toml_with_flags(text, flags)
+) -> Result<C> {
+    trainer::from_toml_over_defaults(text)
         .map_err(|e| Error::Config(format!("the quickstart's preset {name}: {}", e.message())))
 }
 
-/// The SMILe configuration the quickstart trains with, per family and budget.
+/// The SMILe configuration the quickstart trains with, per family and budget: its preset
+/// under the quickstart's own settings (family, seed, two learner threads; the `tiny`
+/// budget's small nets and counts).
 fn smile_config(args: &Quickstart<'_>) -> Result<SmileConfig> {
-    let mut extra = vec![("learner_threads", toml::Value::Integer(2))];
-    if args.budget == Budget::Tiny {
-        let small = toml::Value::from(vec![32, 32]);
-        extra.extend([
-            ("total_updates", 200.into()),
-            ("updates_per_iter", 50.into()),
-            ("sac.hidden", small.clone()),
-            ("disc_hidden", small),
-            ("eval_every", 100.into()),
-            ("checkpoint_every", 100.into()),
-        ]);
-    }
+    let mut cfg: SmileConfig = preset(args.presets()[0])?;
+    (cfg.env, cfg.seed) = (args.env, args.seed);
     // Two learner threads: the discriminator step beside the SAC step (docs/BENCHMARKS.md
     // "Threads"); Meta-BC shares the cores for its first minute or so.
-    let mut cfg: SmileConfig = preset::<Smile>(args.presets()[0], args, &extra)?;
-    if args.budget == Budget::Long {
-        cfg.total_updates *= args.recipe.long_updates;
+    cfg.learner_threads = 2;
+    match args.budget {
+        Budget::Tiny => {
+            (cfg.total_updates, cfg.updates_per_iter) = (200, 50);
+            (cfg.sac.hidden, cfg.disc_hidden) = (vec![32, 32], vec![32, 32]);
+            (cfg.eval_every, cfg.checkpoint_every) = (100, 100);
+        }
+        Budget::Short => {}
+        Budget::Long => cfg.total_updates *= args.recipe.long_updates,
     }
     Ok(cfg)
 }
 
 /// The Meta-BC configuration the quickstart trains with, per family and budget.
 fn meta_bc_config(args: &Quickstart<'_>) -> Result<MetaBcConfig> {
-    let mut extra = Vec::new();
+    let mut cfg: MetaBcConfig = preset(args.presets()[1])?;
+    (cfg.env, cfg.seed) = (args.env, args.seed);
     if args.budget == Budget::Tiny {
-        extra.extend([
-            ("total_steps", 200.into()),
-            ("policy_hidden", toml::Value::from(vec![32, 32])),
-            ("eval_every", 100.into()),
-        ]);
+        (cfg.total_steps, cfg.policy_hidden, cfg.eval_every) = (200, vec![32, 32], 100);
     }
-    preset::<MetaBc>(args.presets()[1], args, &extra)
+    Ok(cfg)
 }
 
 fn train_smile(
@@ -522,19 +506,8 @@ fn clear_results(out: &Path) -> Result<()> {
 pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
     let args = &Quickstart::resolve(args);
-    check_budget(args)?;
     let out = &args.out;
-    // One quickstart per directory at a time: a second is refused with this one's pid.
-    let _lock = trainer::DirLock::acquire(out)?;
-    clear_results(out)?;
-    write(
-        &out.join("quickstart.toml"),
-        toml::to_string(args.args).map_err(|e| Error::Serialise {
-            what: "quickstart.toml",
-            reason: e.to_string(),
-        })?,
-    )?;
-    announce(args)?;
+    let _lock = prepare(args)?;
 
     stage(1, "expert");
     let (expert, expert_note) = train_expert(args, &out.join("expert"))?;
@@ -625,6 +598,25 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         out.display()
     );
     Ok(summary)
+}
+
+/// Checks the budget, takes the output directory (one quickstart per directory at a time: a
+/// second is refused with this one's pid, held by the returned lock), clears an earlier run's
+/// results, records the settings and announces the run.
+fn prepare(args: &Quickstart<'_>) -> Result<trainer::DirLock> {
+    check_budget(args)?;
+    let out = &args.out;
+    let lock = trainer::DirLock::acquire(out)?;
+    clear_results(out)?;
+    write(
+        &out.join("quickstart.toml"),
+        toml::to_string(args.args).map_err(|e| Error::Serialise {
+            what: "quickstart.toml",
+            reason: e.to_string(),
+        })?,
+    )?;
+    announce(args)?;
+    Ok(lock)
 }
 
 /// The run's first lines: what it does, where, and how long it should take.

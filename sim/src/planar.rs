@@ -155,19 +155,7 @@ impl PlanarRobot {
 
     /// Builds the robot as `start` says.
     pub fn build_with(spec: &RobotSpec, scaling: &Scaling, start: Start) -> Self {
-        let mut world = PhysicsWorld::new();
-        world.integration_parameters.dt = spec.physics_dt;
-        world.integration_parameters.num_solver_iterations = spec.solver_iterations;
-        let [frequency, damping_ratio] = spec.contact_softness;
-        let softness = SpringCoefficients::new(frequency, damping_ratio);
-        world.integration_parameters.contact_softness = softness;
-        world.integration_parameters.static_contact_softness = softness;
-        let (_, ground) = world.insert(
-            RigidBodyBuilder::fixed().translation(Vector::new(0.0, -0.5)),
-            ColliderBuilder::cuboid(1.0e4, 0.5)
-                .friction(spec.ground_friction)
-                .friction_combine_rule(CoefficientCombineRule::Max),
-        );
+        let (mut world, ground) = Self::world(spec);
         let lift = match start {
             Start::Welded(height) => height,
             _ => 0.0,
@@ -254,6 +242,25 @@ impl PlanarRobot {
             robot.add_initial_noise(spec, seed);
         }
         robot
+    }
+
+    /// The robot's world: its integration parameters and the ground, with the ground's
+    /// collider.
+    fn world(spec: &RobotSpec) -> (PhysicsWorld, ColliderHandle) {
+        let mut world = PhysicsWorld::new();
+        world.integration_parameters.dt = spec.physics_dt;
+        world.integration_parameters.num_solver_iterations = spec.solver_iterations;
+        let [frequency, damping_ratio] = spec.contact_softness;
+        let softness = SpringCoefficients::new(frequency, damping_ratio);
+        world.integration_parameters.contact_softness = softness;
+        world.integration_parameters.static_contact_softness = softness;
+        let (_, ground) = world.insert(
+            RigidBodyBuilder::fixed().translation(Vector::new(0.0, -0.5)),
+            ColliderBuilder::cuboid(1.0e4, 0.5)
+                .friction(spec.ground_friction)
+                .friction_combine_rule(CoefficientCombineRule::Max),
+        );
+        (world, ground)
     }
 
     fn multibody_mut(&mut self) -> Option<&mut Multibody> {

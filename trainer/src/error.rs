@@ -46,6 +46,49 @@ pub enum Error {
         /// The plant it must be.
         expected: sim::Physics,
     },
+    /// A setting was given to an algorithm that has no such setting (SMILe's `gp_weight` to
+    /// Meta-BC, say).
+    #[error("`{key}` is not a setting of {algo}")]
+    NoSuchSetting {
+        /// The configuration key.
+        key: &'static str,
+        /// The algorithm.
+        algo: crate::Algo,
+    },
+    /// A resume would change a setting the run started with: only its budget may change.
+    #[error(
+        "resuming {} continues the configuration it started with, but `{key}` would change \
+         ({was} -> {now}); only the budget may change on a resume: restore {}, or start a new \
+         run to change it",
+        run.display(),
+        run.join("config.toml").display()
+    )]
+    ResumeChanges {
+        /// The run directory.
+        run: PathBuf,
+        /// The configuration's top-level key that differs.
+        key: String,
+        /// Its value in the run.
+        was: String,
+        /// The value asked for (`missing` if absent).
+        now: String,
+    },
+    /// Training failed part way; the run directory keeps its last good checkpoint, if any.
+    #[error(
+        "training stopped at env step {step}: {source}{}",
+        checkpoint.as_ref().map_or(String::new(), |c| format!(
+            "; last good checkpoint kept at {}",
+            c.display()
+        ))
+    )]
+    Stopped {
+        /// The environment step it reached.
+        step: u64,
+        /// The checkpoint it can resume from.
+        checkpoint: Option<PathBuf>,
+        /// Why it stopped.
+        source: Box<Error>,
+    },
     /// Tensor shapes or dimensions disagree (e.g. a checkpoint for another network size).
     #[error("shape mismatch: {0}")]
     Shape(String),
@@ -163,6 +206,26 @@ pub enum Error {
         /// The underlying error.
         source: std::io::Error,
     },
+}
+
+impl Error {
+    /// The one plant check: an input made on the `found` plant serves a run on `expected` only
+    /// when they are the same (its observations mean other things on another plant); `what`
+    /// names the input for a person.
+    pub(crate) fn same_plant(
+        what: impl FnOnce() -> String,
+        found: sim::Physics,
+        expected: sim::Physics,
+    ) -> Result<()> {
+        if found == expected {
+            return Ok(());
+        }
+        Err(Error::WrongPhysics {
+            what: what(),
+            found,
+            expected,
+        })
+    }
 }
 
 /// Result alias of the trainer library.

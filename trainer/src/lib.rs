@@ -43,7 +43,7 @@ pub mod threads;
 
 // Algorithms: each module holds its configuration, its run type and `train`; the
 // meta-learners' common interface is `MetaLearner`.
-pub use algo::{Algo, MetaLearner, Progress, WithLearner, expert, meta_bc, sac, smile};
+pub use algo::{Algo, MetaLearner, Overrides, Progress, WithLearner, expert, meta_bc, sac, smile};
 
 /// Errors and the result alias.
 pub use error::{Error, Result};
@@ -85,6 +85,5 @@ pub use io::{DirLock, lock};
 
 /// The metrics log (JSON lines + TensorBoard events).
 pub use io::{
-    METRICS_FILE, MetricsLog, TbWriter, from_toml_over_defaults, from_toml_with_flags,
-    set_key as set_config_key,
+    METRICS_FILE, MetricsLog, TbWriter, from_toml_over_defaults, set_key as set_config_key,
 };

@@ -16,10 +16,13 @@ use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::{Expert, ExpertSet};
 use crate::algo::learner::WithLearner;
-use crate::algo::{Algo, MetaLearner, Progress};
+use crate::algo::{Algo, MetaLearner, Overrides, Progress};
 use crate::data::MetaData;
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
+
+mod expert;
+pub use expert::{ExpertRequest, train_expert};
 
 /// File in a run directory recording how the run was started, so that a resume continues it
 /// with the same algorithm, expert and demos.
@@ -125,10 +128,8 @@ pub struct TrainRequest {
     /// A configuration file (TOML over the algorithm's defaults); a resume reads the run's
     /// `config.toml` instead.
     pub config_file: Option<PathBuf>,
-    /// Keys set over the file, in the configuration's shape (`seed`, `sac.hidden`, ...).
-    pub set: toml::Table,
-    /// The plant; `None`: the file's `physics`, else the demos' plant.
-    pub physics: Option<Physics>,
+    /// Settings over the file. Its plant (`physics`), when `None`: the file's, else the demos'.
+    pub settings: Overrides,
     /// Meta-DAgger's relabelling expert: a `smile expert` run directory or policy file, a
     /// folder of per-task experts, or [`SCRIPTED_PD`] (point-goal's default). `None` on a
     /// resume: the recorded one.
@@ -144,12 +145,9 @@ pub enum RunEvent {
     Note(String),
     /// Training starts (or continues).
     Started {
-        /// The algorithm.
-        algo: Algo,
-        /// Meta-train tasks.
-        train_tasks: usize,
-        /// Held-out train tasks (validation).
-        held_out: usize,
+        /// What trains, on what, for a person ("smile: 36 training tasks, 4 held-out train
+        /// tasks").
+        what: String,
         /// The budget, in `unit`s.
         total: u64,
         /// Updates already done (a resume), else 0.
@@ -171,9 +169,7 @@ impl RunEvent {
         match self {
             RunEvent::Note(text) => Some(text.clone()),
             RunEvent::Started {
-                algo,
-                train_tasks,
-                held_out,
+                what,
                 total,
                 done,
                 unit,
@@ -185,10 +181,7 @@ impl RunEvent {
                 } else {
                     String::new()
                 };
-                Some(format!(
-                    "{head}{algo}: {train_tasks} training tasks, {held_out} held-out train tasks; \
-                     {total} {unit}"
-                ))
+                Some(format!("{head}{what}; {total} {unit}"))
             }
             RunEvent::Progress(
                 Progress::Eval {
@@ -378,34 +371,27 @@ impl Run<'_> {
                 p.display()
             ),
             (Some(p), false) => format!("parsing {}", p.display()),
-            (None, _) => "reading the flags".into(),
+            (None, _) => "reading the defaults".into(),
         };
-        let mut set = req.set.clone();
         let table = text.parse::<toml::Table>().unwrap_or_default();
         // The family comes from the demos; a file naming another would be silently ignored.
-        let named = if table.contains_key("env") {
-            &table
-        } else {
-            &set
-        };
-        if let Some(env) = crate::algo::other_env(named, self.family) {
-            let whose = file
-                .as_ref()
-                .map_or("the flags".into(), |p| p.display().to_string());
+        if let (Some(env), Some(p)) = (crate::algo::other_env(&table, self.family), &file) {
             return Err(Error::Config(format!(
-                "{whose} sets env = {env} but the run is on {} (its demos, {}); remove the \
-                 key or give {env} demos",
+                "{} sets env = {env} but the run is on {} (its demos, {}); remove the key or \
+                 give {env} demos",
+                p.display(),
                 self.family,
                 req.demos.display()
             )));
         }
+        let mut settings = req.settings.clone();
         // A new run on MuJoCo demos runs on MuJoCo without being told twice.
-        let in_file = table.contains_key("physics");
-        if let Some(p) = req.physics.or((!in_file).then_some(self.ds.physics)) {
-            set.insert("physics".into(), p.name().into());
+        if settings.physics.is_none() && !table.contains_key("physics") {
+            settings.physics = Some(self.ds.physics);
         }
-        let mut cfg: L::Config = crate::io::from_toml_with_flags(&text, set)
+        let mut cfg: L::Config = crate::io::from_toml_over_defaults(&text)
             .map_err(|e| Error::Config(format!("{what}: {e}")))?;
+        L::apply(&mut cfg, self.algo, &settings)?;
         L::configure(&mut cfg, self.algo, self.family);
         Ok(cfg)
     }
@@ -468,20 +454,7 @@ impl Run<'_> {
         on: &mut dyn FnMut(RunEvent),
     ) -> Result<crate::io::DirLock> {
         let out = &self.req.out;
-        let lock = crate::io::DirLock::acquire(out)?;
-        if !self.resumes() {
-            // Checked again under the lock: the directory may have changed since the request
-            // was read (another process finishing its first checkpoint there).
-            let removed = checkpoint::clear_interrupted_run(out)?;
-            if !removed.is_empty() && !self.restart {
-                on(RunEvent::Note(format!(
-                    "{} held a run interrupted before its first checkpoint (nothing to resume); \
-                     starting over: removed {}",
-                    out.display(),
-                    removed.join(", ")
-                )));
-            }
-        }
+        let lock = open_dir(out, self.resumes(), !self.restart, on)?;
         let expert = self.expert_record();
         let info = RunInfo {
             algo: self.algo.name().into(),
@@ -522,15 +495,12 @@ impl Run<'_> {
         };
         let cfg = run.settings().clone();
         let _lock = self.start_dir(self.ds.physics, on)?;
-        let text = toml::to_string(&cfg).map_err(|e| Error::Serialise {
-            what: "config.toml",
-            reason: e.to_string(),
-        })?;
-        checkpoint::write_atomic(&req.out.join("config.toml"), text.as_bytes())?;
+        write_config(&req.out, &cfg, false)?;
         on(RunEvent::Started {
-            algo: self.algo,
-            train_tasks,
-            held_out,
+            what: format!(
+                "{}: {train_tasks} training tasks, {held_out} held-out train tasks",
+                self.algo
+            ),
             total: run.total(),
             done: run.done(),
             unit: L::STEP_NAME,
@@ -539,6 +509,47 @@ impl Run<'_> {
         });
         run.run(&req.out, &mut |p| on(RunEvent::Progress(p, L::STEP_WORD)))
     }
+}
+
+/// Holds `out`'s lock for the run; a new run (not `resumes`) first clears what a run killed
+/// before its first checkpoint left there, so this run's log does not continue the dead one's
+/// (saying so when `tell`).
+fn open_dir(
+    out: &Path,
+    resumes: bool,
+    tell: bool,
+    on: &mut dyn FnMut(RunEvent),
+) -> Result<crate::io::DirLock> {
+    let lock = crate::io::DirLock::acquire(out)?;
+    if !resumes {
+        // Checked again under the lock: the directory may have changed since the request was
+        // read (another process finishing its first checkpoint there).
+        let removed = checkpoint::clear_interrupted_run(out)?;
+        if !removed.is_empty() && tell {
+            on(RunEvent::Note(format!(
+                "{} held a run interrupted before its first checkpoint (nothing to resume); \
+                 starting over: removed {}",
+                out.display(),
+                removed.join(", ")
+            )));
+        }
+    }
+    Ok(lock)
+}
+
+/// Records the configuration a run trains with in `out/config.toml`, atomically (`pretty`:
+/// arrays one item a line, as the expert runs have always written it).
+fn write_config<T: Serialize>(out: &Path, cfg: &T, pretty: bool) -> Result<()> {
+    let text = if pretty {
+        toml::to_string_pretty(cfg)
+    } else {
+        toml::to_string(cfg)
+    };
+    let text = text.map_err(|e| Error::Serialise {
+        what: "config.toml",
+        reason: e.to_string(),
+    })?;
+    checkpoint::write_atomic(&out.join("config.toml"), text.as_bytes())
 }
 
 /// On a resume: the configuration asked for must agree with the one the run continues (its
@@ -564,24 +575,12 @@ fn check_resume<T: Serialize>(
     for (key, theirs) in &r {
         let ours = g.get(key);
         if ours != Some(theirs) {
-            let flag = match key.as_str() {
-                "seed" => "--seed",
-                "learner_threads" => "--learner-threads",
-                "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
-                "gp_weight" => "--gp-weight",
-                "bc_weight" => "--bc-weight",
-                "eval_every" => "--eval-every",
-                _ => "config.toml",
-            };
-            return Err(Error::Usage(format!(
-                "--resume continues {} with the configuration it started with, but {flag} \
-                 changes `{key}` ({} -> {}); drop the flag (or restore {}), or start a new run \
-                 to change it. Only --updates (and SMILe's --cpu-budget) may change on --resume",
-                out.display(),
-                theirs,
-                ours.map_or("missing".into(), ToString::to_string),
-                out.join("config.toml").display()
-            )));
+            return Err(Error::ResumeChanges {
+                run: out.to_path_buf(),
+                key: key.clone(),
+                was: theirs.to_string(),
+                now: ours.map_or("missing".into(), ToString::to_string),
+            });
         }
     }
     Ok(())

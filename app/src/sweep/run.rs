@@ -25,7 +25,6 @@ use serde::{Deserialize, Serialize};
 use sim::Split;
 use trainer::eval::{EvalEvent, EvalRequest};
 use trainer::run::TrainRequest;
-use trainer::smile::SmileConfig;
 
 use super::plan::{Cell, Sweep};
 use trainer::{Error, Result};
@@ -73,51 +72,23 @@ fn is_stale(dir: &Path, cell: &Cell) -> bool {
     std::fs::read_to_string(dir.join("cell.toml")).is_ok_and(|t| t != cell.config)
 }
 
-/// True when the cell directory holds a SMILe training for the same settings as `cell` but a
-/// smaller budget: the recorded key is the key of `cell` with the recorded config, and the two
-/// configs differ only in `total_updates` and `cpu_budget_s`, neither lower now (a budget of 0,
-/// none, counts as unlimited) and at least one higher.
-fn extends(dir: &Path, cell: &Cell) -> bool {
-    if !cell.algo.starts_with("smile") {
-        return false;
-    }
-    let (Ok(record), Ok(old_text)) = (
-        std::fs::read_to_string(dir.join("cell.json")),
-        std::fs::read_to_string(dir.join("cell.toml")),
-    ) else {
-        return false;
-    };
-    let Ok(record) = serde_json::from_str::<CellRecord>(&record) else {
-        return false;
-    };
+/// The settings that continue the training in the cell directory to `cell`'s larger budget,
+/// when it holds one for the same settings but a smaller budget: the recorded key is the key
+/// of `cell` with the recorded config, and the algorithm finds the two configs equal but for
+/// a budget, none of it lower now and some higher ([`trainer::Algo::extension`]).
+fn extension(dir: &Path, cell: &Cell) -> Option<trainer::Overrides> {
+    let record = std::fs::read_to_string(dir.join("cell.json")).ok()?;
+    let old_text = std::fs::read_to_string(dir.join("cell.toml")).ok()?;
+    let record = serde_json::from_str::<CellRecord>(&record).ok()?;
     let old_cell = Cell {
         config: old_text.clone(),
         ..cell.clone()
     };
     if record.key == cell.key || old_cell.training_key() != record.key {
-        return false;
+        return None;
     }
-    let (Ok(old), Ok(new)) = (
-        toml::from_str::<SmileConfig>(&old_text),
-        toml::from_str::<SmileConfig>(&cell.config),
-    ) else {
-        return false;
-    };
-    let budget = |c: &SmileConfig| {
-        if c.cpu_budget_s > 0.0 {
-            c.cpu_budget_s
-        } else {
-            f64::INFINITY
-        }
-    };
-    let same_but_budget = SmileConfig {
-        total_updates: new.total_updates,
-        cpu_budget_s: new.cpu_budget_s,
-        ..old.clone()
-    } == new;
-    let not_lower = new.total_updates >= old.total_updates && budget(&new) >= budget(&old);
-    let higher = new.total_updates > old.total_updates || budget(&new) > budget(&old);
-    same_but_budget && not_lower && higher
+    let algo: trainer::Algo = cell.algo.parse().ok()?;
+    algo.extension(&old_text, &cell.config)
 }
 
 /// The evaluation settings of a sweep, as recorded beside a cell's eval.json.
@@ -164,7 +135,7 @@ pub struct Manifest {
 pub fn status(sweep: &Sweep, cell: &Cell) -> Status {
     let dir = sweep.cell_dir(cell);
     if is_stale(&dir, cell) {
-        if extends(&dir, cell) {
+        if extension(&dir, cell).is_some() {
             Status::Extend
         } else {
             Status::Stale
@@ -331,16 +302,10 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, extend: bool) -> Resul
                 ..TrainRequest::default()
             };
             if extend {
-                let new: SmileConfig = toml::from_str(&cell.config)
-                    .map_err(|e| Error::Config(format!("cell {}: {e}", cell.name)))?;
+                req.settings = extension(dir, cell).ok_or_else(|| {
+                    Error::Config(format!("cell {}: no longer an extension", cell.name))
+                })?;
                 req.resume = true;
-                req.set
-                    .insert("total_updates".into(), (new.total_updates as i64).into());
-                // As `--cpu-budget` gave it (an f32 flag) before cells trained in-process.
-                req.set.insert(
-                    "cpu_budget_s".into(),
-                    f64::from(new.cpu_budget_s as f32).into(),
-                );
                 log.line("train: extending the cell's run to the plan's larger budget");
             } else if train_dir
                 .join(trainer::checkpoint::CHECKPOINT_FILE)

@@ -17,6 +17,7 @@ use sim::Family;
 pub use crate::algo::fit::Progress;
 
 use crate::algo::expert::ExpertSet;
+use crate::algo::settings::Overrides;
 use crate::data::MetaData;
 use crate::error::{Error, Result};
 use crate::model::MetaPolicy;
@@ -37,7 +38,7 @@ pub enum Algo {
 /// The registry: per algorithm its name and whether it needs an expert; the learner type that
 /// runs it is its arm of [`Algo::with_learner`] (`registry.rs`). Adding an algorithm is its
 /// folder, a variant, a line here and that arm.
-const REGISTRY: [(Algo, &str, bool); 4] = [
+const REGISTRY: &[(Algo, &str, bool)] = &[
     // (algorithm, name on the command line and in plans, queries an expert while training)
     (Algo::Smile, "smile", false),
     (Algo::SmileStateOnly, "smile-state-only", false),
@@ -56,8 +57,16 @@ pub trait WithLearner {
 }
 
 impl Algo {
-    /// Every algorithm, in the order help texts list them.
-    pub const ALL: [Algo; 4] = [REGISTRY[0].0, REGISTRY[1].0, REGISTRY[2].0, REGISTRY[3].0];
+    /// Every algorithm, in the registry's order (the order help texts list them).
+    pub const ALL: [Algo; REGISTRY.len()] = {
+        let mut all = [Algo::Smile; REGISTRY.len()];
+        let mut i = 0;
+        while i < all.len() {
+            all[i] = REGISTRY[i].0;
+            i += 1;
+        }
+        all
+    };
 
     fn entry(self) -> &'static (Algo, &'static str, bool) {
         REGISTRY
@@ -106,9 +115,6 @@ pub trait MetaLearner: Sized {
     /// Its hyper-parameters (a TOML file's type; `Default` is the documented defaults).
     type Config: Clone + fmt::Debug + PartialEq + Default + Serialize + DeserializeOwned;
 
-    /// The config key holding the training budget (`--updates` sets it).
-    const TOTAL_KEY: &'static str;
-
     /// What the units of that budget are called in progress bars ("update pairs").
     const STEP_NAME: &'static str;
 
@@ -122,6 +128,15 @@ pub trait MetaLearner: Sized {
     /// Sets the parts of `cfg` that the algorithm and family decide (its `env`, SMILe's
     /// state-only switch, Meta-BC's DAgger switch).
     fn configure(cfg: &mut Self::Config, algo: Algo, family: Family);
+
+    /// Lays the settings `o` gives over `cfg`; a setting the algorithm does not have is
+    /// refused by name ([`Error::NoSuchSetting`]).
+    fn apply(cfg: &mut Self::Config, algo: Algo, o: &Overrides) -> Result<()>;
+
+    /// `cfg`'s training budget as settings (its updates, and the CPU-seconds where the
+    /// algorithm has that budget): what a finished run resumes with to train on to a larger
+    /// one. `None` when a larger budget is a new run instead.
+    fn budget(cfg: &Self::Config) -> Option<Overrides>;
 
     /// Checks every value of `cfg`.
     fn validate(cfg: &Self::Config) -> Result<()>;

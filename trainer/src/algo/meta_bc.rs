@@ -99,17 +99,9 @@ impl MetaBc {
                 Some(_) => {}
             }
         }
-        if let Some(set) = expert
-            .as_ref()
-            .filter(|e| cfg.dagger && e.physics() != cfg.physics)
-        {
-            return Err(Error::WrongPhysics {
-                what: "meta-dagger's relabelling expert".into(),
-                found: set.physics(),
-                expected: cfg.physics,
-            });
-        }
         if let Some(set) = expert.as_ref().filter(|_| cfg.dagger) {
+            let what = || "meta-dagger's relabelling expert".into();
+            Error::same_plant(what, set.physics(), cfg.physics)?;
             // Every meta-train task needs its relabelling expert: fail now, not mid-run.
             for t in &data.train {
                 set.for_task(&t.task)?;

@@ -6,6 +6,7 @@
 //! * [`meta_bc`]: the baselines Meta-BC and Meta-DAgger.
 //! * [`learner`]: [`Algo`] and [`MetaLearner`], the one interface SMILe and Meta-BC implement
 //!   and `smile train`, the quickstart and the sweep drive.
+//! * `settings`: [`Overrides`], the typed settings a caller lays over a configuration file.
 //! * `fit`: the one fit loop they train through (metrics, evaluation and keeping the best,
 //!   checkpoints, stopping, the final policies), each learner its `Fit` hooks.
 
@@ -14,8 +15,10 @@ mod fit;
 pub mod learner;
 pub mod meta_bc;
 mod registry;
+mod settings;
 pub(crate) use registry::other_env;
 pub mod sac;
 pub mod smile;
 
 pub use learner::{Algo, MetaLearner, Progress, WithLearner};
+pub use settings::Overrides;

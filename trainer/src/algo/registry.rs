@@ -5,6 +5,7 @@ use sim::Family;
 
 use crate::algo::learner::{Algo, MetaLearner, WithLearner};
 use crate::algo::meta_bc::MetaBc;
+use crate::algo::settings::Overrides;
 use crate::algo::smile::Smile;
 use crate::error::Result;
 
@@ -16,18 +17,6 @@ impl Algo {
             Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
             Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
         }
-    }
-
-    /// The config key holding this algorithm's training budget ([`MetaLearner::TOTAL_KEY`]).
-    pub fn budget_key(self) -> &'static str {
-        struct Key;
-        impl WithLearner for Key {
-            type Output = &'static str;
-            fn call<L: MetaLearner>(self, _: Algo) -> &'static str {
-                L::TOTAL_KEY
-            }
-        }
-        self.with_learner(Key)
     }
 
     /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
@@ -51,6 +40,34 @@ impl Algo {
             }
         }
         self.with_learner(Check(text, family))
+    }
+}
+
+impl Algo {
+    /// The settings that extend a run configured by `old` (a configuration's TOML text) to
+    /// `new`: `Some` when `new` is `old` but for its budget, no part of the budget lower and
+    /// one higher (a CPU-second budget of 0, none, counts as unlimited), else `None`. How a
+    /// sweep continues a finished cell whose plan raised its budget.
+    pub fn extension(self, old: &str, new: &str) -> Option<Overrides> {
+        struct Extension<'a>(&'a str, &'a str);
+        impl WithLearner for Extension<'_> {
+            type Output = Option<Overrides>;
+            fn call<L: MetaLearner>(self, algo: Algo) -> Option<Overrides> {
+                let old: L::Config = toml::from_str(self.0).ok()?;
+                let new: L::Config = toml::from_str(self.1).ok()?;
+                let (was, now) = (L::budget(&old)?, L::budget(&new)?);
+                let mut same = old.clone();
+                L::apply(&mut same, algo, &now).ok()?;
+                let cpu = |o: &Overrides| match o.cpu_budget_s {
+                    Some(s) if s > 0.0 => s,
+                    _ => f64::INFINITY,
+                };
+                let not_lower = now.updates >= was.updates && cpu(&now) >= cpu(&was);
+                let higher = now.updates > was.updates || cpu(&now) > cpu(&was);
+                (same == new && not_lower && higher).then_some(now)
+            }
+        }
+        self.with_learner(Extension(old, new))
     }
 }
 

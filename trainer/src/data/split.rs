@@ -38,14 +38,7 @@ impl MetaData {
                 expected: family,
             });
         }
-        if self.physics != physics {
-            return Err(Error::WrongPhysics {
-                what: "the demos".into(),
-                found: self.physics,
-                expected: physics,
-            });
-        }
-        Ok(())
+        Error::same_plant(|| "the demos".into(), self.physics, physics)
     }
 
     /// Splits `ds`: every `holdout_every`-th task (indices `holdout_every-1, 2*holdout_every-1,

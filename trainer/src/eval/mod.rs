@@ -399,13 +399,8 @@ pub fn evaluate_tasks(
     protocol: &Protocol,
     on_task: &mut dyn FnMut(usize, usize),
 ) -> Result<MethodResult> {
-    if contexts.physics != protocol.physics {
-        return Err(Error::WrongPhysics {
-            what: "the context demos".into(),
-            found: contexts.physics,
-            expected: protocol.physics,
-        });
-    }
+    let what = || "the context demos".into();
+    Error::same_plant(what, contexts.physics, protocol.physics)?;
     let demos = contexts_for(contexts, family, tasks)?;
     let mut env = sim::make_env(family, protocol.env_config())?;
     let mut results = Vec::with_capacity(tasks.len());

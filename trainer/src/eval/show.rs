@@ -9,6 +9,15 @@ impl EvalReport {
     /// The report as a markdown table: one row per task, one column per method, then the
     /// means (and per-context-size means when there are several sizes).
     pub fn markdown(&self) -> String {
+        let mut s = self.heading();
+        self.task_rows(&mut s);
+        self.summary_rows(&mut s);
+        self.no_op_rows(&mut s);
+        s
+    }
+
+    /// The title, the protocol and the table's head.
+    fn heading(&self) -> String {
         let mut s = format!(
             "# {} on {} ({} tasks), metric: {} ({} is better)\n\nProtocol: context sizes {:?}, {} draws x {} deterministic rollouts, z = posterior mean{}.\n\n| task |",
             self.env,
@@ -29,43 +38,54 @@ impl EvalReport {
                 String::new()
             }
         );
-        let refs = self.reference.as_ref();
         for m in &self.methods {
             s.push_str(&format!(" {} |", m.name));
         }
-        if let Some(r) = refs {
+        if let Some(r) = &self.reference {
             s.push_str(&format!(" base: {} | expert: {} |", r.base, r.expert));
         }
-        let columns = self.methods.len() + if refs.is_some() { 2 } else { 0 };
+        let columns = self.methods.len() + if self.reference.is_some() { 2 } else { 0 };
         s.push_str("\n|---|");
         s.push_str(&"---|".repeat(columns));
         s.push('\n');
-        let reference_cells = |s: &mut String, f: &dyn Fn(&[f32]) -> String| {
-            if let Some(r) = refs {
-                s.push_str(&format!(
-                    " {} | {} |",
-                    f(&r.base_returns),
-                    f(&r.expert_returns)
-                ));
-            }
-        };
-        if let Some(first) = self.methods.first() {
-            for (i, t) in first.tasks.iter().enumerate() {
-                s.push_str(&format!("| {} |", t.task));
-                for m in &self.methods {
-                    s.push_str(&format!(" {:.3} |", m.tasks[i].metric));
-                }
-                reference_cells(&mut s, &|r| {
-                    r.get(i).map_or("-".into(), |x| format!("{x:.3}"))
-                });
-                s.push('\n');
-            }
+        s
+    }
+
+    /// The reference's two cells (base, expert) of a row, `f` of their returns; none without
+    /// a reference.
+    fn reference_cells(&self, s: &mut String, f: &dyn Fn(&[f32]) -> String) {
+        if let Some(r) = &self.reference {
+            s.push_str(&format!(
+                " {} | {} |",
+                f(&r.base_returns),
+                f(&r.expert_returns)
+            ));
         }
+    }
+
+    /// One row per task.
+    fn task_rows(&self, s: &mut String) {
+        let Some(first) = self.methods.first() else {
+            return;
+        };
+        for (i, t) in first.tasks.iter().enumerate() {
+            s.push_str(&format!("| {} |", t.task));
+            for m in &self.methods {
+                s.push_str(&format!(" {:.3} |", m.tasks[i].metric));
+            }
+            self.reference_cells(s, &|r| r.get(i).map_or("-".into(), |x| format!("{x:.3}")));
+            s.push('\n');
+        }
+    }
+
+    /// The means over tasks and over episodes, the normalised score, the per-context-size
+    /// means.
+    fn summary_rows(&self, s: &mut String) {
         s.push_str("| **mean over tasks (+- std)** |");
         for m in &self.methods {
             s.push_str(&format!(" **{:.3}** +- {:.3} |", m.mean, m.std_over_tasks));
         }
-        reference_cells(&mut s, &|r| {
+        self.reference_cells(s, &|r| {
             let (m, sd) = mean_std(r);
             format!("{m:.3} +- {sd:.3}")
         });
@@ -73,9 +93,9 @@ impl EvalReport {
         for m in &self.methods {
             s.push_str(&format!(" {:.3} +- {:.3} |", m.episode_mean, m.episode_std));
         }
-        reference_cells(&mut s, &|_| "-".into());
+        self.reference_cells(s, &|_| "-".into());
         s.push('\n');
-        if refs.is_some() {
+        if self.reference.is_some() {
             s.push_str("| **normalised (R - R_base) / (R_expert - R_base)** |");
             for m in &self.methods {
                 s.push_str(&match &m.normalised {
@@ -96,32 +116,36 @@ impl EvalReport {
                 for m in &self.methods {
                     s.push_str(&format!(" {:.3} |", m.by_context_size[j]));
                 }
-                reference_cells(&mut s, &|_| "-".into());
+                self.reference_cells(s, &|_| "-".into());
                 s.push('\n');
             }
         }
-        if self.methods.iter().any(|m| m.no_op_rate.is_some()) {
-            let cell = |x: Option<f32>| x.map_or(" - |".into(), |x| format!(" {x:.3} |"));
-            s.push_str("| **no-op rate** (no decision) |");
-            for m in &self.methods {
-                s.push_str(&cell(m.no_op_rate));
-            }
-            s.push('\n');
-            if self.protocol.context_sizes.len() > 1 {
-                for (j, k) in self.protocol.context_sizes.iter().enumerate() {
-                    s.push_str(&format!("| no-op rate, {k} context demos |"));
-                    for m in &self.methods {
-                        s.push_str(&cell(
-                            m.no_op_by_context_size
-                                .as_ref()
-                                .and_then(|v| v.get(j).copied()),
-                        ));
-                    }
-                    s.push('\n');
+    }
+
+    /// ant-linclass's no-op rates (overall and per context size), where a method has one.
+    fn no_op_rows(&self, s: &mut String) {
+        if !self.methods.iter().any(|m| m.no_op_rate.is_some()) {
+            return;
+        }
+        let cell = |x: Option<f32>| x.map_or(" - |".into(), |x| format!(" {x:.3} |"));
+        s.push_str("| **no-op rate** (no decision) |");
+        for m in &self.methods {
+            s.push_str(&cell(m.no_op_rate));
+        }
+        s.push('\n');
+        if self.protocol.context_sizes.len() > 1 {
+            for (j, k) in self.protocol.context_sizes.iter().enumerate() {
+                s.push_str(&format!("| no-op rate, {k} context demos |"));
+                for m in &self.methods {
+                    s.push_str(&cell(
+                        m.no_op_by_context_size
+                            .as_ref()
+                            .and_then(|v| v.get(j).copied()),
+                    ));
                 }
+                s.push('\n');
             }
         }
-        s
     }
 
     /// An SVG plot of the metric per task (x = task parameter), one line per method.

@@ -26,20 +26,6 @@ pub fn from_toml_over_defaults<T: Serialize + DeserializeOwned + Default>(
     merged.try_into()
 }
 
-/// Deserialises `text` (TOML, a file or a run's saved `config.toml`) with `flags` laid over
-/// it, every key neither sets taken from `T::default()`: the one "flags over file over
-/// defaults" order of every command. `flags` holds keys in the configuration's own shape
-/// (build it with [`set_key`]). The file's own errors come first, with their line.
-pub fn from_toml_with_flags<T: Serialize + DeserializeOwned + Default>(
-    text: &str,
-    flags: toml::Table,
-) -> Result<T, toml::de::Error> {
-    let file: T = from_toml_over_defaults(text)?;
-    let mut merged = toml::Table::try_from(file).unwrap_or_default();
-    merge_tables(&mut merged, flags);
-    merged.try_into()
-}
-
 /// Sets a dotted `key` in `table` (creating sections as needed); a table value merges key by
 /// key into a table already there (`set = { sac = { hidden = [..] } }` keeps the base file's
 /// other `[sac]` keys).
@@ -126,22 +112,6 @@ mod tests {
         assert_eq!(from_toml_over_defaults::<SmileConfig>("").unwrap(), d);
         let full = toml::to_string(&want).unwrap();
         assert_eq!(from_toml_over_defaults::<SmileConfig>(&full).unwrap(), want);
-    }
-
-    #[test]
-    fn flags_lie_over_the_file_which_lies_over_the_defaults() {
-        let mut flags = toml::Table::new();
-        set_key(&mut flags, "seed", 7.into()).unwrap();
-        set_key(&mut flags, "sac.hidden", vec![toml::Value::from(64)].into()).unwrap();
-        let c: SmileConfig =
-            from_toml_with_flags("seed = 3\n[sac]\nreward_scale = 2.0\n", flags).unwrap();
-        let mut want = SmileConfig::default();
-        (want.seed, want.sac.reward_scale, want.sac.hidden) = (7, 2.0, vec![64]);
-        assert_eq!(c, want);
-        // A flag of the wrong type is refused, not dropped.
-        let mut bad = toml::Table::new();
-        set_key(&mut bad, "seed", "three".into()).unwrap();
-        assert!(from_toml_with_flags::<SmileConfig>("", bad).is_err());
     }
 
     #[test]

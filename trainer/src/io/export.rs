@@ -147,13 +147,8 @@ pub fn check_demos_fit(mp: &MetaPolicy, demos: &DemoDataset, what: &str) -> Resu
             expected: mp.family,
         });
     }
-    if demos.physics != mp.physics {
-        return Err(Error::WrongPhysics {
-            what: format!("{what}, for this policy"),
-            found: demos.physics,
-            expected: mp.physics,
-        });
-    }
+    let whose = || format!("{what}, for this policy");
+    Error::same_plant(whose, demos.physics, mp.physics)?;
     let (od, ad) = (mp.family.obs_dim(), mp.family.act_dim());
     if (demos.obs_dim, demos.act_dim) != (od, ad) {
         return Err(Error::Data(format!(

@@ -11,7 +11,7 @@ pub mod onnx;
 pub mod os_path;
 mod policy_file;
 
-pub use config::{from_toml_over_defaults, from_toml_with_flags, set_key};
+pub use config::{from_toml_over_defaults, set_key};
 pub(crate) use config::{require_horizon, require_positive};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};

@@ -6,7 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use sim::{EnvConfig, Family};
 use trainer::Progress;
-use trainer::expert::{self, Expert, ExpertConfig, ExpertTrainer};
+use trainer::expert::{self, Expert, ExpertConfig};
+use trainer::run::{ExpertRequest, RunEvent};
 
 /// Which expert `smile expert` produces.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
@@ -111,65 +112,50 @@ pub struct ExpertArgs {
     quiet: bool,
 }
 
-/// The flags that set `ExpertConfig` keys, as a table in the config's own shape.
-fn flag_table(a: &ExpertArgs) -> Result<toml::Table> {
-    let mut t = toml::Table::new();
-    let mut set = |key: &str, v: toml::Value| {
-        trainer::set_config_key(&mut t, key, v).map_err(|e| anyhow::anyhow!("{key}: {e}"))
-    };
-    let int = |v: u64| toml::Value::Integer(v as i64);
-    if let Some(v) = a.env {
-        set("env", v.name().into())?;
+/// Writes a flag's value over the configuration's when the flag is given.
+fn set<T: Clone>(field: &mut T, flag: &Option<T>) {
+    if let Some(v) = flag {
+        *field = v.clone();
     }
-    if let Some(v) = a.physics {
-        set("physics", v.name().into())?;
-    }
-    for (key, v) in [
-        ("total_steps", a.total_steps),
-        ("seed", a.seed),
-        ("learner_threads", a.learner_threads.map(u64::from)),
-        ("sac.batch_size", a.batch_size.map(|v| v as u64)),
-        ("learning_starts", a.learning_starts),
-        ("checkpoint_every", a.checkpoint_every),
-        ("eval_every", a.eval_every),
-        ("horizon", a.horizon.map(|v| v as u64)),
-        ("task_index", a.task_index.map(|v| v as u64)),
-    ] {
-        if let Some(v) = v {
-            set(key, int(v))?;
-        }
-    }
-    if let Some(v) = &a.hidden {
-        set(
-            "sac.hidden",
-            v.iter().map(|&w| int(w as u64)).collect::<Vec<_>>().into(),
-        )?;
-    }
-    if let Some(v) = a.task_value {
-        set("task_value", v.into())?;
-    }
-    if a.keep_best {
-        set("keep_best", true.into())?;
-    }
-    Ok(t)
 }
 
+/// The configuration: the `--config` file over the defaults, each flag given over the file.
 fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
-    let text = match &a.config {
+    let mut cfg: ExpertConfig = match &a.config {
         Some(p) => {
-            std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?
+            let text =
+                std::fs::read_to_string(p).with_context(|| format!("reading {}", p.display()))?;
+            trainer::from_toml_over_defaults(&text)
+                .with_context(|| format!("parsing {}", p.display()))?
         }
-        None => String::new(),
+        None => ExpertConfig::default(),
     };
-    let what = a.config.as_ref().map_or("reading the flags".into(), |p| {
-        format!("parsing {}", p.display())
-    });
-    let mut cfg: ExpertConfig =
-        trainer::from_toml_with_flags(&text, flag_table(a)?).context(what)?;
-    // A path is set here, not through TOML, which holds only UTF-8 strings.
+    set(&mut cfg.env, &a.env);
+    set(&mut cfg.physics, &a.physics);
+    set(&mut cfg.total_steps, &a.total_steps);
+    set(&mut cfg.seed, &a.seed);
+    set(
+        &mut cfg.learner_threads,
+        &a.learner_threads.map(usize::from),
+    );
+    set(&mut cfg.sac.batch_size, &a.batch_size);
+    set(&mut cfg.learning_starts, &a.learning_starts);
+    set(&mut cfg.checkpoint_every, &a.checkpoint_every);
+    set(&mut cfg.eval_every, &a.eval_every);
+    set(&mut cfg.sac.hidden, &a.hidden);
+    if a.horizon.is_some() {
+        cfg.horizon = a.horizon;
+    }
+    if a.task_index.is_some() {
+        cfg.task_index = a.task_index;
+    }
+    if a.task_value.is_some() {
+        cfg.task_value = a.task_value;
+    }
     if a.init_from.is_some() {
         cfg.init_from = a.init_from.clone();
     }
+    cfg.keep_best |= a.keep_best;
     if cfg.keep_best && cfg.eval_every == 0 {
         bail!("--keep-best needs evaluations: set --eval-every above 0");
     }
@@ -229,27 +215,16 @@ pub fn run(a: ExpertArgs) -> Result<()> {
     if a.goal_expert.is_some() {
         bail!("--goal-expert is for --kind scripted-linclass");
     }
-    let (mut run, dir) = match &a.resume {
-        Some(dir) => {
-            if !dir.join(trainer::checkpoint::CHECKPOINT_FILE).exists()
-                && dir.join("config.toml").exists()
-            {
-                bail!(
-                    "--resume {}: no checkpoint yet (the run was interrupted before its first \
-                     one), so there is nothing to continue; start it again with the same flags \
-                     and -o {} (its partial files are replaced)",
-                    dir.display(),
-                    dir.display()
-                );
-            }
-            let run = ExpertTrainer::resume(dir, a.total_steps)
-                .with_context(|| format!("resuming from {}", dir.display()))?;
-            (run, dir.clone())
-        }
+    let req = match &a.resume {
+        Some(dir) => ExpertRequest {
+            out: dir.clone(),
+            config: None,
+            total_steps: a.total_steps,
+        },
         None => {
             let cfg = effective_config(&a)?;
             let nominal = if a.nominal { "-nominal" } else { "" };
-            let dir = a.out.clone().unwrap_or_else(|| {
+            let out = a.out.clone().unwrap_or_else(|| {
                 let plant = match cfg.physics {
                     sim::Physics::Rapier => String::new(),
                     other => format!("-{other}"),
@@ -259,83 +234,67 @@ pub fn run(a: ExpertArgs) -> Result<()> {
                     cfg.env, cfg.seed
                 ))
             });
-            trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
-            if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
-                // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
-                eprintln!(
-                    "--task-value {v}: a per-task expert on {} (value {})",
-                    task.label(),
-                    task.value()
-                );
+            ExpertRequest {
+                out,
+                config: Some(cfg),
+                total_steps: None,
             }
-            (ExpertTrainer::new(cfg)?, dir)
         }
     };
-    // One writer per run directory: a second `smile expert` on it is refused with our pid.
-    let _lock = trainer::DirLock::acquire(&dir)?;
-    if a.resume.is_none() {
-        // Under the lock: what a run killed before its first checkpoint left goes first, so
-        // this run's log does not continue the dead one's.
-        let removed = trainer::checkpoint::clear_interrupted_run(&dir)?;
-        if !removed.is_empty() {
-            eprintln!(
-                "{} held a run interrupted before its first checkpoint (nothing to resume); \
-                 starting over: removed {}",
-                dir.display(),
-                removed.join(", ")
-            );
-        }
-    }
-    trainer::checkpoint::write_atomic(
-        &dir.join("config.toml"),
-        toml::to_string_pretty(run.config())?.as_bytes(),
-    )?;
-    let pb = smile_app::progress::bar(run.config().total_steps, a.quiet, "steps");
-    pb.set_position(run.env_steps());
-    let result = expert::train(&mut run, &dir, &mut |ev| match ev {
-        Progress::Steps(s) => pb.set_position(s),
-        Progress::Episode {
-            episodic_return,
-            metric,
-            sps,
-            ..
-        } => pb.set_message(format!(
-            "sps {sps:.0} return {episodic_return:.2} metric {metric:.3}"
-        )),
-        Progress::Checkpoint(s) => pb.println(format!("checkpoint at step {s}")),
-        _ => {}
-    });
-    pb.finish_and_clear();
-    if result.is_ok()
-        && let Some(b) = run.best_eval()
-    {
-        println!(
-            "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
-             policy.safetensors holds whichever of it and the final weights evaluated better",
-            b.metric, b.env_steps
-        );
-    }
-    if let Err(e) = result {
-        let ck = dir.join(trainer::checkpoint::CHECKPOINT_FILE);
-        let kept = if ck.exists() {
-            format!("; last good checkpoint kept at {}", ck.display())
-        } else {
-            String::new()
-        };
-        bail!(
-            "training stopped at env step {}: {e}{kept}",
-            run.env_steps()
-        );
-    }
+    let cfg = train(&req, a.quiet)?;
     let env_cfg = EnvConfig {
-        horizon: run.config().horizon,
+        horizon: cfg.horizon,
         ..EnvConfig::default()
     };
-    let tasks = match (run.config().task_index, run.config().task_value) {
+    let tasks = match (cfg.task_index, cfg.task_value) {
         (None, None) => None,
-        _ => Some(run.config().tasks()?),
+        _ => Some(cfg.tasks()?),
     };
-    finish(&dir, a.eval_episodes, tasks, env_cfg)
+    finish(&req.out, a.eval_episodes, tasks, env_cfg)
+}
+
+/// Trains the run `req` describes, rendering its progress.
+fn train(req: &ExpertRequest, quiet: bool) -> Result<ExpertConfig> {
+    let mut pb = None;
+    let res = trainer::run::train_expert(req, &mut |e| match &e {
+        RunEvent::Started { total, done, .. } => {
+            let bar = smile_app::progress::bar(*total, quiet, "steps");
+            bar.set_position(*done);
+            pb = Some(bar);
+        }
+        RunEvent::Progress(Progress::Steps(s), _) => pb.iter().for_each(|b| b.set_position(*s)),
+        RunEvent::Progress(
+            Progress::Episode {
+                episodic_return,
+                metric,
+                sps,
+                ..
+            },
+            _,
+        ) => pb.iter().for_each(|b| {
+            b.set_message(format!(
+                "sps {sps:.0} return {episodic_return:.2} metric {metric:.3}"
+            ))
+        }),
+        RunEvent::Progress(Progress::Checkpoint(s), _) => pb
+            .iter()
+            .for_each(|b| b.println(format!("checkpoint at step {s}"))),
+        e => {
+            if let Some(line) = e.log_line() {
+                eprintln!("{line}");
+            }
+        }
+    });
+    if let Some(bar) = pb {
+        bar.finish_and_clear();
+    }
+    match (&req.config, res) {
+        (
+            None,
+            Err(e @ (trainer::Error::Checkpoint { .. } | trainer::Error::CheckpointState { .. })),
+        ) => Err(anyhow::Error::new(e).context(format!("resuming from {}", req.out.display()))),
+        (_, res) => Ok(res?),
+    }
 }
 
 /// Evaluate the exported expert deterministically (episodes as in training) and write

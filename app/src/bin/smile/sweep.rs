@@ -1,7 +1,7 @@
 //! `smile sweep`: a grid of training + evaluation runs from a plan, on every local core or as a
 //! Slurm array; `smile sweep run-cell` runs one cell (what each Slurm or Kubernetes task runs).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Subcommand};
@@ -100,50 +100,64 @@ pub fn run(a: SweepArgs) -> Result<()> {
     if let Some(SweepCmd::RunCell(rc)) = a.cmd {
         return run_cell(rc);
     }
-    let Some(plan) = a.plan else {
+    let Some(plan) = a.plan.clone() else {
         bail!("give a plan file");
     };
     let sweep = Sweep::load(&plan)?;
     if a.dry_run {
-        use std::io::Write;
-        let mut out = std::io::stdout().lock();
-        for c in &sweep.cells {
-            let status = format!("{:?}", sweep::status(&sweep, c)).to_lowercase();
-            // A closed pipe (`| head`) ends the listing quietly.
-            if writeln!(out, "{:>4}  {status:<10} {}", c.index, c.name).is_err() {
-                break;
-            }
-        }
-        return Ok(());
+        dry_run(&sweep);
+        Ok(())
+    } else if a.slurm {
+        slurm(&sweep, &plan, &a)
+    } else {
+        local(&sweep, &plan, &a)
     }
-    if a.slurm {
-        sweep::write_manifest(&sweep)?;
-        let scripts = sweep::write_scripts(&sweep, &plan, &exe()?, &a.sbatch_line)?;
-        eprintln!(
-            "{} cells; wrote {} and {}",
-            sweep.cells.len(),
+}
+
+/// `--dry-run`: every cell with its status.
+fn dry_run(sweep: &Sweep) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    for c in &sweep.cells {
+        let status = format!("{:?}", sweep::status(sweep, c)).to_lowercase();
+        // A closed pipe (`| head`) ends the listing quietly.
+        if writeln!(out, "{:>4}  {status:<10} {}", c.index, c.name).is_err() {
+            break;
+        }
+    }
+}
+
+/// `--slurm`: the array and report scripts, submitted with `--submit`.
+fn slurm(sweep: &Sweep, plan: &Path, a: &SweepArgs) -> Result<()> {
+    sweep::write_manifest(sweep)?;
+    let scripts = sweep::write_scripts(sweep, plan, &exe()?, &a.sbatch_line)?;
+    eprintln!(
+        "{} cells; wrote {} and {}",
+        sweep.cells.len(),
+        scripts.cells.display(),
+        scripts.report.display()
+    );
+    if a.submit {
+        let (cells, report) = sweep::submit(&scripts)?;
+        println!("submitted array job {cells} and report job {report} (afterok)");
+    } else {
+        println!(
+            "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
             scripts.cells.display(),
             scripts.report.display()
         );
-        if a.submit {
-            let (cells, report) = sweep::submit(&scripts)?;
-            println!("submitted array job {cells} and report job {report} (afterok)");
-        } else {
-            println!(
-                "submit with: jid=$(sbatch --parsable {}) && sbatch --dependency=afterok:$jid {}",
-                scripts.cells.display(),
-                scripts.report.display()
-            );
-        }
-        return Ok(());
     }
+    Ok(())
+}
+
+/// The cells on this machine, `--jobs` at once, then the report.
+fn local(sweep: &Sweep, plan: &Path, a: &SweepArgs) -> Result<()> {
     let jobs = a.jobs.unwrap_or_else(|| {
         sweep.default_jobs(std::thread::available_parallelism().map_or(1, |n| n.get()))
     });
-    let total = sweep.cells.len() as u64;
-    let pb = smile_app::progress::bar(total, a.quiet, "cells");
+    let pb = smile_app::progress::bar(sweep.cells.len() as u64, a.quiet, "cells");
     let running = std::sync::Mutex::new(Vec::<String>::new());
-    let summary = sweep::run_local(&sweep, &plan, jobs, &exe()?, &|e| {
+    let summary = sweep::run_local(sweep, plan, jobs, &exe()?, &|e| {
         let mut r = running.lock().unwrap_or_else(|p| p.into_inner());
         match e {
             Event::Skipped(n) => {
@@ -157,14 +171,12 @@ pub fn run(a: SweepArgs) -> Result<()> {
                 r.retain(|x| *x != name);
                 pb.inc(1);
                 if !ok || a.quiet {
-                    pb.println(format!(
-                        "{name}: {}",
-                        if ok {
-                            "done"
-                        } else {
-                            "FAILED (see its log.txt)"
-                        }
-                    ));
+                    let how = if ok {
+                        "done"
+                    } else {
+                        "FAILED (see its log.txt)"
+                    };
+                    pb.println(format!("{name}: {how}"));
                 }
             }
             Event::Busy(name) => {
@@ -184,20 +196,16 @@ pub fn run(a: SweepArgs) -> Result<()> {
         }
         Err(e) => eprintln!("no report: {e}"),
     }
+    let list = |what: &str, names: &[String]| match names {
+        [] => String::new(),
+        n => format!("; {what}: {}", n.join(", ")),
+    };
     eprintln!(
         "{} of {} cells done{}{}",
         summary.done,
         sweep.cells.len(),
-        if summary.failed.is_empty() {
-            String::new()
-        } else {
-            format!("; failed: {}", summary.failed.join(", "))
-        },
-        if summary.busy.is_empty() {
-            String::new()
-        } else {
-            format!("; running elsewhere: {}", summary.busy.join(", "))
-        }
+        list("failed", &summary.failed),
+        list("running elsewhere", &summary.busy)
     );
     if !summary.failed.is_empty() {
         bail!("{} cells failed", summary.failed.len());

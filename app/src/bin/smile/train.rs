@@ -3,12 +3,12 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use clap::Args;
 use clap::builder::TypedValueParser;
 use sim::Family;
 use trainer::run::{RunEvent, TrainRequest};
-use trainer::{Algo, Progress};
+use trainer::{Algo, Overrides, Progress};
 
 /// `--algo`'s parser: the library's names, listed in `--help`.
 fn algo_parser() -> impl clap::builder::TypedValueParser<Value = Algo> {
@@ -89,20 +89,17 @@ pub struct TrainArgs {
 
 /// Run `smile train`.
 pub fn run(a: TrainArgs) -> Result<()> {
-    let mut req = TrainRequest {
+    let req = TrainRequest {
         demos: a.demos.clone(),
         out: a.out.clone(),
         family: a.env,
         algo: a.algo,
         config_file: a.config.clone(),
-        set: toml::Table::new(),
-        physics: a.physics,
+        settings: overrides(&a),
         expert: a.expert.clone(),
         resume: a.resume,
     };
-    // Which keys the flags set depends on the algorithm: a resume's is the recorded one.
     let algo = trainer::run::algo_of(&req)?;
-    req.set = flag_table(&a, algo)?;
     let mut pb = None;
     let res = trainer::run::train(&req, &mut |e| {
         match &e {
@@ -141,6 +138,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
     if let Some(bar) = pb {
         bar.finish();
     }
+    let res = res.map_err(with_flags);
     if started {
         res.with_context(|| format!("{algo} training in {}", a.out.display()))?;
     } else {
@@ -150,59 +148,55 @@ pub fn run(a: TrainArgs) -> Result<()> {
     Ok(())
 }
 
-/// The flags that set configuration keys, as a table in the configuration's own shape.
-fn flag_table(a: &TrainArgs, algo: Algo) -> Result<toml::Table> {
-    let mut t = toml::Table::new();
-    let mut set = |key: &str, v: toml::Value| {
-        trainer::set_config_key(&mut t, key, v).map_err(|e| anyhow::anyhow!("{key}: {e}"))
-    };
-    let int = |v: u64| toml::Value::Integer(v as i64);
-    let float = |v: f32| toml::Value::Float(v.into());
-    let widths = |v: &[usize]| toml::Value::Array(v.iter().map(|&w| int(w as u64)).collect());
-    if let Some(v) = a.updates {
-        set(algo.budget_key(), int(v))?;
+/// The flags that set configuration values, typed; the algorithm refuses one it lacks.
+fn overrides(a: &TrainArgs) -> Overrides {
+    Overrides {
+        updates: a.updates,
+        cpu_budget_s: a.cpu_budget.map(f64::from),
+        seed: a.seed,
+        learner_threads: a.learner_threads.map(usize::from),
+        eval_every: a.eval_every,
+        hidden: a.hidden.clone(),
+        gp_weight: a.gp_weight,
+        reward_scale: a.reward_scale,
+        bc_weight: a.bc_weight,
+        physics: a.physics,
     }
-    if let Some(v) = a.seed {
-        set("seed", int(v))?;
-    }
-    if let Some(v) = a.learner_threads {
-        set("learner_threads", int(v.into()))?;
-    }
-    if let Some(v) = a.eval_every {
-        set("eval_every", int(v))?;
-    }
-    match algo {
-        Algo::Smile | Algo::SmileStateOnly => {
-            if let Some(v) = &a.hidden {
-                set("sac.hidden", widths(v))?;
-                set("disc_hidden", widths(v))?;
-            }
-            for (key, v) in [
-                ("gp_weight", a.gp_weight),
-                ("sac.reward_scale", a.reward_scale),
-                ("bc_weight", a.bc_weight),
-                ("cpu_budget_s", a.cpu_budget),
-            ] {
-                if let Some(v) = v {
-                    set(key, float(v))?;
-                }
-            }
+}
+
+/// The library's error, with the flag that gives the setting it names.
+fn with_flags(e: trainer::Error) -> anyhow::Error {
+    match e {
+        trainer::Error::NoSuchSetting { key, algo } => {
+            anyhow::anyhow!(
+                "{} is a SMILe setting; {algo} has no such setting",
+                flag_of(key)
+            )
         }
-        Algo::MetaBc | Algo::MetaDagger => {
-            for (flag, given) in [
-                ("--gp-weight", a.gp_weight.is_some()),
-                ("--reward-scale", a.reward_scale.is_some()),
-                ("--bc-weight", a.bc_weight.is_some()),
-                ("--cpu-budget", a.cpu_budget.is_some()),
-            ] {
-                if given {
-                    bail!("{flag} is a SMILe setting; {algo} has no such setting");
-                }
-            }
-            if let Some(v) = &a.hidden {
-                set("policy_hidden", widths(v))?;
-            }
-        }
+        trainer::Error::ResumeChanges { run, key, was, now } => anyhow::anyhow!(
+            "--resume continues {} with the configuration it started with, but {} changes \
+             `{key}` ({was} -> {now}); drop the flag (or restore {}), or start a new run to \
+             change it. Only --updates (and SMILe's --cpu-budget) may change on --resume",
+            run.display(),
+            flag_of(&key),
+            run.join("config.toml").display()
+        ),
+        e => e.into(),
     }
-    Ok(t)
+}
+
+/// The flag that sets a configuration key (`config.toml` for keys no flag sets).
+fn flag_of(key: &str) -> &'static str {
+    match key {
+        "seed" => "--seed",
+        "learner_threads" => "--learner-threads",
+        "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
+        "sac.reward_scale" => "--reward-scale",
+        "gp_weight" => "--gp-weight",
+        "bc_weight" => "--bc-weight",
+        "cpu_budget_s" => "--cpu-budget",
+        "eval_every" => "--eval-every",
+        "physics" => "--physics",
+        _ => "config.toml",
+    }
 }

@@ -37,13 +37,7 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
         ("subsample", spec.subsample as u64),
     ])?;
     let family: Family = experts.family();
-    if experts.physics() != spec.env.physics {
-        return Err(Error::WrongPhysics {
-            what: "the expert".into(),
-            found: experts.physics(),
-            expected: spec.env.physics,
-        });
-    }
+    Error::same_plant(|| "the expert".into(), experts.physics(), spec.env.physics)?;
     let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
     ds.physics = spec.env.physics;

@@ -75,13 +75,8 @@ impl ExpertSet {
                     expected: s.family,
                 });
             }
-            if ex.physics() != s.physics {
-                return Err(Error::WrongPhysics {
-                    what: format!("the expert {}, beside the others", p.display()),
-                    found: ex.physics(),
-                    expected: s.physics,
-                });
-            }
+            let what = || format!("the expert {}, beside the others", p.display());
+            Error::same_plant(what, ex.physics(), s.physics)?;
             let source = p.display().to_string();
             match task_value {
                 // The task it was trained on, as the family's tolerant lookup names it.
@@ -212,13 +207,8 @@ pub fn evaluate_under_noise(
     action_noise: f32,
 ) -> Result<EvalReport> {
     let family = expert.family();
-    if env_cfg.physics != expert.physics() {
-        return Err(Error::WrongPhysics {
-            what: format!("the {} expert", expert.name()),
-            found: expert.physics(),
-            expected: env_cfg.physics,
-        });
-    }
+    let what = || format!("the {} expert", expert.name());
+    Error::same_plant(what, expert.physics(), env_cfg.physics)?;
     let mut env = sim::make_env(family, env_cfg)?;
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
     let mut action = vec![0.0f32; family.act_dim()];

@@ -9,6 +9,7 @@ use super::{MetaBc, MetaBcConfig, Selection};
 use crate::algo::expert::ExpertSet;
 use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_policy, fit};
 use crate::algo::learner::{Algo, MetaLearner};
+use crate::algo::settings::Overrides;
 use crate::data::{MetaData, better, quick_eval};
 use crate::error::Result;
 use crate::io::MetricsLog;
@@ -139,7 +140,6 @@ impl Fit for MetaBcFit<'_> {
 
 impl MetaLearner for MetaBc {
     type Config = MetaBcConfig;
-    const TOTAL_KEY: &'static str = "total_steps";
     const STEP_NAME: &'static str = "steps";
     const STEP_WORD: &'static str = "step";
     const RESUMABLE: &'static [&'static str] = &["total_steps"];
@@ -147,6 +147,31 @@ impl MetaLearner for MetaBc {
     fn configure(cfg: &mut MetaBcConfig, algo: Algo, family: Family) {
         cfg.env = family;
         cfg.dagger = algo == Algo::MetaDagger;
+    }
+
+    fn apply(cfg: &mut MetaBcConfig, algo: Algo, o: &Overrides) -> Result<()> {
+        Overrides::refuse(
+            algo,
+            &[
+                ("cpu_budget_s", o.cpu_budget_s.is_some()),
+                ("gp_weight", o.gp_weight.is_some()),
+                ("sac.reward_scale", o.reward_scale.is_some()),
+                ("bc_weight", o.bc_weight.is_some()),
+            ],
+        )?;
+        Overrides::set(&mut cfg.total_steps, &o.updates);
+        Overrides::set(&mut cfg.seed, &o.seed);
+        Overrides::set(&mut cfg.learner_threads, &o.learner_threads);
+        Overrides::set(&mut cfg.eval_every, &o.eval_every);
+        Overrides::set(&mut cfg.policy_hidden, &o.hidden);
+        Overrides::set(&mut cfg.physics, &o.physics);
+        Ok(())
+    }
+
+    fn budget(_: &MetaBcConfig) -> Option<Overrides> {
+        // Its policy is the one early stopping on held-out data picked: more steps are
+        // another selection, a new run.
+        None
     }
 
     fn validate(cfg: &MetaBcConfig) -> Result<()> {

@@ -9,6 +9,7 @@ use super::{Smile, SmileConfig};
 use crate::algo::expert::ExpertSet;
 use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_policy, fit};
 use crate::algo::learner::{Algo, MetaLearner};
+use crate::algo::settings::Overrides;
 use crate::data::{MetaData, better};
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
@@ -172,7 +173,6 @@ impl Fit for SmileFit<'_> {
 
 impl MetaLearner for Smile {
     type Config = SmileConfig;
-    const TOTAL_KEY: &'static str = "total_updates";
     const STEP_NAME: &'static str = "update pairs";
     const STEP_WORD: &'static str = "update";
     const RESUMABLE: &'static [&'static str] = &["total_updates", "cpu_budget_s"];
@@ -180,6 +180,29 @@ impl MetaLearner for Smile {
     fn configure(cfg: &mut SmileConfig, algo: Algo, family: Family) {
         cfg.env = family;
         cfg.context.state_only = algo == Algo::SmileStateOnly;
+    }
+
+    fn apply(cfg: &mut SmileConfig, _: Algo, o: &Overrides) -> Result<()> {
+        Overrides::set(&mut cfg.total_updates, &o.updates);
+        Overrides::set(&mut cfg.cpu_budget_s, &o.cpu_budget_s);
+        Overrides::set(&mut cfg.seed, &o.seed);
+        Overrides::set(&mut cfg.learner_threads, &o.learner_threads);
+        Overrides::set(&mut cfg.eval_every, &o.eval_every);
+        Overrides::set(&mut cfg.sac.hidden, &o.hidden);
+        Overrides::set(&mut cfg.disc_hidden, &o.hidden);
+        Overrides::set(&mut cfg.gp_weight, &o.gp_weight);
+        Overrides::set(&mut cfg.sac.reward_scale, &o.reward_scale);
+        Overrides::set(&mut cfg.bc_weight, &o.bc_weight);
+        Overrides::set(&mut cfg.physics, &o.physics);
+        Ok(())
+    }
+
+    fn budget(cfg: &SmileConfig) -> Option<Overrides> {
+        Some(Overrides {
+            updates: Some(cfg.total_updates),
+            cpu_budget_s: Some(cfg.cpu_budget_s),
+            ..Overrides::default()
+        })
     }
 
     fn validate(cfg: &SmileConfig) -> Result<()> {

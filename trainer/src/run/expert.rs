@@ -1,0 +1,98 @@
+//! An expert's run directory, started or resumed: what `smile expert` calls.
+//!
+//! The same steps as a meta-learner's run ([`train`](super::train)): a new run refuses a
+//! directory that holds one, a resume continues the checkpoint with its saved configuration
+//! (only the step budget may grow), the directory's lock is held for the whole training, the
+//! configuration is recorded in `config.toml`, and the SAC expert trains through the shared
+//! fit loop, reporting [`RunEvent`]s.
+
+use std::path::PathBuf;
+
+use super::{RunEvent, open_dir, write_config};
+use crate::algo::expert::{self, ExpertConfig, ExpertTrainer};
+use crate::error::{Error, Result};
+use crate::io::checkpoint;
+
+/// An expert run to start or resume.
+#[derive(Debug, Clone, Default)]
+pub struct ExpertRequest {
+    /// The run directory.
+    pub out: PathBuf,
+    /// A new run's configuration; `None` resumes the run in `out` from its checkpoint.
+    pub config: Option<ExpertConfig>,
+    /// On a resume: the step budget, raised to train longer (`None`: the run's).
+    pub total_steps: Option<u64>,
+}
+
+/// Starts or resumes the expert run `req` describes, trains it to its step budget, and
+/// returns the configuration it trained with (the policy is in `out/policy.safetensors`).
+/// A failure during training says at which step, and where the last good checkpoint is.
+pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertConfig> {
+    let dir = &req.out;
+    let mut run = match &req.config {
+        Some(cfg) => start(dir, cfg, on)?,
+        None => resume(dir, req.total_steps)?,
+    };
+    let _lock = open_dir(dir, req.config.is_none(), true, on)?;
+    write_config(dir, run.config(), true)?;
+    on(RunEvent::Started {
+        what: format!(
+            "a SAC expert on {} ({})",
+            run.config().env,
+            run.config().physics
+        ),
+        total: run.config().total_steps,
+        done: run.env_steps(),
+        unit: "steps",
+        word: "step",
+        resumed: req.config.is_none(),
+    });
+    let result = expert::train(&mut run, dir, &mut |p| on(RunEvent::Progress(p, "step")));
+    if let Err(e) = result {
+        let ck = dir.join(checkpoint::CHECKPOINT_FILE);
+        return Err(Error::Stopped {
+            step: run.env_steps(),
+            checkpoint: ck.exists().then_some(ck),
+            source: Box::new(e),
+        });
+    }
+    if let Some(b) = run.best_eval() {
+        on(RunEvent::Note(format!(
+            "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
+             policy.safetensors holds whichever of it and the final weights evaluated better",
+            b.metric, b.env_steps
+        )));
+    }
+    Ok(run.config().clone())
+}
+
+/// A new run in `dir`, which must not hold one.
+fn start(
+    dir: &std::path::Path,
+    cfg: &ExpertConfig,
+    on: &mut dyn FnMut(RunEvent),
+) -> Result<ExpertTrainer> {
+    checkpoint::ensure_fresh_run_dir(dir)?;
+    if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
+        // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
+        on(RunEvent::Note(format!(
+            "task value {v}: a per-task expert on {} (value {})",
+            task.label(),
+            task.value()
+        )));
+    }
+    ExpertTrainer::new(cfg.clone())
+}
+
+/// The run checkpointed in `dir`, its budget raised to `total_steps` if given.
+fn resume(dir: &std::path::Path, total_steps: Option<u64>) -> Result<ExpertTrainer> {
+    if !dir.join(checkpoint::CHECKPOINT_FILE).exists() && dir.join("config.toml").exists() {
+        return Err(Error::Usage(format!(
+            "{} has no checkpoint yet (its run was interrupted before its first one), so there \
+             is nothing to continue; start it again with the same settings in the same \
+             directory (its partial files are replaced)",
+            dir.display()
+        )));
+    }
+    ExpertTrainer::resume(dir, total_steps)
+}
