@@ -11,7 +11,7 @@ use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_p
 use crate::algo::learner::{Algo, MetaLearner};
 use crate::algo::settings::Overrides;
 use crate::data::{MetaData, better, quick_eval};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::model::MetaPolicy;
 
@@ -150,15 +150,15 @@ impl MetaLearner for MetaBc {
     }
 
     fn apply(cfg: &mut MetaBcConfig, algo: Algo, o: &Overrides) -> Result<()> {
-        Overrides::refuse(
-            algo,
-            &[
-                ("cpu_budget_s", o.cpu_budget_s.is_some()),
-                ("gp_weight", o.gp_weight.is_some()),
-                ("sac.reward_scale", o.reward_scale.is_some()),
-                ("bc_weight", o.bc_weight.is_some()),
-            ],
-        )?;
+        let smile_only = [
+            ("cpu_budget_s", o.cpu_budget_s.is_some()),
+            ("gp_weight", o.gp_weight.is_some()),
+            ("sac.reward_scale", o.reward_scale.is_some()),
+            ("bc_weight", o.bc_weight.is_some()),
+        ];
+        if let Some((key, _)) = smile_only.into_iter().find(|(_, given)| *given) {
+            return Err(Error::NoSuchSetting { key, algo });
+        }
         Overrides::set(&mut cfg.total_steps, &o.updates);
         Overrides::set(&mut cfg.seed, &o.seed);
         Overrides::set(&mut cfg.learner_threads, &o.learner_threads);
