@@ -23,6 +23,7 @@ mod config;
 pub mod control;
 mod device;
 pub mod estimation;
+mod files;
 pub mod host;
 pub mod link;
 pub mod reference;
@@ -33,12 +34,5 @@ pub mod trace;
 pub use control::{Brain, LoopConfig, LoopError, Outcome, RunReport, TickRecord, run};
 pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, ram_needed};
 pub use estimation::Sensing;
+pub use files::write_atomic;
 pub use session::{Session, SessionConfig, SessionError, run_session};
-
-/// Writes `bytes` to `path` atomically with the workspace's one atomic write
-/// ([`sim::write_atomic`]: temporary sibling, fsync, rename), the error naming the file (a full
-/// disk says which output it could not write).
-pub fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
-    sim::write_atomic(path, bytes)
-        .map_err(|e| std::io::Error::new(e.kind(), format!("writing {}: {e}", path.display())))
-}

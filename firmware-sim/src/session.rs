@@ -3,8 +3,10 @@
 
 use sim::{EnvConfig, Task, Trajectory, make_env};
 
+use crate::control::{LoopConfig, RunReport};
+use crate::device::{Controller, Device, DeviceConfig, DeviceError};
+use crate::host;
 use crate::link::{LinkConfig, LinkError, Refusal, SimLink};
-use crate::{Controller, Device, DeviceConfig, DeviceError, LoopConfig, RunReport, host};
 
 /// Why a session failed.
 #[derive(Debug, thiserror::Error)]
@@ -77,7 +79,7 @@ pub fn run_session(
     {
         // The device only says "does not fit"; the same check on the host names the reason.
         let model = infer_core::Model::from_bytes(blob).map_err(DeviceError::from)?;
-        crate::check_fits(&model, config.device)?;
+        crate::device::check_fits(&model, config.device)?;
     }
     uploaded?;
     let model = infer_core::Model::from_bytes(device.blob()?).map_err(DeviceError::from)?;
@@ -95,7 +97,7 @@ pub fn run_session(
     host::teach(&mut link, &mut controller, context, obs, act)?;
     let z = controller.z().map(<[f32]>::to_vec).unwrap_or_default();
     let mut plant = make_env(family, config.plant)?;
-    let report = crate::run(&mut controller, plant.as_mut(), task, &config.control)?;
+    let report = crate::control::run(&mut controller, plant.as_mut(), task, &config.control)?;
     Ok(Session {
         report,
         z,

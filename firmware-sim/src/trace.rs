@@ -49,7 +49,7 @@ pub fn write_csv(path: &Path, report: &RunReport, z: &[f32]) -> std::io::Result<
         row.extend(r.measured.iter().map(|v| format!("{v}")));
         writeln!(out, "{}", row.join(",")).ok();
     }
-    crate::write_atomic(path, out.as_bytes())
+    crate::files::write_atomic(path, out.as_bytes())
 }
 
 /// Plots the run: the xy path to the goal (point-goal, ant-goal) or forward velocity against
@@ -147,7 +147,7 @@ pub fn write_plot(path: &Path, report: &RunReport) -> Result<(), Box<dyn std::er
     }
     root.present()?;
     drop(root);
-    Ok(crate::write_atomic(path, svg.as_bytes())?)
+    Ok(crate::files::write_atomic(path, svg.as_bytes())?)
 }
 
 /// Human summary of a run.

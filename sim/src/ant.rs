@@ -11,7 +11,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier3d::prelude::*;
 
-use crate::WalkerDynamics;
+use crate::dynamics::WalkerDynamics;
 use crate::planar::Start;
 use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};

@@ -6,8 +6,11 @@
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
+use crate::env::{EnvConfig, Environment, StepInfo, Transition};
+use crate::error::SimError;
+use crate::kinds::Family;
 use crate::render::Frame;
-use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
+use crate::task::Task;
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;
@@ -54,7 +57,7 @@ impl Environment for AntGoalEnv {
         Family::AntGoal
     }
 
-    fn physics(&self) -> crate::Physics {
+    fn physics(&self) -> crate::kinds::Physics {
         self.ant.physics()
     }
 

@@ -28,8 +28,11 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
+use crate::env::{EnvConfig, Environment, StepInfo, Transition};
+use crate::error::SimError;
+use crate::kinds::Family;
 use crate::render::{Frame, Role, Shape};
-use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
+use crate::task::Task;
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
 pub const HORIZON: usize = 50;
@@ -194,7 +197,7 @@ impl Environment for AntLinClassEnv {
         Family::AntLinClass
     }
 
-    fn physics(&self) -> crate::Physics {
+    fn physics(&self) -> crate::kinds::Physics {
         self.ant.physics()
     }
 

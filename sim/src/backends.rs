@@ -1,8 +1,9 @@
 //! Which implementation a [`Robot`] has on each physics backend, and its dimensions: the one
 //! place that names every backend's robots (adding a robot or a backend is one arm here).
 
+use crate::error::SimError;
+use crate::kinds::Physics;
 use crate::plant::{Plant, Robot};
-use crate::{Physics, SimError};
 
 impl Robot {
     /// The robot's name in MuJoCo's and Gymnasium's terms.

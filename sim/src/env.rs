@@ -1,7 +1,10 @@
 //! The environment interface shared by every family, and the per-episode metric.
 
+use crate::error::SimError;
+use crate::kinds::Family;
+use crate::kinds::Physics;
 use crate::render::Frame;
-use crate::{Family, MetricKind, Physics, SimError, Task};
+use crate::task::{MetricKind, Task};
 
 /// Options of an environment: its episode, and which physics backend simulates it.
 #[derive(Debug, Clone, Copy, PartialEq)]

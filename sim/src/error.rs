@@ -1,6 +1,6 @@
 //! Typed errors of the environments.
 
-use crate::Family;
+use crate::kinds::Family;
 
 /// A command-line tool's exit: success, or the error as one `error:` line on stderr (the full
 /// chain and a backtrace only when `RUST_BACKTRACE` asks for them) and exit status 1.
@@ -129,7 +129,7 @@ pub enum SimError {
     #[error("the {physics} physics is not available: {how}")]
     PhysicsUnavailable {
         /// The backend asked for.
-        physics: crate::Physics,
+        physics: crate::kinds::Physics,
         /// Why, and how to get it.
         how: String,
     },

@@ -7,7 +7,9 @@ use std::path::{Path, PathBuf};
 
 use serde::{Deserialize, Serialize};
 
-use crate::{Family, Physics};
+use crate::kinds::Physics;
+
+use crate::kinds::Family;
 
 /// One task's result for one method (an evaluation's row; the report's per-task lists).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -140,7 +142,7 @@ impl ExportReport {
             path: path.to_path_buf(),
             reason: e.to_string(),
         })?;
-        crate::write_atomic(path, json.as_bytes()).map_err(|source| ReportError::Io {
+        crate::fsio::write_atomic(path, json.as_bytes()).map_err(|source| ReportError::Io {
             path: path.to_path_buf(),
             source,
         })

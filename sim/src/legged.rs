@@ -1,10 +1,14 @@
 //! cheetah-vel and walker-dyn: the planar legged robots as [`Environment`]s.
 
+use crate::env::{EnvConfig, Environment, StepInfo};
 use crate::env::{EpisodeClock, check_family, clip_action};
+use crate::error::SimError;
+use crate::kinds::Family;
+use crate::kinds::Physics;
 use crate::planar::{ACT_DIM, OBS_DIM};
 use crate::plant::{Plant, Robot, TorsoPose};
 use crate::render::{Frame, Role, Shape, View};
-use crate::{EnvConfig, Environment, Family, Physics, SimError, StepInfo, Task};
+use crate::task::Task;
 
 /// Default cheetah-vel episode length (control steps of 0.05 s).
 pub const CHEETAH_HORIZON: usize = 1000;
@@ -153,7 +157,7 @@ impl Environment for PlanarLeggedEnv {
         Ok(&self.obs)
     }
 
-    fn step(&mut self, action: &[f32]) -> Result<crate::Transition<'_>, SimError> {
+    fn step(&mut self, action: &[f32]) -> Result<crate::env::Transition<'_>, SimError> {
         self.clock.ensure_running()?;
         clip_action(self.family, action, &mut self.action)?;
         let x_before = self.torso_x();
@@ -180,7 +184,7 @@ impl Environment for PlanarLeggedEnv {
             }
         };
         let (terminated, truncated) = self.clock.advance(terminated);
-        Ok(crate::Transition {
+        Ok(crate::env::Transition {
             obs: &self.obs,
             reward,
             done: terminated || truncated,
@@ -218,7 +222,7 @@ impl Environment for PlanarLeggedEnv {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::EpisodeMetric;
+    use crate::env::EpisodeMetric;
 
     fn config(horizon: usize) -> EnvConfig {
         EnvConfig {
@@ -315,7 +319,7 @@ mod tests {
     #[test]
     fn legged_trajectories_are_bit_identical_per_seed_and_dynamics_differ_per_task() {
         let run = |family: Family, task: Task, seed: u64| {
-            let mut env = crate::make_env(family, config(60)).unwrap();
+            let mut env = crate::env::make_env(family, config(60)).unwrap();
             let mut trace = env.reset(&task, seed).unwrap().to_vec();
             for step in 0..60 {
                 let t = env.step(&trot(step, 0.05)).unwrap();
@@ -356,7 +360,7 @@ mod tests {
             (n.mass, n.inertia, n.friction, n.damping)
         );
         let d = Scaling::of(
-            Task::walker_dyn(crate::WALKER_TEST_SEED_BASE)
+            Task::walker_dyn(crate::task::WALKER_TEST_SEED_BASE)
                 .walker_dynamics()
                 .as_ref(),
         );

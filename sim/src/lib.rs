@@ -38,6 +38,7 @@ mod export_report;
 pub mod fidelity;
 mod fsio;
 mod hyperplane;
+mod kinds;
 pub mod legged;
 #[cfg(feature = "mujoco")]
 pub mod mujoco;
@@ -65,15 +66,16 @@ pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
 pub use fsio::{
     canonical_safetensors, remove_any, sha256_hex, temp_sibling, write_atomic, write_atomic_with,
 };
+pub use kinds::{Family, Physics};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
-pub use physics::{MUJOCO_VERSION, Physics};
+pub use physics::MUJOCO_VERSION;
 pub use plant::{Robot, TorsoPose};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;
 pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
-    Family, GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, Task, WALKER_NOMINAL_SEED,
+    GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, Task, WALKER_NOMINAL_SEED,
     WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,
 };
 

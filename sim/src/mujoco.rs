@@ -24,9 +24,11 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use crate::dynamics::WalkerDynamics;
+use crate::error::SimError;
+use crate::kinds::Physics;
 use crate::plant::{Plant, Robot, TorsoPose};
 use crate::render::{Role, Shape};
-use crate::{Physics, SimError, WalkerDynamics};
 
 const HALF_CHEETAH_XML: &str = include_str!("../mujoco/half_cheetah.xml");
 const WALKER2D_XML: &str = include_str!("../mujoco/walker2d.xml");
@@ -125,7 +127,7 @@ fn check_library() -> Result<(), SimError> {
         Err(unavailable(format!(
             "the loaded libmujoco is version {linked}, this build needs {mjVERSION_HEADER} \
              (MuJoCo {}); run scripts/fetch-mujoco.sh and rebuild",
-            crate::MUJOCO_VERSION
+            crate::physics::MUJOCO_VERSION
         )))
     }
 }

@@ -4,23 +4,8 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::SimError;
-
-/// A physics backend. A task family (tasks, splits, reward, metric, observation layout) is
-/// written once; each robot has one implementation per backend ([`crate::Robot`]).
-#[derive(
-    Debug, Clone, Copy, PartialEq, Eq, Hash, Default, serde::Serialize, serde::Deserialize,
-)]
-#[serde(rename_all = "kebab-case")]
-pub enum Physics {
-    /// Rapier (rapier2d / rapier3d) robots built in code: the default, the device's plant,
-    /// needing nothing but the Rust toolchain.
-    #[default]
-    Rapier,
-    /// MuJoCo 3.17.0 loading Gymnasium's XMLs: the paper's own engine. Needs the cargo feature
-    /// `mujoco` and `scripts/fetch-mujoco.sh`.
-    Mujoco,
-}
+use crate::error::SimError;
+use crate::kinds::Physics;
 
 /// The MuJoCo version the `mujoco` backend is built for (`mj_version()` of the library must
 /// equal it).

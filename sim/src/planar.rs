@@ -12,7 +12,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier2d::prelude::*;
 
-use crate::WalkerDynamics;
+use crate::dynamics::WalkerDynamics;
 use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};
 

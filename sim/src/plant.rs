@@ -6,7 +6,7 @@
 //! only; `backends.rs` builds a robot on a backend (one arm per backend and robot), so the
 //! backends import this module and nothing here imports them.
 
-use crate::WalkerDynamics;
+use crate::dynamics::WalkerDynamics;
 use crate::render::Shape;
 
 /// The robots of the task families.

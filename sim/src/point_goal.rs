@@ -8,9 +8,12 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier2d::prelude::*;
 
+use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::env::{EpisodeClock, check_family, clip_action};
+use crate::error::SimError;
+use crate::kinds::Family;
 use crate::render::{Frame, Role, Shape, View};
-use crate::{EnvConfig, Environment, Family, SimError, StepInfo, Task, Transition};
+use crate::task::Task;
 
 /// What a goal family (point-goal, ant-goal) draws under its robot (top view): the dashed
 /// circle the goals lie on and the goal at `goal`.
@@ -245,7 +248,7 @@ impl PointGoalPdExpert {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::EpisodeMetric;
+    use crate::env::EpisodeMetric;
 
     fn run_expert(env: &mut PointGoalEnv, task: &Task, seed: u64) -> (f32, Vec<f32>) {
         let expert = PointGoalPdExpert::default();

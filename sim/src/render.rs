@@ -230,7 +230,8 @@ pub fn write_animated_svg(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::{EnvConfig, Family, make_env};
+    use crate::env::{EnvConfig, make_env};
+    use crate::kinds::Family;
 
     fn frames_of(family: Family, steps: usize) -> Vec<Frame> {
         let mut env = make_env(family, EnvConfig::default()).unwrap();

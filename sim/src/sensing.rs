@@ -138,8 +138,9 @@ pub(crate) const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::Family;
-    use crate::{EnvConfig, Task, make_env};
+    use crate::env::{EnvConfig, make_env};
+    use crate::kinds::Family;
+    use crate::task::Task;
     use ObsComponent::Rate;
     use std::f32::consts::{PI, TAU};
 

@@ -10,16 +10,20 @@ use std::f32::consts::PI;
 
 use crate::ant_linclass as linclass;
 use crate::dynamics::WalkerDynamics;
+use crate::env::{EnvConfig, Environment};
+use crate::error::SimError;
+use crate::kinds::Family;
+use crate::kinds::Physics;
+use crate::sensing::ObsComponent;
 use crate::sensing::{ANT, ANT_LINCLASS, PLANAR, POINT_GOAL};
+use crate::task::{MetricKind, Task};
 use crate::task::{WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE};
-use crate::{EnvConfig, Environment, MetricKind, ObsComponent, Physics, SimError, Task};
 
-impl crate::Family {
+impl Family {
     /// The family's spec: everything the workspace knows about it ([`FamilySpec`]). The one
     /// place that maps a family to its data; everything else reads the spec's fields. It lives
     /// here, above the families' modules, so that `task.rs` imports none of them back.
     pub fn spec(self) -> &'static FamilySpec {
-        use crate::Family;
         match self {
             Family::PointGoal => &POINT_GOAL_SPEC,
             Family::CheetahVel => &CHEETAH_VEL_SPEC,
@@ -27,6 +31,12 @@ impl crate::Family {
             Family::AntGoal => &ANT_GOAL_SPEC,
             Family::AntLinClass => &ANT_LINCLASS_SPEC,
         }
+    }
+
+    /// Per observation index, what the entry is: a measured position or angle, the rate of
+    /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
+    pub fn obs_components(self) -> &'static [ObsComponent] {
+        self.spec().obs_components
     }
 }
 
@@ -144,7 +154,7 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
     task_dim: 2,
     metric: MetricKind::MinGoalDistance,
     value_name: "goal angle (rad)",
-    value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_tolerance: crate::task::TASK_VALUE_TOLERANCE,
     value_key: "goal_angle",
     value_decimals: 4,
     write_parameter: write_goal,
@@ -169,7 +179,7 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
                     .into(),
             });
         }
-        Ok(Box::new(crate::PointGoalEnv::new(config)))
+        Ok(Box::new(crate::point_goal::PointGoalEnv::new(config)))
     },
 };
 
@@ -185,7 +195,7 @@ pub(crate) const CHEETAH_VEL_SPEC: FamilySpec = FamilySpec {
     task_dim: 1,
     metric: MetricKind::MeanVelocityError,
     value_name: "target velocity (m/s)",
-    value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_tolerance: crate::task::TASK_VALUE_TOLERANCE,
     value_key: "target_velocity",
     value_decimals: 2,
     write_parameter: |task, out| out[0] = task.value() as f32,
@@ -210,7 +220,7 @@ pub(crate) const CHEETAH_VEL_SPEC: FamilySpec = FamilySpec {
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: true },
-    make_env: |config| Ok(Box::new(crate::PlanarLeggedEnv::cheetah(config)?)),
+    make_env: |config| Ok(Box::new(crate::legged::PlanarLeggedEnv::cheetah(config)?)),
 };
 
 /// walker-dyn: 50 train and 25 test dynamics seeds; one demo per context, one rollout.
@@ -257,7 +267,7 @@ pub(crate) const WALKER_DYN_SPEC: FamilySpec = FamilySpec {
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: false },
-    make_env: |config| Ok(Box::new(crate::PlanarLeggedEnv::walker(config)?)),
+    make_env: |config| Ok(Box::new(crate::legged::PlanarLeggedEnv::walker(config)?)),
 };
 
 /// ant-goal: point-goal's goals for the 3-D ant; Figure 2's protocol.
@@ -268,7 +278,7 @@ pub(crate) const ANT_GOAL_SPEC: FamilySpec = FamilySpec {
     task_dim: 2,
     metric: MetricKind::MinGoalDistance,
     value_name: "goal angle (rad)",
-    value_tolerance: crate::TASK_VALUE_TOLERANCE,
+    value_tolerance: crate::task::TASK_VALUE_TOLERANCE,
     value_key: "goal_angle",
     value_decimals: 4,
     write_parameter: write_goal,
@@ -287,7 +297,7 @@ pub(crate) const ANT_GOAL_SPEC: FamilySpec = FamilySpec {
     view: RunView::GoalPath {
         xy: crate::ant::obs::XY,
     },
-    make_env: |config| Ok(Box::new(crate::AntGoalEnv::new(config)?)),
+    make_env: |config| Ok(Box::new(crate::ant_goal::AntGoalEnv::new(config)?)),
 };
 
 /// ant-linclass: 64 train and 32 test hyperplane seeds; aggregating demos is what this family
@@ -328,5 +338,5 @@ pub(crate) const ANT_LINCLASS_SPEC: FamilySpec = FamilySpec {
     },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::Velocity { target: false },
-    make_env: |config| Ok(Box::new(crate::AntLinClassEnv::new(config)?)),
+    make_env: |config| Ok(Box::new(crate::ant_linclass::AntLinClassEnv::new(config)?)),
 };

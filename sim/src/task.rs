@@ -4,36 +4,14 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::dynamics::WalkerDynamics;
+use crate::error::SimError;
 use crate::hyperplane as linclass;
-use crate::{ObsComponent, SimError};
+use crate::kinds::Family;
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
 pub(crate) const POINT_GOAL_OBS_DIM: usize = 4;
 /// Point-goal's action width, a force along x and y.
 pub(crate) const POINT_GOAL_ACT_DIM: usize = 2;
-
-/// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
-/// `walker-dyn`, `ant-goal`, `ant-linclass`.
-///
-/// What the workspace knows about each family is its [`crate::FamilySpec`] ([`Family::spec`]), one
-/// declarative block per family in `spec.rs`. Deliberately not `#[non_exhaustive]`: a new
-/// family fails to compile at [`Family::spec`] (and the app's per-family recipes) instead of
-/// falling silently into a catch-all arm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Family {
-    /// Planar point robot reaching a goal on the circle of radius 2 (top view).
-    PointGoal,
-    /// Planar HalfCheetah analogue running at a target forward velocity.
-    CheetahVel,
-    /// Planar Walker2d analogue under randomised body dynamics.
-    WalkerDyn,
-    /// 3-D Ant (Gymnasium's quadruped) walking to a goal on the circle of radius 2; the same
-    /// goal angles as point-goal.
-    AntGoal,
-    /// 3-D Ant walking to one of two targets to classify a pair of 4-D points by a hidden
-    /// hyperplane ([`crate::ant_linclass`]).
-    AntLinClass,
-}
 
 /// Meta-train or meta-test half of a family's task list.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
@@ -222,12 +200,6 @@ impl Family {
     /// The paper's evaluation metric of this family.
     pub fn metric_kind(self) -> MetricKind {
         self.spec().metric
-    }
-
-    /// Per observation index, what the entry is: a measured position or angle, the rate of
-    /// another entry, or a directly measured quantity. Its length is [`Family::obs_dim`].
-    pub fn obs_components(self) -> &'static [ObsComponent] {
-        self.spec().obs_components
     }
 }
 

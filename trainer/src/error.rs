@@ -52,8 +52,8 @@ pub enum Error {
     NoSuchSetting {
         /// The configuration key.
         key: &'static str,
-        /// The algorithm.
-        algo: crate::Algo,
+        /// The algorithm's name.
+        algo: &'static str,
     },
     /// A resume would change a setting the run started with: only its budget may change.
     #[error(

@@ -39,7 +39,7 @@ fn a_setting_the_algorithm_lacks_is_refused_by_name_and_changes_nothing() {
             e,
             Error::NoSuchSetting {
                 key: "bc_weight",
-                algo: Algo::MetaBc
+                algo: "meta-bc"
             }
         ),
         "{e}"

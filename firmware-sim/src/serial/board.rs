@@ -249,7 +249,7 @@ fn next_frame(
 /// Writes the committed blob to the flash file, if there is one.
 fn persist(config: &BoardConfig, device: &Device, on: &mut dyn FnMut(BoardEvent)) {
     if let (Some(path), Ok(blob)) = (&config.flash_file, device.blob())
-        && let Err(e) = crate::write_atomic(path, blob)
+        && let Err(e) = crate::files::write_atomic(path, blob)
     {
         on(BoardEvent::Flash(e.to_string()));
     }

@@ -9,12 +9,13 @@ use std::time::{Duration, Instant};
 use sim::Trajectory;
 
 use super::wire::{Faults, Wire, WireStats, line_time, port_error};
+use crate::control::LoopError;
 use crate::control::{Brain, Outcome};
+use crate::host;
 use crate::link::{
     DeviceMessage, HostMessage, LinkError, MAX_FRAME, PROTOCOL_VERSION, Packet, Refusal,
     decode_frame, decode_message, encode_frame,
 };
-use crate::{LoopError, host};
 
 /// How the host talks to the device.
 #[derive(Debug, Clone, PartialEq)]
@@ -311,11 +312,12 @@ impl<'a> RemoteDevice<'a> {
         context: Vec<&'a Trajectory>,
         rate_hz: f32,
     ) -> Result<Self, LoopError> {
-        let model = infer_core::Model::from_bytes(blob).map_err(crate::DeviceError::from)?;
+        let model =
+            infer_core::Model::from_bytes(blob).map_err(crate::device::DeviceError::from)?;
         let h = *model.header();
         let dims = (h.obs_dim as usize, h.act_dim as usize);
-        let policy = infer_core::Policy::<{ crate::CAPACITY }>::new(&model)
-            .map_err(crate::DeviceError::from)?;
+        let policy = infer_core::Policy::<{ crate::device::CAPACITY }>::new(&model)
+            .map_err(crate::device::DeviceError::from)?;
         let mut safe = vec![0.0; dims.1];
         policy.safe_action(&mut safe);
         let now = Instant::now();

@@ -3,10 +3,13 @@
 //! a pair of points), its reward and its metric around it.
 
 use super::{ACT_DIM, OBS_DIM, obs};
+use crate::env::EnvConfig;
 use crate::env::{EpisodeClock, clip_action};
+use crate::error::SimError;
+use crate::kinds::Family;
+use crate::kinds::Physics;
 use crate::plant::{Plant, Robot};
 use crate::render::{Frame, Role, Shape, View};
-use crate::{EnvConfig, Family, Physics, SimError};
 
 /// Observed velocities are clipped to +-this (m/s, rad/s), as walker-dyn's: a rare violent
 /// contact must not feed a network a huge input.

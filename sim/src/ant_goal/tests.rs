@@ -2,9 +2,9 @@
 
 use super::*;
 use crate::ant::{ACT_DIM, OBS_DIM, obs};
+use crate::env::{EpisodeMetric, make_env};
 use crate::render::{Role, Shape};
 use crate::render::{View, frame_to_svg};
-use crate::{EpisodeMetric, make_env};
 use std::f32::consts::PI;
 
 /// An open-loop pattern: every joint a sine of its own phase.
@@ -112,7 +112,7 @@ fn reward_is_minus_distance_minus_action_cost_and_the_metric_is_the_minimum_dist
             break;
         }
     }
-    assert_eq!(metric.kind(), crate::MetricKind::MinGoalDistance);
+    assert_eq!(metric.kind(), crate::task::MetricKind::MinGoalDistance);
     assert_eq!(metric.value(), min_distance);
     assert!(matches!(
         env.step(&[0.0; ACT_DIM]),

@@ -1,6 +1,10 @@
 //! The one error type of the demo dataset format.
 
-use crate::{Family, Physics, SimError};
+use crate::error::SimError;
+
+use crate::kinds::Physics;
+
+use crate::kinds::Family;
 
 use super::FORMAT_NAME;
 

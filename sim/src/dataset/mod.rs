@@ -8,7 +8,13 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
-use crate::{Environment, Family, Physics, Split, Task};
+use crate::env::Environment;
+
+use crate::kinds::Physics;
+
+use crate::kinds::Family;
+
+use crate::task::{Split, Task};
 
 pub use error::DatasetError;
 
@@ -541,7 +547,7 @@ impl DemoDataset {
         .map(|(k, v)| (k.to_string(), v))
         .collect();
         safetensors::serialize(views, Some(metadata))
-            .map(crate::canonical_safetensors)
+            .map(crate::fsio::canonical_safetensors)
             .map_err(|e| DatasetError::Corrupt(format!("serialising: {e}")))
     }
 
@@ -550,7 +556,7 @@ impl DemoDataset {
     pub fn write(&self, path: impl AsRef<Path>) -> Result<(), DatasetError> {
         let path = path.as_ref();
         let bytes = self.to_bytes()?;
-        crate::write_atomic(path, &bytes).map_err(|source| DatasetError::Io {
+        crate::fsio::write_atomic(path, &bytes).map_err(|source| DatasetError::Io {
             path: path.display().to_string(),
             source,
         })

@@ -5,7 +5,9 @@ use std::collections::HashMap;
 use safetensors::tensor::{Dtype, SafeTensors};
 
 use super::{DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, names};
-use crate::{Family, Physics, Split};
+use crate::kinds::Family;
+use crate::kinds::Physics;
+use crate::task::Split;
 
 /// Size of the little-endian header-length prefix of a safetensors file.
 const PREFIX: usize = 8;

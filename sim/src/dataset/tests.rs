@@ -1,5 +1,6 @@
 use super::*;
-use crate::{EnvConfig, PointGoalPdExpert, make_env};
+use crate::env::{EnvConfig, make_env};
+use crate::point_goal::PointGoalPdExpert;
 use proptest::prelude::*;
 
 pub(super) fn point_goal_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {

@@ -29,7 +29,7 @@ impl Algo {
             fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
                 let table = self.0.parse::<toml::Table>().unwrap_or_default();
                 if let Some(env) = other_env(&table, self.1) {
-                    return Err(crate::Error::Config(format!(
+                    return Err(crate::error::Error::Config(format!(
                         "env = {env} contradicts the plan's family {}",
                         self.1
                     )));

@@ -69,9 +69,9 @@ pub(crate) fn merge_tables(base: &mut toml::Table, over: toml::Table) {
 /// and sweep plans all end in a configuration's `validate`, which calls this, so a `0` that a
 /// flag would refuse cannot pass through a file either (an untrained policy marked finished, a
 /// metric over zero steps).
-pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::Result<()> {
+pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::error::Result<()> {
     match counts.iter().find(|(_, v)| *v == 0) {
-        Some((key, _)) => Err(crate::Error::Config(format!(
+        Some((key, _)) => Err(crate::error::Error::Config(format!(
             "{key} must be a positive count, not 0"
         ))),
         None => Ok(()),
@@ -79,9 +79,9 @@ pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::Result<()> {
 }
 
 /// An episode-length override must be at least one step (`None`: the family's own horizon).
-pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::Result<()> {
+pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::error::Result<()> {
     match horizon {
-        Some(0) => Err(crate::Error::Config(
+        Some(0) => Err(crate::error::Error::Config(
             "horizon must be at least 1 step (leave it out for the family's own horizon), not 0"
                 .into(),
         )),

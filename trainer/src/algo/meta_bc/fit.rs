@@ -157,7 +157,10 @@ impl MetaLearner for MetaBc {
             ("bc_weight", o.bc_weight.is_some()),
         ];
         if let Some((key, _)) = smile_only.into_iter().find(|(_, given)| *given) {
-            return Err(Error::NoSuchSetting { key, algo });
+            return Err(Error::NoSuchSetting {
+                key,
+                algo: algo.name(),
+            });
         }
         Overrides::set(&mut cfg.total_steps, &o.updates);
         Overrides::set(&mut cfg.seed, &o.seed);
