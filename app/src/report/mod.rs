@@ -134,131 +134,154 @@ fn sample_std(xs: &[f32]) -> f32 {
     v.sqrt() as f32
 }
 
+/// The evaluations read so far, for [`Report::from_inputs`].
+#[derive(Default)]
+struct Gather {
+    entries: Vec<Entry>,
+    left_out: Vec<String>,
+    /// The first evaluation: the others must be of its family, metric and protocol.
+    head: Option<EvalReport>,
+    /// Each evaluation counts once: the same file given twice (or a copy of it) would count as
+    /// two seeds with a std of 0.
+    seen: BTreeMap<String, PathBuf>,
+}
+
+impl Gather {
+    /// The methods of `rep`, read from `origin`, once it is checked against the first.
+    fn take(&mut self, rep: EvalReport, origin: &Path) -> Result<Vec<MethodResult>> {
+        let file = if origin.is_dir() {
+            origin.join("eval.json")
+        } else {
+            origin.to_path_buf()
+        };
+        let sha = trainer::checkpoint::sha256_file(&file)?;
+        if let Some(first) = self.seen.insert(sha, origin.to_path_buf()) {
+            return Err(Error::Data(format!(
+                "{} and {} are the same evaluation (the same eval.json, byte for byte): each \
+                 seed counts once; give each evaluation one time",
+                first.display(),
+                origin.display()
+            )));
+        }
+        let Some(h) = &self.head else {
+            self.head = Some(rep.clone());
+            return Ok(rep.methods);
+        };
+        if h.protocol.run_through_falls != rep.protocol.run_through_falls {
+            return Err(Error::Data(format!(
+                "{} was evaluated with the walker protocol \"{}\", the first with \"{}\": \
+                 returns of the two are not comparable",
+                origin.display(),
+                rep.protocol.label(),
+                h.protocol.label()
+            )));
+        }
+        if (h.env, h.metric.as_str(), &h.protocol.context_sizes)
+            != (rep.env, rep.metric.as_str(), &rep.protocol.context_sizes)
+        {
+            return Err(Error::Data(format!(
+                "{} is a {} evaluation ({}, context sizes {:?}); the first was {} ({}, {:?})",
+                origin.display(),
+                rep.env,
+                rep.metric,
+                rep.protocol.context_sizes,
+                h.env,
+                h.metric,
+                h.protocol.context_sizes
+            )));
+        }
+        Ok(rep.methods)
+    }
+
+    /// Every evaluated cell of the sweep in `input`; a cell not evaluated yet is left out.
+    fn sweep(&mut self, input: &Path) -> Result<()> {
+        let manifest = input.join(MANIFEST_FILE);
+        let text = std::fs::read_to_string(&manifest).map_err(|e| Error::Io {
+            path: manifest.clone(),
+            source: e,
+        })?;
+        let m: Manifest = serde_json::from_str(&text).map_err(|e| {
+            Error::Data(format!(
+                "{} is not a sweep manifest: {e}",
+                manifest.display()
+            ))
+        })?;
+        for c in &m.cells {
+            let eval = input.join(&c.cell.name).join("eval");
+            if !eval.join("eval.json").exists() {
+                self.left_out.push(format!(
+                    "{} (seed {} of {}, {}): not evaluated yet ({:?} in the manifest)",
+                    c.cell.name,
+                    c.cell.seed,
+                    c.cell.method,
+                    c.cell.setting(),
+                    c.status
+                ));
+                continue;
+            }
+            let rep = match read_eval(&eval) {
+                Ok(rep) => rep,
+                Err(e) => {
+                    self.left_out.push(format!("{}: {e}", c.cell.name));
+                    continue;
+                }
+            };
+            for r in self.take(rep, &eval)? {
+                self.entries.push(Entry {
+                    method: c.cell.method.clone(),
+                    setting: c.cell.setting(),
+                    seed: c.cell.seed.to_string(),
+                    result: r,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The methods of one evaluation (a directory or its `eval.json`).
+    fn evaluation(&mut self, input: &Path) -> Result<()> {
+        if input.is_dir() && !input.join("eval.json").exists() {
+            return Err(Error::Data(format!(
+                "{}: neither a sweep directory (no {MANIFEST_FILE}) nor an evaluation (no \
+                 eval.json); a sweep's manifest is written when it starts, by `--slurm` and \
+                 after each `smile sweep run-cell`",
+                input.display()
+            )));
+        }
+        for r in self.take(read_eval(input)?, input)? {
+            let method = r.name.split(" (").next().unwrap_or(&r.name).to_string();
+            self.entries.push(Entry {
+                method,
+                setting: "-".into(),
+                seed: r.name.clone(),
+                result: r,
+            });
+        }
+        Ok(())
+    }
+}
+
 impl Report {
     /// Aggregates the evaluations found in `inputs` (sweep directories, evaluation
     /// directories or `eval.json` files). Cells without an evaluation yet are left out; all
     /// evaluations must be of one family, metric and protocol.
     pub fn from_inputs(inputs: &[PathBuf]) -> Result<Self> {
-        let mut entries = Vec::new();
-        let mut left_out = Vec::new();
-        let mut head: Option<EvalReport> = None;
-        // Each evaluation counts once: the same file given twice (or a copy of it) would
-        // count as two seeds with a std of 0.
-        let mut seen: BTreeMap<String, PathBuf> = BTreeMap::new();
-        let mut take = |rep: EvalReport, origin: &Path| -> Result<Vec<MethodResult>> {
-            let file = if origin.is_dir() {
-                origin.join("eval.json")
-            } else {
-                origin.to_path_buf()
-            };
-            let sha = trainer::checkpoint::sha256_file(&file)?;
-            if let Some(first) = seen.insert(sha, origin.to_path_buf()) {
-                return Err(Error::Data(format!(
-                    "{} and {} are the same evaluation (the same eval.json, byte for byte): \
-                     each seed counts once; give each evaluation one time",
-                    first.display(),
-                    origin.display()
-                )));
-            }
-            if let Some(h) = &head {
-                if h.protocol.run_through_falls != rep.protocol.run_through_falls {
-                    return Err(Error::Data(format!(
-                        "{} was evaluated with the walker protocol \"{}\", the first with \"{}\": \
-                         returns of the two are not comparable",
-                        origin.display(),
-                        rep.protocol.label(),
-                        h.protocol.label()
-                    )));
-                }
-                if (h.env, h.metric.as_str(), &h.protocol.context_sizes)
-                    != (rep.env, rep.metric.as_str(), &rep.protocol.context_sizes)
-                {
-                    return Err(Error::Data(format!(
-                        "{} is a {} evaluation ({}, context sizes {:?}); the first was {} ({}, {:?})",
-                        origin.display(),
-                        rep.env,
-                        rep.metric,
-                        rep.protocol.context_sizes,
-                        h.env,
-                        h.metric,
-                        h.protocol.context_sizes
-                    )));
-                }
-            } else {
-                head = Some(rep.clone());
-            }
-            Ok(rep.methods)
-        };
+        let mut g = Gather::default();
         for input in inputs {
-            let manifest = input.join(MANIFEST_FILE);
-            if manifest.exists() {
-                let text = std::fs::read_to_string(&manifest).map_err(|e| Error::Io {
-                    path: manifest.clone(),
-                    source: e,
-                })?;
-                let m: Manifest = serde_json::from_str(&text).map_err(|e| {
-                    Error::Data(format!(
-                        "{} is not a sweep manifest: {e}",
-                        manifest.display()
-                    ))
-                })?;
-                for c in &m.cells {
-                    let eval = input.join(&c.cell.name).join("eval");
-                    if !eval.join("eval.json").exists() {
-                        left_out.push(format!(
-                            "{} (seed {} of {}, {}): not evaluated yet ({:?} in the manifest)",
-                            c.cell.name,
-                            c.cell.seed,
-                            c.cell.method,
-                            c.cell.setting(),
-                            c.status
-                        ));
-                        continue;
-                    }
-                    let rep = match read_eval(&eval) {
-                        Ok(rep) => rep,
-                        Err(e) => {
-                            left_out.push(format!("{}: {e}", c.cell.name));
-                            continue;
-                        }
-                    };
-                    for r in take(rep, &eval)? {
-                        entries.push(Entry {
-                            method: c.cell.method.clone(),
-                            setting: c.cell.setting(),
-                            seed: c.cell.seed.to_string(),
-                            result: r,
-                        });
-                    }
-                }
+            if input.join(MANIFEST_FILE).exists() {
+                g.sweep(input)?;
             } else {
-                if input.is_dir() && !input.join("eval.json").exists() {
-                    return Err(Error::Data(format!(
-                        "{}: neither a sweep directory (no {MANIFEST_FILE}) nor an evaluation \
-                         (no eval.json); a sweep's manifest is written when it starts, by `--slurm` \
-                         and after each `smile sweep run-cell`",
-                        input.display()
-                    )));
-                }
-                for r in take(read_eval(input)?, input)? {
-                    let method = r.name.split(" (").next().unwrap_or(&r.name).to_string();
-                    entries.push(Entry {
-                        method,
-                        setting: "-".into(),
-                        seed: r.name.clone(),
-                        result: r,
-                    });
-                }
+                g.evaluation(input)?;
             }
         }
-        let head = head.ok_or_else(|| {
+        let head = g.head.ok_or_else(|| {
             Error::Data(
                 "no evaluation found in the inputs (no eval.json; cells not evaluated yet?)".into(),
             )
         })?;
         let mut groups: BTreeMap<(String, String), Vec<Entry>> = BTreeMap::new();
         let mut order: Vec<(String, String)> = Vec::new();
-        for e in entries {
+        for e in g.entries {
             let key = (e.method.clone(), e.setting.clone());
             if !groups.contains_key(&key) {
                 order.push(key.clone());
@@ -275,7 +298,7 @@ impl Report {
             lower_is_better: head.lower_is_better,
             context_sizes: head.protocol.context_sizes,
             rows,
-            left_out,
+            left_out: g.left_out,
         })
     }
 

@@ -417,12 +417,31 @@ fn i64_bytes(values: impl IntoIterator<Item = usize>) -> Vec<u8> {
         .collect()
 }
 
+/// One tensor of the file: its name, element type, shape and little-endian bytes.
+type Tensor = (&'static str, Dtype, Vec<usize>, Vec<u8>);
+
 impl DemoDataset {
     /// Serialises to safetensors bytes.
     pub fn to_bytes(&self) -> Result<Vec<u8>, DatasetError> {
         self.check()?;
         let trajectories: Vec<&Trajectory> =
             self.tasks.iter().flat_map(|t| &t.trajectories).collect();
+        let mut owned = self.transition_tensors(&trajectories);
+        owned.extend(self.index_tensors(&trajectories));
+        let mut views = Vec::with_capacity(owned.len());
+        for (name, dtype, shape, bytes) in &owned {
+            let view = TensorView::new(*dtype, shape.clone(), bytes)
+                .map_err(|e| DatasetError::Corrupt(format!("building {name}: {e}")))?;
+            views.push((*name, view));
+        }
+        let metadata = self.metadata();
+        safetensors::serialize(views, Some(metadata))
+            .map(crate::fsio::canonical_safetensors)
+            .map_err(|e| DatasetError::Corrupt(format!("serialising: {e}")))
+    }
+
+    /// The per-transition tensors: every trajectory's steps, one after another.
+    fn transition_tensors(&self, trajectories: &[&Trajectory]) -> Vec<Tensor> {
         let n = self.transition_count();
         let concat = |field: fn(&Trajectory) -> &[f32]| -> Vec<u8> {
             f32_bytes(
@@ -432,19 +451,7 @@ impl DemoDataset {
                     .collect::<Vec<_>>(),
             )
         };
-        let mut row_offsets = vec![0usize];
-        for t in &trajectories {
-            row_offsets.push(row_offsets.last().copied().unwrap_or(0) + t.len());
-        }
-        let mut traj_offsets = vec![0usize];
-        for demos in &self.tasks {
-            traj_offsets.push(traj_offsets.last().copied().unwrap_or(0) + demos.trajectories.len());
-        }
-        let task_dim = self.family.task_dim();
-        let parameters: Vec<f32> = self.tasks.iter().flat_map(|d| d.task.parameter()).collect();
-        let k = self.tasks.len();
-        let t_count = trajectories.len();
-        let owned: Vec<(&str, Dtype, Vec<usize>, Vec<u8>)> = vec![
+        vec![
             (
                 names::OBS,
                 Dtype::F32,
@@ -483,6 +490,25 @@ impl DemoDataset {
                         .flat_map(|t| t.time_steps.iter().map(|&s| s as usize)),
                 ),
             ),
+        ]
+    }
+
+    /// The index tensors: where each trajectory and each task's trajectories start, the
+    /// trajectories' seeds and subsampling offsets, the tasks' values and parameters.
+    fn index_tensors(&self, trajectories: &[&Trajectory]) -> Vec<Tensor> {
+        let mut row_offsets = vec![0usize];
+        for t in trajectories {
+            row_offsets.push(row_offsets.last().copied().unwrap_or(0) + t.len());
+        }
+        let mut traj_offsets = vec![0usize];
+        for demos in &self.tasks {
+            traj_offsets.push(traj_offsets.last().copied().unwrap_or(0) + demos.trajectories.len());
+        }
+        let task_dim = self.family.task_dim();
+        let parameters: Vec<f32> = self.tasks.iter().flat_map(|d| d.task.parameter()).collect();
+        let k = self.tasks.len();
+        let t_count = trajectories.len();
+        vec![
             (
                 names::TRAJ_OFFSETS,
                 Dtype::I64,
@@ -522,15 +548,14 @@ impl DemoDataset {
                 vec![k, task_dim],
                 f32_bytes(&parameters),
             ),
-        ];
-        let mut views = Vec::with_capacity(owned.len());
-        for (name, dtype, shape, bytes) in &owned {
-            let view = TensorView::new(*dtype, shape.clone(), bytes)
-                .map_err(|e| DatasetError::Corrupt(format!("building {name}: {e}")))?;
-            views.push((*name, view));
-        }
+        ]
+    }
+
+    /// The file's metadata: format, family, plant, split, expert, dimensions, task labels.
+    fn metadata(&self) -> HashMap<String, String> {
+        let task_dim = self.family.task_dim();
         let labels: Vec<String> = self.tasks.iter().map(|d| d.task.label()).collect();
-        let metadata: HashMap<String, String> = [
+        [
             ("format", FORMAT_NAME.to_string()),
             ("format_version", FORMAT_VERSION.to_string()),
             ("family", self.family.to_string()),
@@ -545,10 +570,7 @@ impl DemoDataset {
         ]
         .into_iter()
         .map(|(k, v)| (k.to_string(), v))
-        .collect();
-        safetensors::serialize(views, Some(metadata))
-            .map(crate::fsio::canonical_safetensors)
-            .map_err(|e| DatasetError::Corrupt(format!("serialising: {e}")))
+        .collect()
     }
 
     /// Writes the dataset to `path` (safetensors), atomically: a kill or a full disk leaves

@@ -202,3 +202,26 @@ proptest! {
 }
 
 mod forged;
+
+/// The writer's bytes are pinned: a shipped demo file read and written again hashes to the
+/// value this writer gave when its function was split (2026-12-05), so a change that moves one
+/// byte of the format fails here (update the hash only with a format change, in DATASET.md).
+#[test]
+fn a_shipped_demo_file_is_written_to_the_pinned_bytes() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/experts/point-goal/demos-test-4x-sub20.safetensors");
+    let ds = DemoDataset::read(&path).unwrap();
+    let bytes = ds.to_bytes().unwrap();
+    assert_eq!(
+        DemoDataset::from_bytes(&bytes).unwrap().to_bytes().unwrap(),
+        bytes
+    );
+    assert_eq!(
+        crate::fsio::sha256_hex(&bytes),
+        PINNED,
+        "{}",
+        path.display()
+    );
+}
+
+const PINNED: &str = "f87fa7c3ac76e538c3c98cc2354cd8fa60cd7378828407812362a09ee8ec01de";

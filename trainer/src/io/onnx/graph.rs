@@ -255,31 +255,65 @@ impl Builder {
     }
 }
 
+/// The graphs' inputs and outputs: named axes are dynamic (`trajectories`, `steps`, `batch`).
+struct Shapes {
+    context: [Axis; 3],
+    mask: [Axis; 2],
+    z: [Axis; 2],
+    observation: [Axis; 2],
+    policy_z: [Axis; 2],
+    action: [Axis; 2],
+}
+
+impl Shapes {
+    fn of(fm: &infer_core::FloatModel, transition_dim: usize) -> Shapes {
+        let (traj, steps, batch) = (
+            Axis::Named("trajectories"),
+            Axis::Named("steps"),
+            Axis::Named("batch"),
+        );
+        Shapes {
+            context: [traj, steps, Axis::Fixed(transition_dim)],
+            mask: [traj, steps],
+            z: [Axis::Fixed(1), Axis::Fixed(fm.z_dim)],
+            observation: [batch, Axis::Fixed(fm.obs_dim)],
+            policy_z: [batch, Axis::Fixed(fm.z_dim)],
+            action: [batch, Axis::Fixed(fm.act_dim)],
+        }
+    }
+}
+
 /// The two graphs of `mp` and their description (nothing is written).
 pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
     let fm = mp.to_float_model()?;
-    let (od, ad, zd) = (fm.obs_dim, fm.act_dim, fm.z_dim);
     let state_only = fm.kind == infer_core::ModelKind::StateOnly;
+    let (od, ad) = (fm.obs_dim, fm.act_dim);
     let td = if state_only { 2 * od } else { 2 * od + ad };
+    let shapes = Shapes::of(&fm, td);
+    let props = [("family", mp.family.name()), ("algo", mp.algo.as_str())];
+    Ok(OnnxExport {
+        encoder: encoder_graph(&fm, state_only, &shapes, &props)?,
+        policy: policy_graph(&fm, &shapes, &props)?,
+        meta: describe(mp, &fm, td, &shapes),
+    })
+}
+
+/// The context encoder's graph: normalised transitions through phi, masked means over each
+/// trajectory's steps, their sum over trajectories, the z head.
+fn encoder_graph(
+    fm: &infer_core::FloatModel,
+    state_only: bool,
+    shapes: &Shapes,
+    props: &[(&str, &str)],
+) -> Result<Vec<u8>> {
     // s and s' are normalised, a is not: mean 0 and std 1 leave it exactly as it is.
     let (mut m, mut s) = (fm.obs_mean.clone(), fm.obs_std.clone());
     if !state_only {
-        m.extend(std::iter::repeat_n(0.0, ad));
-        s.extend(std::iter::repeat_n(1.0, ad));
+        m.extend(std::iter::repeat_n(0.0, fm.act_dim));
+        s.extend(std::iter::repeat_n(1.0, fm.act_dim));
     }
     m.extend_from_slice(&fm.obs_mean);
     s.extend_from_slice(&fm.obs_std);
-    let family = mp.family.name();
-    let props = [("family", family), ("algo", mp.algo.as_str())];
-
-    // Encoder.
-    let ctx_shape = [
-        Axis::Named("trajectories"),
-        Axis::Named("steps"),
-        Axis::Fixed(td),
-    ];
-    let mask_shape = [Axis::Named("trajectories"), Axis::Named("steps")];
-    let z_shape = [Axis::Fixed(1), Axis::Fixed(zd)];
     let mut g = Builder::new("encoder");
     let x = g.normalise(names::CONTEXT, &m, &s);
     let r = g.dense("phi", &x, &fm.encoder, None)?;
@@ -310,22 +344,25 @@ pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
         None,
     );
     g.dense("head", &total, &fm.z_head, Some(names::Z))?;
-    let encoder = g.model(
+    g.model(
         "smile_context_encoder",
         "SMILe context encoder: raw transitions [trajectories, steps, transition] and their \
          mask -> the posterior mean of z [1, z_dim]",
         vec![
-            value_info(names::CONTEXT, &ctx_shape),
-            value_info(names::MASK, &mask_shape),
+            value_info(names::CONTEXT, &shapes.context),
+            value_info(names::MASK, &shapes.mask),
         ],
-        vec![value_info(names::Z, &z_shape)],
-        &props,
-    )?;
+        vec![value_info(names::Z, &shapes.z)],
+        props,
+    )
+}
 
-    // Policy.
-    let obs_shape = [Axis::Named("batch"), Axis::Fixed(od)];
-    let pz_shape = [Axis::Named("batch"), Axis::Fixed(zd)];
-    let act_shape = [Axis::Named("batch"), Axis::Fixed(ad)];
+/// The policy's graph: the normalised observation beside z, the MLP, tanh of its mean.
+fn policy_graph(
+    fm: &infer_core::FloatModel,
+    shapes: &Shapes,
+    props: &[(&str, &str)],
+) -> Result<Vec<u8>> {
     // MetaPolicy::to_float_model bakes unit scaling (sim's actions lie in [-1, 1]).
     if fm.act_scale.iter().any(|v| *v != 1.0) || fm.act_offset.iter().any(|v| *v != 0.0) {
         return Err(Error::Shape(
@@ -337,23 +374,27 @@ pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
     let x = g.op("Concat", &[&on, names::Z], vec![int_attr("axis", 1)], None);
     let mu = g.dense("pi", &x, &fm.policy, None)?;
     g.op("Tanh", &[&mu], vec![], Some(names::ACTION));
-    let policy = g.model(
+    g.model(
         "smile_policy",
         "SMILe conditioned policy: raw observations [batch, obs_dim] and z [batch, z_dim] -> \
          the deterministic action tanh(mu) [batch, act_dim]",
         vec![
-            value_info(names::OBSERVATION, &obs_shape),
-            value_info(names::Z, &pz_shape),
+            value_info(names::OBSERVATION, &shapes.observation),
+            value_info(names::Z, &shapes.policy_z),
         ],
-        vec![value_info(names::ACTION, &act_shape)],
-        &props,
-    )?;
+        vec![value_info(names::ACTION, &shapes.action)],
+        props,
+    )
+}
 
-    let meta = OnnxMeta {
+/// What `meta.json` says about the two graphs.
+fn describe(mp: &MetaPolicy, fm: &infer_core::FloatModel, td: usize, shapes: &Shapes) -> OnnxMeta {
+    let state_only = fm.kind == infer_core::ModelKind::StateOnly;
+    OnnxMeta {
         format: "smile-meta-policy-onnx".into(),
         opset: OPSET,
         ir_version: IR_VERSION,
-        family: family.into(),
+        family: mp.family.name().into(),
         algo: mp.algo.clone(),
         physics: mp.physics,
         kind: if state_only {
@@ -363,26 +404,26 @@ pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
         }
         .into(),
         transition: if state_only { "[s, s']" } else { "[s, a, s']" }.into(),
-        obs_dim: od,
-        act_dim: ad,
+        obs_dim: fm.obs_dim,
+        act_dim: fm.act_dim,
         transition_dim: td,
         r_dim: fm.r_dim,
-        z_dim: zd,
+        z_dim: fm.z_dim,
         encoder: GraphInfo {
             file: ENCODER_FILE.into(),
             inputs: vec![
-                tensor_info(names::CONTEXT, &ctx_shape),
-                tensor_info(names::MASK, &mask_shape),
+                tensor_info(names::CONTEXT, &shapes.context),
+                tensor_info(names::MASK, &shapes.mask),
             ],
-            outputs: vec![tensor_info(names::Z, &z_shape)],
+            outputs: vec![tensor_info(names::Z, &shapes.z)],
         },
         policy: GraphInfo {
             file: POLICY_FILE.into(),
             inputs: vec![
-                tensor_info(names::OBSERVATION, &obs_shape),
-                tensor_info(names::Z, &pz_shape),
+                tensor_info(names::OBSERVATION, &shapes.observation),
+                tensor_info(names::Z, &shapes.policy_z),
             ],
-            outputs: vec![tensor_info(names::ACTION, &act_shape)],
+            outputs: vec![tensor_info(names::ACTION, &shapes.action)],
         },
         normalisation: Normalisation {
             applied_to: "inside both graphs: s and s' of every context transition, and the \
@@ -399,10 +440,5 @@ pub fn export(mp: &MetaPolicy) -> Result<OnnxExport> {
                       (not their mean); z = the mu rows of head(sum)"
             .into(),
         reference: None,
-    };
-    Ok(OnnxExport {
-        encoder,
-        policy,
-        meta,
-    })
+    }
 }
