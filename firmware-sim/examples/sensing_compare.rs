@@ -106,7 +106,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             median(&mut ticks_ns[1]),
         );
     }
-    // The estimator alone, per tick, on this family's layout.
+    estimator_cost(family)
+}
+
+/// The estimator alone, per tick, on this family's layout: best of 5 timed passes.
+fn estimator_cost(family: Family) -> Result<(), Box<dyn std::error::Error>> {
     let channels: Vec<Channel> = family
         .obs_components()
         .iter()

@@ -484,16 +484,31 @@ pub fn probe_mujoco(robot: Robot, config: &ProbeConfig) -> Value {
 
 fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> Value {
     let layout = spec.layout(robot);
-    let joints = layout.joints();
     let seeds: Vec<u64> = (0..config.seeds as u64).collect();
     let steps = config.steps;
-    let zero = vec![vec![0.0; joints]; steps];
     let trot: Vec<Vec<f32>> = (0..steps).map(|k| layout.trot(k)).collect();
+    json!({
+        "family": robot.name(),
+        "source": format!("{source}, {})", robot.name()),
+        "dt": layout.dt,
+        "seeds": config.seeds,
+        "steps": steps,
+        "divergence": divergence(&spec, &layout, &seeds, &trot),
+        "open_loop": open_loop_stats(robot, &spec, &layout, &seeds, &trot),
+        "pulse": pulses(&spec, &layout),
+        "drop": drop_test(&spec, &layout),
+        "closed_loop": closed_loops(&spec, &layout, &seeds, steps),
+    })
+}
 
+/// Twin divergence per action sequence (zero, trot, random): medians over the seeds.
+fn divergence(spec: &Spec, layout: &Layout, seeds: &[u64], trot: &[Vec<f32>]) -> Value {
+    let (steps, joints) = (trot.len(), layout.joints());
+    let zero = vec![vec![0.0; joints]; steps];
     let mut divergence = serde_json::Map::new();
-    for (name, actions) in [("zero", None), ("trot", Some(&trot)), ("random", None)] {
+    for (name, actions) in [("zero", None), ("trot", Some(trot)), ("random", None)] {
         let (mut small, mut large, mut rates) = (Vec::new(), Vec::new(), Vec::new());
-        for &seed in &seeds {
+        for &seed in seeds {
             let random;
             let actions = match (name, actions) {
                 ("random", _) => {
@@ -503,7 +518,7 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
                 (_, Some(actions)) => actions,
                 _ => &zero,
             };
-            let (s, l, r) = twin(&spec, &layout, seed, actions);
+            let (s, l, r) = twin(spec, layout, seed, actions);
             small.push(s);
             large.push(l);
             if r.is_finite() {
@@ -516,14 +531,25 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
                    "rate": median(&mut rates)}),
         );
     }
+    Value::Object(divergence)
+}
 
+/// Open-loop runs under the trot and random actions: speeds, flips, falls, limits, contact.
+fn open_loop_stats(
+    robot: Robot,
+    spec: &Spec,
+    layout: &Layout,
+    seeds: &[u64],
+    trot: &[Vec<f32>],
+) -> Value {
+    let (steps, joints) = (trot.len(), layout.joints());
     let trots: Vec<OpenLoop> = seeds
         .iter()
-        .map(|&s| open_loop(&spec, &layout, s, &trot))
+        .map(|&s| open_loop(spec, layout, s, trot))
         .collect();
     let randoms: Vec<OpenLoop> = seeds
         .iter()
-        .map(|&s| open_loop(&spec, &layout, s, &random_actions(s, steps, joints)))
+        .map(|&s| open_loop(spec, layout, s, &random_actions(s, steps, joints)))
         .collect();
     let pick = |runs: &[OpenLoop], f: fn(&OpenLoop) -> f32| {
         let mut values: Vec<f32> = runs.iter().map(f).collect();
@@ -536,7 +562,7 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
         .map(|r| r.fell_at.unwrap_or(steps + 1) as f32)
         .collect();
     let fall_step = median(&mut fall_steps);
-    let open = json!({
+    json!({
         "trot_speed": pick(&trots, |r| r.speed),
         "random_speed": pick(&randoms, |r| r.speed),
         "flips": randoms.iter().filter(|r| r.flipped).count(),
@@ -545,8 +571,12 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
         "limit_overshoot": pick(&randoms, |r| r.overshoot.max(0.0)),
         "max_penetration": pick(&randoms, |r| r.penetration),
         "trot_penetration": pick(&trots, |r| r.penetration),
-    });
+    })
+}
 
+/// The robot dropped from rest with zero torque for 2 s: its height curve and contact.
+fn drop_test(spec: &Spec, layout: &Layout) -> Value {
+    let joints = layout.joints();
     let drop_steps = layout.steps_per_second(2.0);
     let mut plant = spec.build(Start::Rest);
     let mut curve = Vec::with_capacity(drop_steps);
@@ -558,18 +588,21 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
     }
     let tail = layout.steps_per_second(0.5).max(1);
     let final_height = curve[drop_steps - tail..].iter().sum::<f32>() / tail as f32;
-    let drop = json!({
+    json!({
         "curve": curve,
         "min": curve.iter().copied().fold(f32::INFINITY, f32::min),
         "final": final_height,
         "penetration": penetration,
-    });
+    })
+}
 
+/// The closed-loop tracking runs, one per action-noise level.
+fn closed_loops(spec: &Spec, layout: &Layout, seeds: &[u64], steps: usize) -> Value {
     let mut closed = serde_json::Map::new();
     for (name, sigma) in SIGMAS {
         let runs: Vec<(f32, f32, f32)> = seeds
             .iter()
-            .map(|&s| closed_loop(&spec, &layout, s, steps, sigma))
+            .map(|&s| closed_loop(spec, layout, s, steps, sigma))
             .collect();
         let mut speeds: Vec<f32> = runs.iter().map(|r| r.0).collect();
         let mean = speeds.iter().sum::<f32>() / speeds.len().max(1) as f32;
@@ -584,17 +617,5 @@ fn probe_spec(robot: Robot, spec: Spec, source: &str, config: &ProbeConfig) -> V
                    "pitch_rms": median(&mut tilts), "track_rms": median(&mut tracks)}),
         );
     }
-
-    json!({
-        "family": robot.name(),
-        "source": format!("{source}, {})", robot.name()),
-        "dt": layout.dt,
-        "seeds": config.seeds,
-        "steps": steps,
-        "divergence": divergence,
-        "open_loop": open,
-        "pulse": pulses(&spec, &layout),
-        "drop": drop,
-        "closed_loop": closed,
-    })
+    Value::Object(closed)
 }

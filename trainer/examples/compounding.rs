@@ -221,6 +221,26 @@ fn measure(reference: &Reference, episodes: &[(usize, f32, Vec<f32>)], horizon: 
     }
 }
 
+/// The reference: clean expert episodes of every test task.
+fn reference(
+    env: &mut dyn sim::Environment,
+    expert: &Expert,
+    tasks: &[sim::Task],
+) -> trainer::Result<Reference> {
+    let mut oracle = vec![0.0f32; expert.family().oracle_obs_dim()];
+    let mut raw = Vec::with_capacity(tasks.len());
+    for task in tasks {
+        let mut states = Vec::new();
+        for k in 0..REFERENCE_EPISODES {
+            let mut noise = ActionNoise::new(0.0, 0);
+            let mut act = expert_act(expert, task, &mut oracle, &mut noise);
+            states.extend(episode(env, task, REFERENCE_SEED + k, &mut act)?.1);
+        }
+        raw.push(states);
+    }
+    Ok(Reference::new(raw, env.obs_dim()))
+}
+
 fn run(a: &Args) -> trainer::Result<serde_json::Value> {
     trainer::threads::set_compute_threads(1);
     let expert = Expert::load(&a.expert)?;
@@ -242,21 +262,9 @@ fn run(a: &Args) -> trainer::Result<serde_json::Value> {
     };
     let mut env = sim::make_env(family, plant)?;
     let horizon = env.horizon();
-    let obs_dim = env.obs_dim();
     let mut oracle = vec![0.0f32; family.oracle_obs_dim()];
 
-    // The reference: clean expert episodes of every test task.
-    let mut raw = Vec::with_capacity(tasks.len());
-    for task in &tasks {
-        let mut states = Vec::new();
-        for k in 0..REFERENCE_EPISODES {
-            let mut noise = ActionNoise::new(0.0, 0);
-            let mut act = expert_act(&expert, task, &mut oracle, &mut noise);
-            states.extend(episode(env.as_mut(), task, REFERENCE_SEED + k, &mut act)?.1);
-        }
-        raw.push(states);
-    }
-    let reference = Reference::new(raw, obs_dim);
+    let reference = reference(env.as_mut(), &expert, &tasks)?;
 
     // The meta-policy's context: each task's first one-demo draw, as `smile eval` makes it.
     let demos = eval::contexts_for(&contexts, family, &tasks)?;

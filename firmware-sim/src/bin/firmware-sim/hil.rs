@@ -173,24 +173,7 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
     let family = prep.task.family();
     let mut plant = sim::make_env(family, config.plant)?;
     let rate = p.rate.unwrap_or(1.0 / plant.control_dt());
-    let mut serial_config = SerialConfig::new(a.port.clone(), a.baud);
-    if let Some(ms) = a.reply_timeout_ms {
-        serial_config.reply_timeout = Duration::from_millis(ms);
-    }
-    serial_config.lost_after = a.lost_after;
-    serial_config.reconnect_for = Duration::from_secs(a.reconnect_s);
-    serial_config.faults = Faults {
-        corrupt: p.link_corrupt,
-        drop: p.link_drop,
-        seed: p.seed,
-    };
-    let link = serial::SerialLink::open(serial_config).with_context(|| {
-        format!(
-            "opening --port {} (is the device running? `firmware-sim device --pty {}` makes one)",
-            a.port.display(),
-            a.port.display()
-        )
-    })?;
+    let link = open_link(&a)?;
     eprintln!(
         "host: uploading {} B and teaching {} demo(s) over {} at {} baud (about {:.1} s on the line)",
         prep.blob.len(),
@@ -213,8 +196,53 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         eprintln!("{warning}");
     }
     write_trace(&p.out, &report, &[])?;
+    let hil = hil_report(&a, rate, &report, &remote);
+    firmware_sim::write_atomic(
+        &p.out.join("hil.json"),
+        serde_json::to_string_pretty(&hil)?.as_bytes(),
+    )?;
+    let summary = summary(&hil, &report);
+    firmware_sim::write_atomic(&p.out.join("summary.txt"), summary.as_bytes())?;
+    print!("{summary}");
+    println!(
+        "wrote {}/{{trace.csv, plot.svg, summary.txt, hil.json}}",
+        p.out.display()
+    );
+    Ok(())
+}
+
+/// The serial link to the device at `--port`, with the host's timeouts and injected faults.
+fn open_link(a: &HostArgs) -> Result<serial::SerialLink> {
+    let p = &a.plant;
+    let mut serial_config = SerialConfig::new(a.port.clone(), a.baud);
+    if let Some(ms) = a.reply_timeout_ms {
+        serial_config.reply_timeout = Duration::from_millis(ms);
+    }
+    serial_config.lost_after = a.lost_after;
+    serial_config.reconnect_for = Duration::from_secs(a.reconnect_s);
+    serial_config.faults = Faults {
+        corrupt: p.link_corrupt,
+        drop: p.link_drop,
+        seed: p.seed,
+    };
+    serial::SerialLink::open(serial_config).with_context(|| {
+        format!(
+            "opening --port {} (is the device running? `firmware-sim device --pty {}` makes one)",
+            a.port.display(),
+            a.port.display()
+        )
+    })
+}
+
+/// What `hil.json` records of the run over the serial link.
+fn hil_report(
+    a: &HostArgs,
+    rate: f32,
+    report: &firmware_sim::RunReport,
+    remote: &RemoteDevice,
+) -> HilReport {
     let (counters, wire) = remote.counters();
-    let hil = HilReport {
+    HilReport {
         port: a.port.display().to_string(),
         baud: a.baud,
         rate_hz: rate,
@@ -244,23 +272,24 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         link: counters,
         wire,
         events: remote.events.clone(),
-    };
-    firmware_sim::write_atomic(
-        &p.out.join("hil.json"),
-        serde_json::to_string_pretty(&hil)?.as_bytes(),
-    )?;
+    }
+}
+
+/// The run's summary in words (`summary.txt`, and what the command prints).
+fn summary(hil: &HilReport, report: &firmware_sim::RunReport) -> String {
+    let rate = hil.rate_hz;
     let head = format!(
         "task            {} ({})\nmetric          {:?} = {:.4}\nticks           {} ({} \
              plant steps each)\nfaults          {}",
         report.task.label(),
-        family,
-        family.metric_kind(),
+        report.task.family(),
+        report.task.family().metric_kind(),
         report.metric,
         report.records.len(),
         report.steps_per_tick,
         report.faults
     );
-    let summary = format!(
+    format!(
         "{}\nhil             {} ticks at {rate} Hz x {} over {} ({} baud): {} deadline misses, {} late \
          starts, {} ticks on the safe action, {} reconnects\nround trip      median {:.0} us, \
          p99 {:.0} us, max {:.0} us (device compute median {:.0} us)\nlink            {} \
@@ -268,9 +297,9 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
          dropped\n",
         head,
         hil.ticks,
-        a.speedup,
+        hil.speedup,
         hil.port,
-        a.baud,
+        hil.baud,
         hil.deadline_misses,
         hil.late_starts,
         hil.held_safe,
@@ -279,21 +308,14 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         hil.round_trip_us.p99,
         hil.round_trip_us.max,
         hil.device_compute_us.median,
-        wire.frames_out,
-        wire.frames_in,
-        counters.retries,
-        counters.bad_frames,
-        counters.stale,
-        wire.injected_corrupt,
-        wire.injected_drop,
-    );
-    firmware_sim::write_atomic(&p.out.join("summary.txt"), summary.as_bytes())?;
-    print!("{summary}");
-    println!(
-        "wrote {}/{{trace.csv, plot.svg, summary.txt, hil.json}}",
-        p.out.display()
-    );
-    Ok(())
+        hil.wire.frames_out,
+        hil.wire.frames_in,
+        hil.link.retries,
+        hil.link.bad_frames,
+        hil.link.stale,
+        hil.wire.injected_corrupt,
+        hil.wire.injected_drop,
+    )
 }
 
 /// A device refusal of the blob in words the person at the bench can act on.

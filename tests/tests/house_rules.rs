@@ -1,0 +1,266 @@
+//! Two house rules of ARCHITECTURE.md, held by reading the sources (no build of them needed):
+//!
+//! * **Imports point down inside a crate**: no module of sim, trainer, firmware-sim or
+//!   infer-core names an item through its crate root's re-exports (`crate::Family` where
+//!   `lib.rs` says `pub use kinds::Family`): `lib.rs` is the public face on top, and an import
+//!   through it hides which module a module really stands on (it hid a loop in sim once).
+//! * **Functions read at once**: no function over 100 lines outside tests, unless the comments
+//!   right above or below its `fn` line say why ("over 100 lines" or "long").
+//!
+//! Test code is left out: `tests/` and `benches/` folders, files named `tests.rs`, and
+//! everything after a file's `#[cfg(test)]` line (the house keeps unit tests at a file's end).
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+
+const CRATES: [&str; 4] = ["sim", "trainer", "firmware-sim", "infer-core"];
+const ALL: [&str; 7] = [
+    "sim",
+    "trainer",
+    "firmware-sim",
+    "infer-core",
+    "app",
+    "nostd-check",
+    "tests",
+];
+const LIMIT: usize = 100;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// Every `.rs` file under `dir`, test code and build outputs left out.
+fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let p = e.path();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if p.is_dir() {
+            if !["tests", "benches", "target", "fuzz"].contains(&name.as_str()) {
+                sources(&p, out);
+            }
+        } else if name.ends_with(".rs") && name != "tests.rs" {
+            out.push(p);
+        }
+    }
+}
+
+/// The file's lines up to its `#[cfg(test)]` module.
+fn non_test_lines(path: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(path).unwrap();
+    text.lines()
+        .take_while(|l| l.trim() != "#[cfg(test)]")
+        .map(str::to_string)
+        .collect()
+}
+
+/// The line without string and char literals and without a trailing `//` comment.
+fn code_of(line: &str) -> String {
+    let (mut out, mut chars) = (String::new(), line.chars().peekable());
+    while let Some(c) = chars.next() {
+        match c {
+            '"' => {
+                while let Some(d) = chars.next() {
+                    match d {
+                        '\\' => {
+                            chars.next();
+                        }
+                        '"' => break,
+                        _ => {}
+                    }
+                }
+                out.push_str("\"\"");
+            }
+            '\'' if chars.clone().nth(1) == Some('\'') => {
+                chars.nth(1);
+                out.push_str("''");
+            }
+            '/' if chars.peek() == Some(&'/') => break,
+            c => out.push(c),
+        }
+    }
+    out
+}
+
+/// The names a crate root re-exports from its modules (`pub use module::{A, b as c}`).
+fn reexports(lib: &Path) -> BTreeSet<String> {
+    let text = std::fs::read_to_string(lib).unwrap();
+    let mut names = BTreeSet::new();
+    for stmt in text.split(';') {
+        let Some(at) = stmt.find("pub use ") else {
+            continue;
+        };
+        let body = &stmt[at + "pub use ".len()..];
+        // Only items of the crate's own modules (`module::...`), not other crates'.
+        let first = body.split("::").next().unwrap_or("").trim();
+        if first.contains(char::is_whitespace) || first.is_empty() {
+            continue;
+        }
+        let items = body.rsplit("::").next().unwrap_or("");
+        for item in items
+            .trim_matches(|c| c == '{' || c == '}' || char::is_whitespace(c))
+            .split(',')
+        {
+            let name = item.split(" as ").last().unwrap_or("").trim();
+            if !name.is_empty() && name != "*" && name != "self" {
+                names.insert(name.to_string());
+            }
+        }
+    }
+    names
+}
+
+/// `crate::NAME` paths whose NAME is one of `names` (an item named through the crate root).
+fn through_root(code: &str, names: &BTreeSet<String>) -> Vec<String> {
+    let mut found = Vec::new();
+    let mut rest = code;
+    while let Some(at) = rest.find("crate::") {
+        let after = &rest[at + "crate::".len()..];
+        let items: Vec<&str> = if let Some(group) = after.strip_prefix('{') {
+            group.split('}').next().unwrap_or("").split(',').collect()
+        } else {
+            vec![after]
+        };
+        for item in items {
+            let name: String = item
+                .trim()
+                .chars()
+                .take_while(|c| c.is_alphanumeric() || *c == '_')
+                .collect();
+            let is_path = item.trim()[name.len()..].starts_with("::");
+            if names.contains(&name) && !is_path {
+                found.push(name);
+            }
+        }
+        rest = after;
+    }
+    found
+}
+
+#[test]
+fn no_module_imports_through_its_crate_root() {
+    let mut offences = Vec::new();
+    for krate in CRATES {
+        let src = root().join(krate).join("src");
+        let names = reexports(&src.join("lib.rs"));
+        let mut files = Vec::new();
+        sources(&src, &mut files);
+        for file in files.iter().filter(|f| f.file_name().unwrap() != "lib.rs") {
+            for (i, line) in non_test_lines(file).iter().enumerate() {
+                let t = line.trim_start();
+                if t.starts_with("//") {
+                    continue;
+                }
+                for name in through_root(&code_of(line), &names) {
+                    offences.push(format!("{}:{}: crate::{name}", file.display(), i + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        offences.is_empty(),
+        "import these from the module that defines them, not through lib.rs:\n{}",
+        offences.join("\n")
+    );
+}
+
+/// `(name, first line, lines, explained)` of each function in the file's non-test part.
+fn functions(path: &Path) -> Vec<(String, usize, usize, bool)> {
+    let lines = non_test_lines(path);
+    let mut out = Vec::new();
+    for (i, line) in lines.iter().enumerate() {
+        let code = code_of(line);
+        let words: Vec<&str> = code.split_whitespace().collect();
+        let Some(at) = words.iter().position(|w| *w == "fn") else {
+            continue;
+        };
+        let lead_ok = words[..at]
+            .iter()
+            .all(|w| w.starts_with("pub") || ["const", "async", "unsafe", "extern"].contains(w));
+        if !lead_ok || at + 1 >= words.len() {
+            continue;
+        }
+        let name: String = words[at + 1]
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let (mut depth, mut opened, mut end) = (0i64, false, None);
+        for (j, l) in lines.iter().enumerate().skip(i) {
+            let c = code_of(l);
+            if !opened && c.contains(';') && !c.contains('{') {
+                break; // a declaration without a body
+            }
+            depth += c.matches('{').count() as i64 - c.matches('}').count() as i64;
+            opened |= c.contains('{');
+            if opened && depth <= 0 {
+                end = Some(j);
+                break;
+            }
+        }
+        let Some(end) = end else {
+            continue;
+        };
+        let mut k = i;
+        while k > 0
+            && ["//", "#["]
+                .iter()
+                .any(|p| lines[k - 1].trim().starts_with(p))
+        {
+            k -= 1;
+        }
+        let mut n = i + 1;
+        while n < lines.len() && lines[n].trim().starts_with("//") {
+            n += 1;
+        }
+        let said = lines[k..i]
+            .iter()
+            .chain(&lines[i + 1..n])
+            .map(|l| l.to_lowercase())
+            .any(|l| l.contains("over 100 lines") || l.contains("long"));
+        out.push((name, i + 1, end - i + 1, said));
+    }
+    out
+}
+
+#[test]
+fn no_function_over_100_lines_without_a_reason() {
+    let mut long = Vec::new();
+    for krate in ALL {
+        let mut files = Vec::new();
+        sources(&root().join(krate), &mut files);
+        for file in &files {
+            for (name, line, len, said) in functions(file) {
+                if len > LIMIT && !said {
+                    long.push(format!("{len:4} {}:{line} {name}", file.display()));
+                }
+            }
+        }
+    }
+    assert!(
+        long.is_empty(),
+        "functions over {LIMIT} lines with no comment saying why (split them, or say why they \
+         are long):\n{}",
+        long.join("\n")
+    );
+}
+
+#[test]
+fn the_checks_see_what_they_look_for() {
+    // A check that finds nothing because it reads nothing would pass forever.
+    let names = reexports(&root().join("sim/src/lib.rs"));
+    assert!(
+        names.contains("Family") && names.contains("make_env"),
+        "{names:?}"
+    );
+    let found = through_root("use crate::{Family, kinds::Physics};", &names);
+    assert_eq!(found, ["Family"]);
+    assert!(through_root("crate::kinds::Family::PointGoal", &names).is_empty());
+    let fns = functions(&root().join("infer-core/src/error.rs"));
+    assert!(
+        fns.iter()
+            .any(|(name, _, len, said)| name == "fmt" && *len > LIMIT && *said),
+        "{fns:?}"
+    );
+}
