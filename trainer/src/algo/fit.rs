@@ -1,15 +1,15 @@
 //! The one fit loop every learner trains through (SAC experts, SMILe, Meta-BC, Meta-DAgger), in
 //! the way of burn's `Learner::fit` or SB3's `learn`: the metrics log, the cadence of
 //! held-out evaluations and checkpoints, keeping the best policy, progress, and the end of the
-//! run are here once. A learner is its unit of work, its evaluation, its state and its
-//! policy files, behind [`Fit`].
+//! run are here once, and so is the compute budget (CPU-seconds across the run's processes). A
+//! learner is its unit of work, its evaluation, its state and its policy files, behind [`Fit`].
 //!
 //! ```text
 //! begin                      (warm start, the untrained policy's evaluation)
-//! while !finished:
+//! while !finished (the learner's budget or stopping rule, or the compute budget):
 //!     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
 //!                             Meta-BC: one step)
-//!     log its metrics
+//!     count the compute; log the metrics
 //!     if an evaluation is due: evaluate; keep the policy if best; log; report
 //!     if a checkpoint is due: checkpoint; report
 //! finish                     (the final policy files)
@@ -79,6 +79,38 @@ pub(crate) struct Cadence {
     pub eval_at_end: bool,
     /// A checkpoint at each multiple of this (at least 1), and always when training ends.
     pub checkpoint_every: u64,
+    /// A compute budget in CPU-seconds of every process of the run (0: none): training ends
+    /// at the first unit of work that reaches it.
+    pub cpu_budget_s: f64,
+}
+
+/// The run's compute: the CPU-seconds its earlier processes used (from its checkpoint) plus
+/// this process's since the fit began, warm start and first evaluation included.
+struct Compute {
+    before: f64,
+    start: Option<f64>,
+}
+
+impl Compute {
+    /// Starts counting; a budget on a platform that reports no CPU time is refused.
+    fn start(before: f64, budget: f64) -> Result<Self> {
+        let start = crate::threads::process_cpu_seconds();
+        if budget > 0.0 && start.is_none() {
+            return Err(Error::Config(
+                "cpu_budget_s is set, but this platform does not report the process's CPU time"
+                    .into(),
+            ));
+        }
+        Ok(Self { before, start })
+    }
+
+    /// CPU-seconds of the run so far.
+    fn seconds(&self) -> f64 {
+        self.before
+            + crate::threads::process_cpu_seconds()
+                .zip(self.start)
+                .map_or(0.0, |(now, start)| now - start)
+    }
 }
 
 /// The next multiple of `every` after `done`: where an event falls due again. `every` 0 is
@@ -131,8 +163,20 @@ pub(crate) trait Fit {
         Ok(())
     }
 
-    /// Whether training is over: the budget, a compute budget or the stopping rule.
+    /// Whether training is over by the learner's own budget or stopping rule.
     fn finished(&self) -> bool;
+
+    /// CPU-seconds the run's earlier processes used (its checkpoint's); 0 for a learner that
+    /// keeps no count.
+    fn cpu_before(&self) -> f64 {
+        0.0
+    }
+
+    /// The run's CPU-seconds after a unit of work: a learner that counts them records them
+    /// (for its checkpoint) and returns the metric to log; `None` logs nothing.
+    fn counted(&mut self, _cpu_s: f64) -> Option<(&'static str, f64)> {
+        None
+    }
 
     /// One unit of work; returns the metrics to log at [`Fit::done`] (none: no line).
     fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields>;
@@ -154,17 +198,22 @@ pub(crate) trait Fit {
 /// checkpoints at the learner's [`Cadence`], the kept policy at each evaluation that judges it
 /// best, then the learner's final files ([`Fit::finish`]).
 pub(crate) fn fit(run: &mut impl Fit, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+    let cadence = run.cadence();
+    let compute = Compute::start(run.cpu_before(), cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
-    let cadence = run.cadence();
     let mut evals = Schedule::new(cadence.eval_every, run.done(), cadence.eval_at_end);
     let mut checkpoints = Schedule::new(cadence.checkpoint_every.max(1), run.done(), true);
-    while !run.finished() {
-        let fields = run.advance(on)?;
+    let mut finished = run.finished();
+    while !finished {
+        let mut fields = run.advance(on)?;
+        let cpu_s = compute.seconds();
+        fields.extend(run.counted(cpu_s));
+        finished = run.finished() || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
         if !fields.is_empty() {
             log.log(run.done(), &fields)?;
         }
-        if evals.due(run.done(), run.finished())
+        if evals.due(run.done(), finished)
             && let Some(ev) = run.evaluate()?
         {
             if ev.keep {
@@ -176,7 +225,7 @@ pub(crate) fn fit(run: &mut impl Fit, dir: &Path, on: &mut dyn FnMut(Progress)) 
             log.log(run.done(), &ev.fields)?;
             on(ev.progress);
         }
-        if checkpoints.due(run.done(), run.finished()) {
+        if checkpoints.due(run.done(), finished) {
             run.save_checkpoint(dir)?;
             on(Progress::Checkpoint(run.done()));
         }

@@ -69,6 +69,7 @@ impl Fit for ExpertFit<'_> {
             eval_every: self.run.cfg.eval_every,
             eval_at_end: false,
             checkpoint_every: self.run.cfg.checkpoint_every,
+            cpu_budget_s: 0.0,
         }
     }
 

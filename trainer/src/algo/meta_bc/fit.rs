@@ -47,6 +47,7 @@ impl Fit for MetaBcFit<'_> {
             eval_every: self.run.cfg.eval_every,
             eval_at_end: true,
             checkpoint_every: self.run.cfg.checkpoint_every,
+            cpu_budget_s: 0.0,
         }
     }
 

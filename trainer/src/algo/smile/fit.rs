@@ -1,4 +1,4 @@
-//! SMILe in the shared fit loop (its [`Fit`] hooks: the iteration, the compute budget, the
+//! SMILe in the shared fit loop (its [`Fit`] hooks: the iteration, its CPU-second count, the
 //! held-out evaluation schedule) and its [`MetaLearner`] impl.
 
 use std::path::Path;
@@ -20,43 +20,21 @@ use crate::model::{DiscStats, MetaPolicy};
 /// `eval_every` updates (the best policy so far in `dir/meta_policy.safetensors`; the final
 /// one in `dir/last/`), a checkpoint every `checkpoint_every` updates and at the end.
 pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
-    fit(&mut SmileFit::new(run)?, dir, on)
+    let u0 = run.updates;
+    let mut f = SmileFit {
+        run,
+        t0: std::time::Instant::now(),
+        u0,
+    };
+    fit(&mut f, dir, on)
 }
 
-/// A SMILe run inside the fit loop, with the loop's clocks and schedule.
+/// A SMILe run inside the fit loop, with its throughput clock.
 struct SmileFit<'a> {
     run: &'a mut Smile,
-    /// CPU-seconds of the run's earlier processes, and this process's at the start.
-    cpu_before: f64,
-    cpu0: Option<f64>,
     /// Wall clock and update count when this process started training.
     t0: std::time::Instant,
     u0: u64,
-    done: bool,
-}
-
-impl<'a> SmileFit<'a> {
-    fn new(run: &'a mut Smile) -> Result<Self> {
-        // The compute budget (`cpu_budget_s`) counts the run's CPU time: what its earlier
-        // processes used (from the checkpoint) plus this process's from here, warm start and
-        // first evaluation included.
-        let (cpu_before, cpu0) = (run.cpu_s, crate::threads::process_cpu_seconds());
-        if run.cfg.cpu_budget_s > 0.0 && cpu0.is_none() {
-            return Err(Error::Config(
-                "cpu_budget_s is set, but this platform does not report the process's CPU time"
-                    .into(),
-            ));
-        }
-        let (u0, done) = (run.updates, run.updates >= run.cfg.total_updates);
-        Ok(Self {
-            run,
-            cpu_before,
-            cpu0,
-            t0: std::time::Instant::now(),
-            u0,
-            done,
-        })
-    }
 }
 
 impl Fit for SmileFit<'_> {
@@ -69,6 +47,7 @@ impl Fit for SmileFit<'_> {
             eval_every: self.run.cfg.eval_every,
             eval_at_end: true,
             checkpoint_every: self.run.cfg.checkpoint_every,
+            cpu_budget_s: self.run.cfg.cpu_budget_s,
         }
     }
 
@@ -87,7 +66,16 @@ impl Fit for SmileFit<'_> {
     }
 
     fn finished(&self) -> bool {
-        self.done
+        self.run.updates >= self.run.cfg.total_updates
+    }
+
+    fn cpu_before(&self) -> f64 {
+        self.run.cpu_s
+    }
+
+    fn counted(&mut self, cpu_s: f64) -> Option<(&'static str, f64)> {
+        self.run.cpu_s = cpu_s;
+        Some(("charts/cpu_s", cpu_s))
     }
 
     // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
@@ -100,14 +88,7 @@ impl Fit for SmileFit<'_> {
             None => (DiscStats::default(), None, 0.0),
         };
         let ups = (run.updates - self.u0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9);
-        let cpu_s = self.cpu_before
-            + crate::threads::process_cpu_seconds()
-                .zip(self.cpu0)
-                .map_or(0.0, |(now, start)| now - start);
-        run.cpu_s = cpu_s;
         let cfg = &run.cfg;
-        self.done = run.updates >= cfg.total_updates
-            || (cfg.cpu_budget_s > 0.0 && cpu_s >= cfg.cpu_budget_s);
         let mut fields = vec![
             ("losses/disc_bce", ds.bce as f64),
             ("losses/disc_gp", ds.gp as f64),
@@ -116,7 +97,6 @@ impl Fit for SmileFit<'_> {
             ("charts/reward_mean", rm as f64),
             ("charts/sps", ups),
             ("charts/env_steps", run.env_steps as f64),
-            ("charts/cpu_s", cpu_s),
         ];
         if let Some(s) = &ss {
             fields.extend(s.fields());
