@@ -47,7 +47,15 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
         word: "step",
         resumed: req.config.is_none(),
     });
-    let result = expert::train(&mut run, dir, &mut |p| on(RunEvent::Progress(p, "step")));
+    let result = expert::train(&mut run, dir, &mut |p| match p {
+        // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
+        crate::algo::Progress::Eval {
+            step, metric, best, ..
+        } => on(RunEvent::Note(format!(
+            "step {step}: deterministic evaluation {metric:.4} (best {best:.4})"
+        ))),
+        p => on(RunEvent::Progress(p, "step")),
+    });
     if let Err(e) = result {
         let ck = dir.join(checkpoint::CHECKPOINT_FILE);
         return Err(Error::Stopped {
