@@ -21,8 +21,9 @@
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
 //! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export.
-//! * [`run`]: a run directory started or resumed ([`run::train`]): configuration, demos,
-//!   expert, records and lock around a [`MetaLearner`]; what `smile train` and sweep cells call.
+//! * [`run`]: a run directory started or resumed ([`run::train`]): configuration (a file
+//!   under typed [`Overrides`]), demos, expert, records and lock around a [`MetaLearner`]; what
+//!   `smile train` and sweep cells call. [`run::train_expert`] does the same for a SAC expert.
 //! * [`threads`]: the compute thread layout.
 //!
 //! This crate is the library: what learns and what it writes. The application over it (the
