@@ -6,9 +6,10 @@
 //! configuration is recorded in `config.toml`, and the SAC expert trains through the shared
 //! fit loop, reporting [`RunEvent`]s.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use super::{RunEvent, open_dir, write_config};
+use crate::algo::Progress;
 use crate::algo::expert::{self, ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
@@ -49,7 +50,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
     });
     let result = expert::train(&mut run, dir, &mut |p| match p {
         // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
-        crate::algo::Progress::Eval {
+        Progress::Eval {
             step, metric, best, ..
         } => on(RunEvent::Note(format!(
             "step {step}: deterministic evaluation {metric:.4} (best {best:.4})"
@@ -75,11 +76,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
 }
 
 /// A new run in `dir`, which must not hold one.
-fn start(
-    dir: &std::path::Path,
-    cfg: &ExpertConfig,
-    on: &mut dyn FnMut(RunEvent),
-) -> Result<ExpertTrainer> {
+fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertTrainer> {
     checkpoint::ensure_fresh_run_dir(dir)?;
     if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
         // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
@@ -93,7 +90,7 @@ fn start(
 }
 
 /// The run checkpointed in `dir`, its budget raised to `total_steps` if given.
-fn resume(dir: &std::path::Path, total_steps: Option<u64>) -> Result<ExpertTrainer> {
+fn resume(dir: &Path, total_steps: Option<u64>) -> Result<ExpertTrainer> {
     if !dir.join(checkpoint::CHECKPOINT_FILE).exists() && dir.join("config.toml").exists() {
         return Err(Error::Usage(format!(
             "{} has no checkpoint yet (its run was interrupted before its first one), so there \

@@ -112,13 +112,6 @@ pub struct ExpertArgs {
     quiet: bool,
 }
 
-/// Writes a flag's value over the configuration's when the flag is given.
-fn set<T: Clone>(field: &mut T, flag: &Option<T>) {
-    if let Some(v) = flag {
-        *field = v.clone();
-    }
-}
-
 /// The configuration: the `--config` file over the defaults, each flag given over the file.
 fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     let mut cfg: ExpertConfig = match &a.config {
@@ -130,28 +123,21 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         }
         None => ExpertConfig::default(),
     };
-    set(&mut cfg.env, &a.env);
-    set(&mut cfg.physics, &a.physics);
-    set(&mut cfg.total_steps, &a.total_steps);
-    set(&mut cfg.seed, &a.seed);
-    set(
-        &mut cfg.learner_threads,
-        &a.learner_threads.map(usize::from),
-    );
-    set(&mut cfg.sac.batch_size, &a.batch_size);
-    set(&mut cfg.learning_starts, &a.learning_starts);
-    set(&mut cfg.checkpoint_every, &a.checkpoint_every);
-    set(&mut cfg.eval_every, &a.eval_every);
-    set(&mut cfg.sac.hidden, &a.hidden);
-    if a.horizon.is_some() {
-        cfg.horizon = a.horizon;
+    cfg.env = a.env.unwrap_or(cfg.env);
+    cfg.physics = a.physics.unwrap_or(cfg.physics);
+    cfg.total_steps = a.total_steps.unwrap_or(cfg.total_steps);
+    cfg.seed = a.seed.unwrap_or(cfg.seed);
+    cfg.learner_threads = a.learner_threads.map_or(cfg.learner_threads, usize::from);
+    cfg.sac.batch_size = a.batch_size.unwrap_or(cfg.sac.batch_size);
+    cfg.learning_starts = a.learning_starts.unwrap_or(cfg.learning_starts);
+    cfg.checkpoint_every = a.checkpoint_every.unwrap_or(cfg.checkpoint_every);
+    cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);
+    if let Some(hidden) = &a.hidden {
+        cfg.sac.hidden = hidden.clone();
     }
-    if a.task_index.is_some() {
-        cfg.task_index = a.task_index;
-    }
-    if a.task_value.is_some() {
-        cfg.task_value = a.task_value;
-    }
+    cfg.horizon = a.horizon.or(cfg.horizon);
+    cfg.task_index = a.task_index.or(cfg.task_index);
+    cfg.task_value = a.task_value.or(cfg.task_value);
     if a.init_from.is_some() {
         cfg.init_from = a.init_from.clone();
     }
