@@ -36,6 +36,11 @@ pub struct DeployManifest {
     /// Episode length (the family's when absent).
     #[serde(default)]
     pub horizon: Option<usize>,
+    /// Adam steps of a quantization-aware fine-tune before the int8 blobs are written
+    /// (`smile export --qat-steps`; none: the trained weights quantized as they are). The float
+    /// column and the f32 blob stay the policy as trained.
+    #[serde(default)]
+    pub qat_steps: Option<usize>,
 }
 
 impl DeployManifest {
@@ -101,6 +106,9 @@ pub struct Row {
     pub physics: sim::Physics,
     /// Method.
     pub method: String,
+    /// Adam steps of the quantization-aware fine-tune behind the int8 blobs, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub qat_steps: Option<usize>,
     /// Metric name.
     pub metric: String,
     /// Test tasks and episodes per task per column.
@@ -164,6 +172,30 @@ fn demos_at(dir: &Path, file: &Path) -> Result<DemoDataset> {
     trainer::run::read_demos(&path, &format!("{} ({MANIFEST_FILE})", path.display()))
 }
 
+/// `mp` fine-tuned through its int8 rounding when the manifest asks (`qat_steps`).
+fn fine_tuned(
+    mp: &MetaPolicy,
+    train: &DemoDataset,
+    manifest: &DeployManifest,
+    on: &mut dyn FnMut(String),
+) -> Result<Option<MetaPolicy>> {
+    let Some(steps) = manifest.qat_steps else {
+        return Ok(None);
+    };
+    let env = sim::EnvConfig {
+        horizon: manifest.horizon,
+        physics: mp.physics,
+        ..sim::EnvConfig::default()
+    };
+    let (tuned, r) = export::quantization_aware(mp, train, &export::QatConfig::new(steps, env))?;
+    on(format!(
+        "  quantization-aware fine-tune ({steps} steps): int8 actor's mean |action - float| \
+         {:.3e} -> {:.3e}",
+        r.action_mean_abs_diff_before, r.action_mean_abs_diff_after
+    ));
+    Ok(Some(tuned))
+}
+
 /// Measures the shipped policy in `dir`.
 pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> Result<Row> {
     let manifest = DeployManifest::read(dir)?;
@@ -192,6 +224,7 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
     };
     let float = host(&mut mp, "float")?;
     on(format!("{}: float {float:.4}", dir.display()));
+    let tuned = fine_tuned(&mp, &train, &manifest, on)?;
     // The deployed blob is the last: w8a8 with its first and last layers, and its context
     // encoder, in w8a32 (`smile export`'s defaults).
     use infer_core::Quant::{F32, W8A8, W8A32};
@@ -204,7 +237,11 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
             context: (edges != quant).then_some(edges),
             ..Default::default()
         };
-        let blob = export::export_blob_with(&mp, quant, Some(&train), None, &options)?;
+        let source = match (quant, &tuned) {
+            (W8A32 | W8A8, Some(tuned)) => tuned,
+            _ => &mp,
+        };
+        let blob = export::export_blob_with(source, quant, Some(&train), None, &options)?;
         bytes[i] = blob.len();
         let metric = {
             let model = export::load_blob(&blob)?;
@@ -243,6 +280,7 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         family,
         physics: mp.physics,
         method: manifest.method,
+        qat_steps: manifest.qat_steps,
         metric: eval::metric_name(family.metric_kind()).into(),
         tasks: family.test_tasks().len(),
         episodes_per_task: config.draws * config.rollouts,
@@ -399,7 +437,10 @@ pub fn markdown(rows: &[Row]) -> String {
             "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} x {} |\n",
             r.family,
             r.physics,
-            r.method,
+            match r.qat_steps {
+                Some(n) => format!("{} (int8 fine-tuned {n} steps)", r.method),
+                None => r.method.clone(),
+            },
             metric,
             r.float,
             pct(&r.blobs[0]),

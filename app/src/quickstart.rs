@@ -713,6 +713,7 @@ fn export_blob(
         quant: "w8a8".into(),
         edges,
         context,
+        qat_steps: None,
         algo: policy.algo.clone(),
         env: args.env,
         physics: policy.physics,

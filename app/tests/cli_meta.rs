@@ -211,6 +211,44 @@ fn train_eval_export_and_refuse_meta_test_data() {
     assert_eq!(rep["bytes"].as_u64().unwrap() as usize, bytes.len());
     assert_eq!(rep["parity"]["contexts"], 16);
     assert!(rep["metric_blob"].as_f64().unwrap().is_finite());
+    assert!(rep.get("qat_steps").is_none(), "{rep}");
+
+    // A quantization-aware fine-tune first (issue 59, step 4): another blob, the report says
+    // so and still measures the float policy as trained; an f32 blob has no rounding to learn.
+    let export_with = |extra: &[&str], out: &std::path::Path| {
+        let mut args = vec![
+            "export",
+            "--policy",
+            common::s(&run_s),
+            "--demos",
+            common::s(&train),
+        ];
+        args.extend_from_slice(&[
+            "--contexts",
+            common::s(&test),
+            "--rollouts",
+            "1",
+            "--horizon",
+            "20",
+        ]);
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", common::s(out)]);
+        smile(&args)
+    };
+    let tuned = dir.join("tuned.blob");
+    ok(&export_with(&["--qat-steps", "50"], &tuned));
+    let tuned_rep: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(dir.join("tuned.blob.json")).unwrap())
+            .unwrap();
+    assert_eq!(tuned_rep["qat_steps"], 50);
+    assert_eq!(tuned_rep["metric_candle"], rep["metric_candle"]);
+    assert_ne!(std::fs::read(&tuned).unwrap(), bytes);
+    let refused = export_with(&["--quant", "f32", "--qat-steps", "5"], &dir.join("f.blob"));
+    let e = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success() && e.contains("--qat-steps"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

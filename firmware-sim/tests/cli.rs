@@ -31,6 +31,7 @@ fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
         quant: "w8a8".into(),
         edges: None,
         context: None,
+        qat_steps: None,
         algo: "scripted-pd".into(),
         env: Family::PointGoal,
         physics: sim::Physics::Rapier,

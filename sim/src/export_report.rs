@@ -68,6 +68,11 @@ pub struct ExportReport {
     /// otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub context: Option<String>,
+    /// Adam steps of the quantization-aware fine-tune the blob's weights came from (`smile
+    /// export --qat-steps`); absent when the blob quantizes the trained weights as they are.
+    /// The float metric and the parity are then those of the policy before the fine-tune.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub qat_steps: Option<usize>,
     /// Algorithm of the exported policy.
     pub algo: String,
     /// The family, written by its name.

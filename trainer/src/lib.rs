@@ -76,6 +76,7 @@ pub use io::{checkpoint, onnx};
 pub mod export {
     pub use crate::eval::blob::*;
     pub use crate::io::export::*;
+    pub use crate::io::qat::*;
 }
 
 /// Serde for paths whose names need not be UTF-8 (`#[serde(with = "trainer::os_path")]`).

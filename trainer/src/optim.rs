@@ -120,6 +120,11 @@ impl Adam {
         }
     }
 
+    /// Sets the learning rate of the next steps (a schedule).
+    pub fn set_lr(&mut self, lr: f32) {
+        self.cfg.lr = lr;
+    }
+
     /// Number of steps taken.
     pub fn steps(&self) -> u64 {
         self.t

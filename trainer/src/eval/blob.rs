@@ -173,6 +173,7 @@ pub fn verify(
         quant: quant.into(),
         edges,
         context,
+        qat_steps: None,
         algo: mp.algo.clone(),
         env: family,
         physics: mp.physics,

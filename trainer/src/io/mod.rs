@@ -10,6 +10,7 @@ mod metrics;
 pub mod onnx;
 pub mod os_path;
 mod policy_file;
+pub mod qat;
 
 pub use config::{from_toml_over_defaults, set_key};
 pub(crate) use config::{require_horizon, require_positive};

@@ -49,6 +49,12 @@ pub struct ExportArgs {
     /// own].
     #[arg(long)]
     context_quant: Option<String>,
+    /// Fine-tune the actor through its int8 rounding for this many Adam steps before writing
+    /// an int8 blob (quantization-aware, straight-through; on the --demos states and one
+    /// closed-loop episode per meta-train task, so it needs --demos). The blob's float metric
+    /// and parity stay those of the policy as trained.
+    #[arg(long, value_parser = crate::positive)]
+    qat_steps: Option<usize>,
     /// Meta-train demos: calibration inputs, required for w8a8 (unused by f32 and w8a32).
     #[arg(long)]
     demos: Option<PathBuf>,
@@ -156,24 +162,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let quant_name = a.quant.as_deref().unwrap_or("w8a8");
     let quant = export::parse_quant(quant_name)?;
     let family = mp.family;
-    let demos = match &a.demos {
-        Some(path) => {
-            let demos = read_demos(path, "--demos", &mp)?;
-            if demos.split != Split::Train {
-                bail!(
-                    "--demos must be meta-train demos (calibration); {} is {}",
-                    path.display(),
-                    demos.split
-                );
-            }
-            Some(demos)
-        }
-        None if quant == infer_core::Quant::W8A8 => bail!(
-            "--quant w8a8 needs --demos (meta-train demos of {}) to calibrate its activation scales",
-            family
-        ),
-        None => None,
-    };
+    let demos = calibration_demos(&a, &mp, quant)?;
     let ctx = read_demos(&a.contexts, "--contexts", &mp)?;
     let closed_loop = (a.calibrate == Calibrate::ClosedLoop).then(|| {
         let env = sim::EnvConfig {
@@ -195,7 +184,21 @@ pub fn run(a: ExportArgs) -> Result<()> {
             None => export::default_context(quant),
         },
     };
-    let blob = export::export_blob_with(&mp, quant, demos.as_ref(), closed_loop, &options)?;
+    let tuned = match (a.qat_steps, &demos) {
+        (None, _) => None,
+        (Some(_), _) if quant == infer_core::Quant::F32 => {
+            bail!("--qat-steps fine-tunes for an int8 blob; --quant f32 has no rounding to learn")
+        }
+        (Some(_), None) => bail!("--qat-steps needs --demos (meta-train demos: its states)"),
+        (Some(steps), Some(demos)) => Some(fine_tune(&mp, demos, steps, a.horizon)?),
+    };
+    let blob = export::export_blob_with(
+        tuned.as_ref().unwrap_or(&mp),
+        quant,
+        demos.as_ref(),
+        closed_loop,
+        &options,
+    )?;
     if let Some(dir) = a.out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -205,7 +208,8 @@ pub fn run(a: ExportArgs) -> Result<()> {
     }
     protocol.horizon = a.horizon;
     protocol.physics = mp.physics;
-    let report = export::verify(&mp, &blob, quant_name, &ctx, &protocol)?;
+    let mut report = export::verify(&mp, &blob, quant_name, &ctx, &protocol)?;
+    report.qat_steps = a.qat_steps;
     let p = &report.parity;
     eprintln!(
         "parity on {} held-out contexts, {} actions: action max |diff| {:.3e}, mean {:.3e}; z max |diff| {:.3e}; mean with the float z {:.3e}",
@@ -243,6 +247,53 @@ pub fn run(a: ExportArgs) -> Result<()> {
         json.display()
     );
     Ok(())
+}
+
+/// `--demos` for a blob: meta-train demos, required by w8a8.
+fn calibration_demos(
+    a: &ExportArgs,
+    mp: &MetaPolicy,
+    quant: infer_core::Quant,
+) -> Result<Option<DemoDataset>> {
+    Ok(match &a.demos {
+        Some(path) => {
+            let demos = read_demos(path, "--demos", mp)?;
+            if demos.split != Split::Train {
+                bail!(
+                    "--demos must be meta-train demos (calibration); {} is {}",
+                    path.display(),
+                    demos.split
+                );
+            }
+            Some(demos)
+        }
+        None if quant == infer_core::Quant::W8A8 => bail!(
+            "--quant w8a8 needs --demos (meta-train demos of {}) to calibrate its activation scales",
+            mp.family
+        ),
+        None => None,
+    })
+}
+
+/// `--qat-steps`: the policy fine-tuned through its int8 rounding, with what it bought.
+fn fine_tune(
+    mp: &MetaPolicy,
+    demos: &DemoDataset,
+    steps: usize,
+    horizon: Option<usize>,
+) -> Result<MetaPolicy> {
+    let env = sim::EnvConfig {
+        horizon,
+        physics: mp.physics,
+        ..sim::EnvConfig::default()
+    };
+    let (tuned, r) = export::quantization_aware(mp, demos, &export::QatConfig::new(steps, env))?;
+    eprintln!(
+        "quantization-aware fine-tune, {} Adam steps on {} states: int8 actor's mean |action \
+         - float action| {:.3e} -> {:.3e}",
+        r.steps, r.states, r.action_mean_abs_diff_before, r.action_mean_abs_diff_after
+    );
+    Ok(tuned)
 }
 
 /// Replaces a previous export by the verified `blob` and its `report`, so that no instant
