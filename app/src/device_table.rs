@@ -166,10 +166,15 @@ fn cell(family: Family, float: f32, metric: f32) -> Cell {
     }
 }
 
-/// Reads a demo file named in `manifest` (relative to its directory).
-fn demos_at(dir: &Path, file: &Path) -> Result<DemoDataset> {
+/// Reads the demo file given as `input` in the manifest (relative to its directory).
+fn demos_at(dir: &Path, file: &Path, input: trainer::Input) -> Result<DemoDataset> {
     let path = dir.join(file);
-    trainer::run::read_demos(&path, &format!("{} ({MANIFEST_FILE})", path.display()))
+    trainer::run::read_demos(&path, input).map_err(|e| {
+        Error::Data(format!(
+            "{e} (named in {})",
+            dir.join(MANIFEST_FILE).display()
+        ))
+    })
 }
 
 /// `mp` fine-tuned through its int8 rounding when the manifest asks (`qat_steps`).
@@ -202,8 +207,8 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
     let mut mp = MetaPolicy::load(dir)?;
     MetaPolicy::ensure_finished(dir, false)?;
     let family = mp.family;
-    let train = demos_at(dir, &manifest.demos)?;
-    let test = demos_at(dir, &manifest.contexts)?;
+    let train = demos_at(dir, &manifest.demos, trainer::Input::Demos)?;
+    let test = demos_at(dir, &manifest.contexts, trainer::Input::Contexts)?;
     let mut protocol = Protocol::for_family(family);
     protocol.context_sizes = vec![1];
     protocol.draws = config.draws;

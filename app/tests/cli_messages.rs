@@ -53,16 +53,19 @@ fn tiny_run(dir: &Path, quiet: bool, env: &[(&str, &str)]) -> (PathBuf, PathBuf,
 fn errors_are_one_line_that_says_what_to_do() {
     let dir = tmp("errors");
     let missing = dir.join("missing.safetensors");
-    // A missing file: the flag, the file and the OS error once.
+    // A missing file: the input, the file, the OS error once and the flag.
     let line = one_line_error(&smile_env(
         &["train", "--demos", s(&missing), "-o", s(&dir.join("r"))],
         &[],
     ));
-    assert!(line.contains(&format!("--demos {}", s(&missing))), "{line}");
+    assert!(
+        line.contains(&format!("the demos {}", s(&missing))) && line.ends_with("(--demos)"),
+        "{line}"
+    );
     assert_eq!(line.matches("No such file").count(), 1, "{line}");
     assert_eq!(line.matches(s(&missing)).count(), 1, "{line}");
 
-    // Demos of another family than --env: the file, the flag, the --env.
+    // Demos of another family than --env: the file, the family that fits, the flag.
     let cheetah = dir.join("cheetah-test.safetensors");
     cheetah_test_demos(&cheetah);
     let line = one_line_error(&smile_env(
@@ -78,8 +81,9 @@ fn errors_are_one_line_that_says_what_to_do() {
         &[],
     ));
     assert!(
-        line.contains(&format!("--demos {} holds cheetah-vel demos", s(&cheetah)))
-            && line.contains("pass --env cheetah-vel"),
+        line.contains(&format!("the demos {} hold cheetah-vel demos", s(&cheetah)))
+            && line.contains("choose the family cheetah-vel")
+            && line.ends_with("(--env)"),
         "{line}"
     );
     assert!(!dir.join("r").exists());
@@ -109,7 +113,8 @@ fn errors_are_one_line_that_says_what_to_do() {
         &[],
     ));
     assert!(
-        line.contains("was trained on point-goal") && line.contains("pass --env point-goal"),
+        line.contains("was trained on point-goal")
+            && line.contains("evaluate it on point-goal (--env)"),
         "{line}"
     );
 

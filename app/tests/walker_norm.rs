@@ -278,7 +278,7 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
     let ev = dir.join("bad");
     fails_with(
         &eval(&ev, &["--base", &s(&general), "--expert", &s(&general)]),
-        "--nominal",
+        "expert on the nominal task (--base)",
     );
     fails_with(&eval(&ev, &["--base", &s(&base)]), "--expert");
     fails_with(

@@ -197,14 +197,14 @@ fn compare_runs_the_reports_tasks_on_the_device() {
     std::fs::write(&reference, "{\"bytes\": 3}").unwrap();
     let err = fails(&firmware_sim(&args));
     assert!(
-        err.contains("is not a `smile export` report: missing field"),
+        err.contains("is not an export report: missing field"),
         "{err}"
     );
     let without_metric = export_report(&[(0.1, 0.5)], "").replace("\"metric\": 0.5,", "");
     std::fs::write(&reference, without_metric).unwrap();
     let err = fails(&firmware_sim(&args));
     assert!(
-        err.contains("is not a `smile export` report: missing field `metric`"),
+        err.contains("is not an export report: missing field `metric`"),
         "{err}"
     );
     let missing = dir.join("none.json");

@@ -112,7 +112,7 @@ pub enum ReportError {
         source: std::io::Error,
     },
     /// The file is not an export report (what is wrong or missing is in `reason`).
-    #[error("{} is not a `smile export` report: {reason}", path.display())]
+    #[error("{} is not an export report: {reason}", path.display())]
     Parse {
         /// The report.
         path: PathBuf,

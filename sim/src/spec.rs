@@ -175,7 +175,7 @@ pub(crate) const POINT_GOAL_SPEC: FamilySpec = FamilySpec {
         if config.physics != Physics::Rapier {
             return Err(SimError::PhysicsUnavailable {
                 physics: config.physics,
-                how: "point-goal is a Rapier point mass with no MuJoCo model; use --physics rapier"
+                how: "point-goal is a Rapier point mass with no MuJoCo model; run it on Rapier"
                     .into(),
             });
         }

@@ -84,7 +84,7 @@ fn point_goal_has_no_mujoco_robot_and_says_so() {
             ..
         }
     ));
-    assert!(err.to_string().contains("--physics rapier"), "{err}");
+    assert!(err.to_string().contains("run it on Rapier"), "{err}");
 }
 
 #[test]

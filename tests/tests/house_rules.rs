@@ -7,6 +7,11 @@
 //! * **Functions read at once**: no function over 100 lines outside tests, unless the comments
 //!   right above or below its `fn` line say why ("over 100 lines" or "long").
 //!
+//! * **A library names no flag**: trainer's and sim's messages name an input in words
+//!   (`trainer::Error::Input` says which), and the app adds the flag that gives it; no
+//!   `--flag` and no `smile` command line in their non-test code outside comments (cargo's
+//!   flags in a `cargo` build instruction aside).
+//!
 //! Test code is left out: `tests/` and `benches/` folders, files named `tests.rs`, and
 //! everything after a file's `#[cfg(test)]` line (the house keeps unit tests at a file's end).
 
@@ -246,8 +251,60 @@ fn no_function_over_100_lines_without_a_reason() {
     );
 }
 
+/// The `--flag`s and `` `smile `` command lines a line names outside a comment.
+fn flags_in(line: &str) -> Vec<String> {
+    let t = line.trim_start();
+    // A build instruction names cargo's flags, not the app's.
+    if t.starts_with("//") || line.contains("cargo ") {
+        return Vec::new();
+    }
+    let mut found = Vec::new();
+    for (i, _) in line.match_indices("--") {
+        let word: String = line[i + 2..]
+            .chars()
+            .take_while(|c| c.is_ascii_lowercase() || *c == '-')
+            .collect();
+        if word.starts_with(|c: char| c.is_ascii_lowercase()) {
+            found.push(format!("--{word}"));
+        }
+    }
+    if line.contains("`smile ") {
+        found.push("`smile ...`".into());
+    }
+    found
+}
+
+#[test]
+fn the_libraries_name_no_flag() {
+    let mut named = Vec::new();
+    for krate in ["trainer", "sim"] {
+        let mut files = Vec::new();
+        sources(&root().join(krate).join("src"), &mut files);
+        for file in &files {
+            for (n, line) in non_test_lines(file).iter().enumerate() {
+                for flag in flags_in(line) {
+                    named.push(format!("{}:{} {flag}", file.display(), n + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        named.is_empty(),
+        "library messages name command-line flags (say the input in words and let the app \
+         add the flag: trainer::Error::Input):\n{}",
+        named.join("\n")
+    );
+}
+
 #[test]
 fn the_checks_see_what_they_look_for() {
+    assert_eq!(flags_in(r#"  "pass --env {} or", x"#), ["--env"]);
+    assert_eq!(flags_in("    /// the --demos file"), Vec::<String>::new());
+    assert_eq!(
+        flags_in("`cargo build --features mujoco`"),
+        Vec::<String>::new()
+    );
+    assert_eq!(flags_in("|---|---|"), Vec::<String>::new());
     // A check that finds nothing because it reads nothing would pass forever.
     let names = reexports(&root().join("sim/src/lib.rs"));
     assert!(

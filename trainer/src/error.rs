@@ -16,6 +16,17 @@ pub enum Error {
     /// not fit the family); the message says what to pass instead.
     #[error("{0}")]
     Usage(String),
+    /// An input the caller gave cannot serve what was asked. `problem` says why and what
+    /// would, in words ("the demos ... hold cheetah-vel demos, but the family is point-goal");
+    /// `input` says which input, and an application adds how its user gives it (`smile`: the
+    /// flag). The library names no flag.
+    #[error("{problem}")]
+    Input {
+        /// The input at fault.
+        input: Input,
+        /// What is wrong with it, and what would do.
+        problem: String,
+    },
     /// The input data do not fit what was asked: demos, contexts, experts or reference returns
     /// that are missing, empty, of another split or family, or inconsistent with each other.
     #[error("{0}")]
@@ -36,7 +47,7 @@ pub enum Error {
     /// observations mean other things there.
     #[error(
         "{what} was made on the {found} plant, this run simulates {expected}: give one made \
-         on {expected}, or run with --physics {found}"
+         on {expected}, or run on the {found} plant"
     )]
     WrongPhysics {
         /// The input, named for a person (a path, "the demos").
@@ -126,8 +137,9 @@ pub enum Error {
     /// A policy comes from a training run that did not finish (killed, or still running).
     #[error(
         "{} is from an unfinished run (stopped at update {updates} of {total}: killed, or still \
-         training); finish it with `{resume}`",
-        path.display()
+         training); finish it by resuming its run {}",
+        path.display(),
+        run.display()
     )]
     Unfinished {
         /// The policy file.
@@ -136,8 +148,8 @@ pub enum Error {
         updates: u64,
         /// The run's budget.
         total: u64,
-        /// The command that finishes the run.
-        resume: String,
+        /// The run directory that finishes it when resumed.
+        run: PathBuf,
     },
     /// Another process is writing the directory.
     #[error(
@@ -208,7 +220,66 @@ pub enum Error {
     },
 }
 
+/// The inputs an [`Error::Input`] names: what a caller gives the library's runs, evaluations
+/// and exports. Each is one option of an application (`smile` renders each as its flag).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[non_exhaustive]
+pub enum Input {
+    /// The demos a run learns from (or a blob is calibrated on).
+    Demos,
+    /// The held-out demos an evaluation or an export conditions on.
+    Contexts,
+    /// The split an evaluation runs on.
+    Split,
+    /// Evaluating on the contexts' own tasks rather than a split's.
+    ContextsTasks,
+    /// The family.
+    Family,
+    /// The algorithm.
+    Algo,
+    /// The expert (a run, a policy file, or a folder of per-task ones).
+    Expert,
+    /// The base policy of the normalised metric.
+    Base,
+    /// The checkpoint an expert starts from.
+    InitFrom,
+    /// Running episodes through falls (the walker authors' evaluation).
+    WalkerProtocol,
+    /// Where the output goes.
+    Output,
+    /// Continuing a run rather than starting one.
+    Resume,
+}
+
+impl Input {
+    /// The input named for a person, as the library's messages name it ("the demos").
+    pub fn noun(self) -> &'static str {
+        match self {
+            Input::Demos => "the demos",
+            Input::Contexts => "the contexts",
+            Input::Split => "the split",
+            Input::ContextsTasks => "the contexts' own tasks",
+            Input::Family => "the family",
+            Input::Algo => "the algorithm",
+            Input::Expert => "the expert",
+            Input::Base => "the base",
+            Input::InitFrom => "the starting checkpoint",
+            Input::WalkerProtocol => "the walker authors' protocol",
+            Input::Output => "the output",
+            Input::Resume => "resuming",
+        }
+    }
+}
+
 impl Error {
+    /// An [`Error::Input`].
+    pub fn input(input: Input, problem: impl Into<String>) -> Self {
+        Error::Input {
+            input,
+            problem: problem.into(),
+        }
+    }
+
     /// The one plant check: an input made on the `found` plant serves a run on `expected` only
     /// when they are the same (its observations mean other things on another plant); `what`
     /// names the input for a person.

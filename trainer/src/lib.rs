@@ -47,7 +47,7 @@ pub mod threads;
 pub use algo::{Algo, MetaLearner, Overrides, Progress, WithLearner, expert, meta_bc, sac, smile};
 
 /// Errors and the result alias.
-pub use error::{Error, Result};
+pub use error::{Error, Input, Result};
 
 /// Networks: MLPs, the SAC policy, the context encoder, the discriminator, the meta-policy.
 pub use model::{

@@ -18,7 +18,7 @@ use crate::algo::expert::{Expert, ExpertSet};
 use crate::algo::learner::WithLearner;
 use crate::algo::{Algo, MetaLearner, Overrides, Progress};
 use crate::data::MetaData;
-use crate::error::{Error, Result};
+use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
 
 mod expert;
@@ -218,52 +218,62 @@ pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
     }
     let algo = RunInfo::read(&req.out)?.algo(&req.out)?;
     if let Some(given) = req.algo.filter(|g| *g != algo) {
-        return Err(Error::Usage(format!(
-            "{} is a {} run; --algo {} does not match (drop --algo to resume it)",
-            req.out.display(),
-            algo.name(),
-            given.name()
-        )));
+        return Err(Error::input(
+            Input::Algo,
+            format!(
+                "{} is a {} run, not {}: resume it without naming the algorithm",
+                req.out.display(),
+                algo.name(),
+                given.name()
+            ),
+        ));
     }
     Ok(algo)
 }
 
-/// Reads a demo file of any family; errors name `flag` and the path.
-pub fn read_demos(path: &Path, flag: &str) -> Result<DemoDataset> {
+/// Reads the demo file given as `input` (any family); errors are [`Error::Input`]s naming it
+/// and the path.
+pub fn read_demos(path: &Path, input: Input) -> Result<DemoDataset> {
+    let at = |e: &dyn std::fmt::Display| {
+        Error::input(input, format!("{} {}: {e}", input.noun(), path.display()))
+    };
     DemoDataset::read(path).map_err(|e| match e {
         // Its message names the path already.
-        sim::DatasetError::Io { source, .. } => {
-            Error::Usage(format!("{flag} {}: {source}", path.display()))
-        }
-        e => Error::Usage(format!("{flag} {}: {e}", path.display())),
+        sim::DatasetError::Io { source, .. } => at(&source),
+        e => at(&e),
     })
 }
 
-/// Reads the demo file given with `flag`, checking it holds demos of `family` (`--env`): a
-/// mismatch names the file, the flag and the `--env` that fits it.
-pub fn read_demos_of(path: &Path, flag: &str, family: Family) -> Result<DemoDataset> {
-    let demos = read_demos(path, flag)?;
+/// Reads the demo file given as `input`, checking it holds demos of `family`: a mismatch names
+/// the file and the family that fits it (an [`Input::Family`] error: choosing the family is
+/// the first remedy).
+pub fn read_demos_of(path: &Path, input: Input, family: Family) -> Result<DemoDataset> {
+    let demos = read_demos(path, input)?;
     if demos.family != family {
-        return Err(Error::Usage(format!(
-            "{flag} {} holds {} demos but --env is {family}; pass --env {} or a file of {family} \
-             demos",
-            path.display(),
-            demos.family,
-            demos.family
-        )));
+        return Err(Error::input(
+            Input::Family,
+            format!(
+                "{} {} hold {} demos, but the family is {family}; choose the family {} or a \
+                 file of {family} demos",
+                input.noun(),
+                path.display(),
+                demos.family,
+                demos.family
+            ),
+        ));
     }
     demos
         .ensure_family(family)
-        .map_err(|e| Error::Usage(format!("{flag} {}: {e}", path.display())))?;
+        .map_err(|e| Error::input(input, format!("{} {}: {e}", input.noun(), path.display())))?;
     Ok(demos)
 }
 
 /// Starts or resumes the run `req` describes and trains it to its budget or stopping rule.
 pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     let (family, ds) = match req.family {
-        Some(family) => (family, read_demos_of(&req.demos, "--demos", family)?),
+        Some(family) => (family, read_demos_of(&req.demos, Input::Demos, family)?),
         None => {
-            let ds = read_demos(&req.demos, "--demos")?;
+            let ds = read_demos(&req.demos, Input::Demos)?;
             (ds.family, ds)
         }
     };
@@ -276,12 +286,15 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     if restart {
         let cfg = req.out.join("config.toml");
         if !cfg.exists() {
-            return Err(Error::Usage(format!(
-                "{} holds no checkpoint and no config.toml: its run was interrupted before it \
-                 recorded its configuration, so there is nothing to resume; start it again \
-                 without --resume (its partial files are replaced)",
-                req.out.display()
-            )));
+            return Err(Error::input(
+                Input::Resume,
+                format!(
+                    "{} holds no checkpoint and no config.toml: its run was interrupted before \
+                     it recorded its configuration, so there is nothing to resume; start it \
+                     again instead (its partial files are replaced)",
+                    req.out.display()
+                ),
+            ));
         }
         on(RunEvent::Note(format!(
             "{} has no checkpoint yet (its run was interrupted before the first one): starting \
@@ -294,19 +307,23 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         let rec = RunInfo::read(&req.out)?;
         match &rec.demos_sha256 {
             Some(sha) if *sha != demos_sha => {
-                return Err(Error::Usage(format!(
-                    "--demos {} is not the file {} was trained on (SHA-256 {} here, {} recorded \
-                     in {RUN_FILE}); resume with the run's own demos, or start a new run on these",
-                    req.demos.display(),
-                    req.out.display(),
-                    &demos_sha[..12],
-                    &sha[..sha.len().min(12)]
-                )));
+                return Err(Error::input(
+                    Input::Demos,
+                    format!(
+                        "the demos {} are not the file {} was trained on (SHA-256 {} here, {} \
+                         recorded in {RUN_FILE}); resume with the run's own demos, or start a \
+                         new run on these",
+                        req.demos.display(),
+                        req.out.display(),
+                        &demos_sha[..12],
+                        &sha[..sha.len().min(12)]
+                    ),
+                ));
             }
             Some(_) => {}
             None => on(RunEvent::Note(format!(
                 "warning: {} records no demo checksum (a run older than that check); make sure \
-                 --demos is the file it started on",
+                 the demos are the file it started on",
                 req.out.join(RUN_FILE).display()
             ))),
         }
@@ -401,11 +418,14 @@ impl Run<'_> {
         let (algo, family) = (self.algo, self.family);
         if !algo.needs_expert() {
             if let Some(p) = &self.expert {
-                return Err(Error::Usage(format!(
-                    "--expert {} is Meta-DAgger's relabelling expert; {algo} learns from the \
-                     demos alone (drop --expert, or train --algo meta-dagger)",
-                    p.display()
-                )));
+                return Err(Error::input(
+                    Input::Expert,
+                    format!(
+                        "the expert {} would relabel Meta-DAgger's rollouts; {algo} learns \
+                         from the demos alone (drop the expert, or train meta-dagger)",
+                        p.display()
+                    ),
+                ));
             }
             return Ok(None);
         }
@@ -427,9 +447,10 @@ impl Run<'_> {
                 let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
                 Ok(Some(pd.into()))
             }
-            _ => Err(Error::Usage(format!(
-                "{algo} on {family} needs --expert (a `smile expert` run)"
-            ))),
+            _ => Err(Error::input(
+                Input::Expert,
+                format!("{algo} on {family} needs an expert to relabel with (an expert run)"),
+            )),
         }
     }
 
@@ -483,8 +504,13 @@ impl Run<'_> {
         let req = self.req;
         let cfg = self.config::<L>()?;
         let expert = self.relabelling_expert(on)?;
-        let data = MetaData::from_dataset(self.ds, self.family, L::holdout_every(&cfg))
-            .map_err(|e| Error::Usage(format!("--demos {}: {e}", req.demos.display())))?;
+        let data =
+            MetaData::from_dataset(self.ds, self.family, L::holdout_every(&cfg)).map_err(|e| {
+                Error::input(
+                    Input::Demos,
+                    format!("the demos {}: {e}", req.demos.display()),
+                )
+            })?;
         let (train_tasks, held_out) = (data.train.len(), data.val.len());
         let mut run = if self.resumes() {
             let run = L::resume_from(&req.out, data, expert, &cfg)?;

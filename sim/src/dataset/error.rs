@@ -90,7 +90,7 @@ pub enum DatasetError {
     /// The demos were recorded on another physics backend than the run's.
     #[error(
         "the demo file was recorded on the {found} plant, this run simulates {expected}: record \
-         demos on it (`smile demos --physics {expected}`) or run on {found} (`--physics {found}`)"
+         demos on {expected}, or run on {found}"
     )]
     PhysicsMismatch {
         /// The run's plant.

@@ -217,7 +217,7 @@ fn warm_start_source(dir: &Path, cfg: &ExpertConfig) -> Result<checkpoint::Loade
     };
     if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-run") {
         return Err(foreign(
-            "--init-from needs an expert training checkpoint (`smile expert -o DIR`)".into(),
+            "the starting checkpoint must be an expert training run's checkpoint".into(),
         ));
     }
     let source: ExpertConfig = ck.meta_field("config")?;

@@ -296,8 +296,9 @@ impl MetaBc {
     /// Meta-DAgger: `n` deterministic rollouts relabelled by the expert.
     pub fn dagger_rollouts(&mut self, n: usize) -> Result<()> {
         let Some(expert) = self.expert.clone() else {
-            return Err(Error::Usage(
-                "meta-dagger needs an expert (--expert RUN, a `smile expert` run)".into(),
+            return Err(Error::input(
+                crate::error::Input::Expert,
+                "meta-dagger relabels its rollouts with an expert (an expert run); none was given",
             ));
         };
         let mp = self.meta_policy();

@@ -39,10 +39,13 @@ impl References {
     /// base not trained on the unmodified dynamics.
     pub fn load(family: Family, base: &Path, experts: &[impl AsRef<Path>]) -> Result<Self> {
         let Some(nominal) = family.spec().nominal_task else {
-            return Err(Error::Data(format!(
-                "the normalised metric (--base, --expert) is defined for walker-dyn only, not \
-                 {family}"
-            )));
+            return Err(Error::input(
+                crate::error::Input::Base,
+                format!(
+                    "the normalised metric (a base and experts) is defined for walker-dyn only, \
+                     not {family}"
+                ),
+            ));
         };
         let wrong_family = |path: &Path, found: Family| Error::WrongFamily {
             what: format!("the policy {}", path.display()),
@@ -57,11 +60,14 @@ impl References {
             Some(v) if nominal.is_named_by(v) => {}
             trained => {
                 let on = trained.map_or("all meta-train tasks".into(), |v| format!("task {v}"));
-                return Err(Error::Data(format!(
-                    "the base {} was trained on {on}, not the unmodified dynamics; train it \
-                     with `smile expert --env {family} --nominal`",
-                    base.display()
-                )));
+                return Err(Error::input(
+                    crate::error::Input::Base,
+                    format!(
+                        "the base {} was trained on {on}, not the unmodified dynamics; train a \
+                         {family} expert on the nominal task",
+                        base.display()
+                    ),
+                ));
             }
         }
         let set = ExpertSet::load(experts)?;
@@ -196,7 +202,9 @@ mod tests {
         let refs = References::load(Family::WalkerDyn, &base, &[&general]).unwrap();
         assert!(refs.base_name.contains("base") && refs.expert_name.contains("general"));
         let config_err = |r: Result<References>, needle: &str| match r {
-            Err(Error::Data(m)) => assert!(m.contains(needle), "{m}"),
+            Err(Error::Data(m) | Error::Input { problem: m, .. }) => {
+                assert!(m.contains(needle), "{m}")
+            }
             other => panic!("expected a data error with {needle:?}, got {other:?}"),
         };
         // Only walker-dyn has the metric.
@@ -207,7 +215,7 @@ mod tests {
         // A base trained on all train tasks, or on a test task, is not the base.
         config_err(
             References::load(Family::WalkerDyn, &general, &[&general]),
-            "--nominal",
+            "nominal task",
         );
         let seeded = d.join("seeded");
         walker_policy(&seeded, Some(sim::WALKER_TEST_SEED_BASE as f64));
@@ -257,7 +265,8 @@ mod tests {
         let protocol = Protocol::for_family(Family::WalkerDyn);
         assert!(matches!(
             only_one.returns(Split::Test, &protocol, &mut |_, _| {}),
-            Err(Error::Data(m)) if m.contains("no expert for task")
+            Err(Error::Input { input: crate::error::Input::Expert, problem })
+                if problem.contains("no expert for task")
         ));
         std::fs::remove_dir_all(&d).ok();
     }

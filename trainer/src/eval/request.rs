@@ -9,7 +9,7 @@ use sim::{Family, Split, Task};
 
 use super::norm::References;
 use super::{EvalReport, MethodResult, Protocol, ReferenceReturns};
-use crate::error::{Error, Result};
+use crate::error::{Error, Input, Result};
 use crate::model::MetaPolicy;
 
 /// What to evaluate, where, and the protocol's overrides.
@@ -100,7 +100,7 @@ pub enum EvalEvent {
 /// checked before any rollout, so a wrong policy, context file, base or expert fails fast.
 pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<EvalReport> {
     let family = req.family;
-    let ctx = crate::run::read_demos_of(&req.contexts, "--contexts", family)?;
+    let ctx = crate::run::read_demos_of(&req.contexts, Input::Contexts, family)?;
     check_contexts(req, &ctx)?;
     let mut protocol = protocol_of(req, on)?;
     let policies = load_policies(req, on)?;
@@ -108,15 +108,19 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
     if let Some((_, mp)) = policies.first() {
         protocol.physics = mp.physics;
     }
-    let in_contexts =
-        |e: Error| Error::Usage(format!("--contexts {}: {e}", req.contexts.display()));
+    let in_contexts = |e: &dyn std::fmt::Display| {
+        Error::input(
+            Input::Contexts,
+            format!("the contexts {}: {e}", req.contexts.display()),
+        )
+    };
     ctx.ensure_physics(protocol.physics)
-        .map_err(|e| Error::Usage(format!("--contexts {}: {e}", req.contexts.display())))?;
+        .map_err(|e| in_contexts(&e))?;
     let tasks = match req.contexts_tasks {
         true => ctx.tasks.iter().map(|t| t.task).collect(),
         false => family.tasks(req.split),
     };
-    super::contexts_for(&ctx, family, &tasks).map_err(in_contexts)?;
+    super::contexts_for(&ctx, family, &tasks).map_err(|e| in_contexts(&e))?;
     let references = match &req.base {
         Some(base) => Some(References::load(family, base, &req.experts)?),
         None => None,
@@ -161,21 +165,25 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
 /// the contexts' own tasks with a base (which normalises over a split's tasks).
 fn check_contexts(req: &EvalRequest, ctx: &sim::DemoDataset) -> Result<()> {
     if req.contexts_tasks && req.base.is_some() {
-        return Err(Error::Usage(
-            "--base normalises over a split's tasks; the contexts' own tasks have no base and \
-             expert returns (drop --base or --contexts-tasks)"
-                .into(),
+        return Err(Error::input(
+            Input::Base,
+            "the base normalises over a split's tasks; the contexts' own tasks have no base and \
+             expert returns (drop the base, or evaluate on a split)",
         ));
     }
     if !req.contexts_tasks && ctx.split != req.split {
-        return Err(Error::Usage(format!(
-            "--contexts {} holds {} demos but --split is {}; pass --split {} or the {} demos",
-            req.contexts.display(),
-            ctx.split,
-            req.split,
-            ctx.split,
-            req.split
-        )));
+        return Err(Error::input(
+            Input::Split,
+            format!(
+                "the contexts {} hold {} demos, but the split is {}; evaluate the {} split or give \
+             the {} demos",
+                req.contexts.display(),
+                ctx.split,
+                req.split,
+                ctx.split,
+                req.split
+            ),
+        ));
     }
     Ok(())
 }
@@ -194,10 +202,13 @@ fn protocol_of(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<Proto
     protocol.action_noise = req.action_noise;
     if req.run_through_falls {
         if !family.spec().eval.falls_end_episodes {
-            return Err(Error::Usage(format!(
-                "--walker-protocol authors runs episodes through falls (walker-dyn's authors' \
-                 evaluation); {family}'s episodes have no falls to run through"
-            )));
+            return Err(Error::input(
+                Input::WalkerProtocol,
+                format!(
+                    "the walker authors' protocol runs episodes through falls; {family}'s \
+                     episodes have no falls to run through"
+                ),
+            ));
         }
         protocol.run_through_falls = true;
         on(EvalEvent::Note(format!(
@@ -223,12 +234,15 @@ fn load_policies<'r>(
             on(EvalEvent::Note(warning));
         }
         if mp.family != family {
-            return Err(Error::Usage(format!(
-                "{} was trained on {}, not {family} (--env); pass --env {}",
-                p.display(),
-                mp.family,
-                mp.family
-            )));
+            return Err(Error::input(
+                Input::Family,
+                format!(
+                    "{} was trained on {}, not {family}; evaluate it on {}",
+                    p.display(),
+                    mp.family,
+                    mp.family
+                ),
+            ));
         }
         policies.push((p, mp));
     }

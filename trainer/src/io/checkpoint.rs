@@ -53,19 +53,20 @@ const INTERRUPTED_RUN_FILES: [&str; 8] = [
 ];
 
 /// Refuses to start a *fresh* run in `dir` when it already holds one: starting over would
-/// overwrite its checkpoint and trained policy. Continue it with `--resume`, or choose another
+/// overwrite its checkpoint and trained policy. Continue it by resuming, or choose another
 /// directory. A directory left by a run interrupted before its first checkpoint passes: there
 /// is nothing to continue, and [`clear_interrupted_run`] clears it once the new run holds the
 /// directory's lock.
 pub fn ensure_fresh_run_dir(dir: &Path) -> Result<()> {
     let refuse = |what: &str| {
-        Err(Error::Checkpoint {
-            path: dir.to_path_buf(),
-            reason: format!(
-                "already holds a run ({what}); pass --resume to continue it, or choose another \
-                 output directory (nothing was overwritten)"
+        Err(Error::input(
+            crate::error::Input::Resume,
+            format!(
+                "{} already holds a run ({what}); resume it to continue it, or choose another \
+                 output directory (nothing was overwritten)",
+                dir.display()
             ),
-        })
+        ))
     };
     if let Some(m) = RUN_MARKERS.iter().find(|m| dir.join(m).exists()) {
         return refuse(m);

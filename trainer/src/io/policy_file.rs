@@ -82,12 +82,10 @@ impl MetaPolicy {
             path: file.clone(),
             updates: mark.updates,
             total: mark.total_updates,
-            resume: format!("smile train --resume -o {} --demos DEMOS", dir.display()),
+            run: dir.to_path_buf(),
         };
         if allow {
-            Ok(Some(format!(
-                "warning: {err} (used anyway: --allow-unfinished)"
-            )))
+            Ok(Some(format!("warning: {err} (used anyway, as asked)")))
         } else {
             Err(err)
         }

@@ -6,9 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
 use sim::{DemoDataset, Split};
-use trainer::MetaPolicy;
 use trainer::eval::Protocol;
 use trainer::export;
+use trainer::{Input, MetaPolicy};
 
 /// Arguments of `smile export`.
 #[derive(Args, Debug)]
@@ -81,10 +81,10 @@ enum Format {
     Onnx,
 }
 
-/// Reads a demo file given with `flag` and checks that it fits the policy (one-line errors).
-fn read_demos(path: &Path, flag: &str, mp: &MetaPolicy) -> Result<DemoDataset> {
-    let demos = trainer::run::read_demos(path, flag)?;
-    export::check_demos_fit(mp, &demos, &format!("{flag} {}", path.display()))?;
+/// Reads the demo file given as `input` and checks that it fits the policy (one-line errors).
+fn read_demos(path: &Path, input: Input, mp: &MetaPolicy) -> Result<DemoDataset> {
+    let demos = trainer::run::read_demos(path, input)?;
+    export::check_demos_fit(mp, &demos, &format!("{} {}", input.noun(), path.display()))?;
     Ok(demos)
 }
 
@@ -121,9 +121,9 @@ fn run_onnx(a: &ExportArgs, mp: &MetaPolicy) -> Result<()> {
         );
     }
     if let Some(path) = &a.demos {
-        read_demos(path, "--demos", mp)?;
+        read_demos(path, Input::Demos, mp)?;
     }
-    let ctx = read_demos(&a.contexts, "--contexts", mp)?;
+    let ctx = read_demos(&a.contexts, Input::Contexts, mp)?;
     let ex = trainer::onnx::export(mp)?;
     let reference = trainer::onnx::reference(mp, &ctx)?;
     let source = a.contexts.display().to_string();
@@ -163,7 +163,7 @@ pub fn run(a: ExportArgs) -> Result<()> {
     let quant = export::parse_quant(quant_name)?;
     let family = mp.family;
     let demos = calibration_demos(&a, &mp, quant)?;
-    let ctx = read_demos(&a.contexts, "--contexts", &mp)?;
+    let ctx = read_demos(&a.contexts, Input::Contexts, &mp)?;
     let closed_loop = (a.calibrate == Calibrate::ClosedLoop).then(|| {
         let env = sim::EnvConfig {
             horizon: a.horizon,
@@ -257,7 +257,7 @@ fn calibration_demos(
 ) -> Result<Option<DemoDataset>> {
     Ok(match &a.demos {
         Some(path) => {
-            let demos = read_demos(path, "--demos", mp)?;
+            let demos = read_demos(path, Input::Demos, mp)?;
             if demos.split != Split::Train {
                 bail!(
                     "--demos must be meta-train demos (calibration); {} is {}",

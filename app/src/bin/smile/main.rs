@@ -14,6 +14,7 @@ mod device_table;
 mod eval;
 mod expert;
 mod export;
+mod flags;
 mod latents;
 mod quickstart;
 mod report;
@@ -125,7 +126,7 @@ pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, 
 }
 
 fn main() -> std::process::ExitCode {
-    sim::exit_code(run())
+    sim::exit_code(run().map_err(flags::render))
 }
 
 fn run() -> Result<()> {

@@ -60,8 +60,8 @@ pub fn export_scripted_linclass(goal_expert: &Path, aim_scale: f32, dir: &Path) 
     if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") || !is_goal_sac {
         return Err(Error::Checkpoint {
             path: file,
-            reason: "the scripted ant-linclass expert drives an ant-goal SAC expert \
-                     (`smile expert --env ant-goal`); this file is not one"
+            reason: "the scripted ant-linclass expert drives an ant-goal SAC expert (an \
+                     ant-goal expert run); this file is not one"
                 .into(),
         });
     }
@@ -167,14 +167,14 @@ impl Expert {
             path.to_path_buf()
         };
         if path.is_dir() && !file.exists() && path.join(checkpoint::CHECKPOINT_FILE).exists() {
-            return Err(Error::Checkpoint {
-                path: path.to_path_buf(),
-                reason: format!(
-                    "holds an unfinished `smile expert` run (a checkpoint, no {POLICY_FILE} \
-                     yet); finish it with `smile expert --resume {}`",
+            return Err(Error::input(
+                crate::error::Input::Resume,
+                format!(
+                    "{} holds an unfinished expert run (a checkpoint, no {POLICY_FILE} yet); \
+                     resume its training to finish it",
                     path.display()
                 ),
-            });
+            ));
         }
         let ck = checkpoint::load(&file)?;
         let bad = |r: &str| Error::Checkpoint {

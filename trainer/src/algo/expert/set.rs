@@ -83,15 +83,15 @@ impl ExpertSet {
                 Some(v) => s.per_task.push((s.family.task_named(v)?, ex, source)),
                 None if s.general.is_none() => s.general = Some((ex, source)),
                 None => {
-                    return Err(Error::Usage(
-                        "more than one general expert given to --expert: give one, plus \
-                         per-task experts (`smile expert --task-value`)"
-                            .into(),
+                    return Err(Error::input(
+                        crate::error::Input::Expert,
+                        "more than one general expert given: give one, plus per-task experts \
+                         (each trained on one task value)",
                     ));
                 }
             }
         }
-        set.ok_or_else(|| Error::Usage("no expert given (--expert)".into()))
+        set.ok_or_else(|| Error::input(crate::error::Input::Expert, "no expert given"))
     }
 
     /// The family of every expert in the set.
@@ -133,12 +133,15 @@ impl ExpertSet {
             return Ok((e, format!("{path} (general expert)")));
         }
         let trained: Vec<String> = self.per_task.iter().map(|(t, _, _)| t.label()).collect();
-        Err(Error::Data(format!(
-            "no expert for task {}: the per-task experts were trained on {}; add its expert or a \
-             general one to --expert",
-            task.label(),
-            trained.join(", ")
-        )))
+        Err(Error::input(
+            crate::error::Input::Expert,
+            format!(
+                "no expert for task {}: the per-task experts were trained on {}; add its expert \
+                 or a general one",
+                task.label(),
+                trained.join(", ")
+            ),
+        ))
     }
 }
 
@@ -164,7 +167,7 @@ fn expand_expert_folder(path: &Path) -> Result<Vec<std::path::PathBuf>> {
     }
     if found.is_empty() {
         return Err(Error::Usage(format!(
-            "{} holds no expert: give a `smile expert` run directory, its {POLICY_FILE}, or a \
+            "{} holds no expert: give an expert run directory, its {POLICY_FILE}, or a \
              folder of them",
             path.display()
         )));

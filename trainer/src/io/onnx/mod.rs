@@ -245,9 +245,7 @@ pub fn write_dir(
         .and_then(|n| n.to_str())
         .ok_or_else(|| usage("not a directory name".into()))?;
     if out.is_file() {
-        return Err(usage(
-            "it is a file; -o takes a directory for --format onnx".into(),
-        ));
+        return Err(usage("it is a file; an ONNX export is a directory".into()));
     }
     if out.is_dir() && !replaceable(out)? {
         return Err(usage(
