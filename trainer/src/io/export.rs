@@ -111,20 +111,14 @@ pub fn closed_loop_calibration(
             .collect();
         let context: Vec<&Trajectory> = td.trajectories.iter().collect();
         let z = mp.latent(&context)?;
-        let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
-        for e in 0..episodes {
-            let seed = sim::seeds::EVALUATION_SEED + (t * episodes + e) as u64;
-            let mut obs = plant.reset(&td.task, seed)?.to_vec();
-            loop {
-                let action = mp.act(&obs, &z, true, &mut rng)?;
-                states.push(obs);
-                let done = plant.step(&action)?.done;
-                obs = plant.observation().to_vec();
-                if done {
-                    break;
-                }
-            }
-        }
+        states.extend(closed_loop_states(
+            mp,
+            plant.as_mut(),
+            t,
+            &td.task,
+            &z,
+            episodes,
+        )?);
         per_task.push(states);
     }
     let fewest = per_task.iter().map(Vec::len).min().unwrap_or(0);
@@ -135,6 +129,35 @@ pub fn closed_loop_calibration(
         contexts: calibration_contexts(mp, demos),
         observations,
     })
+}
+
+/// The raw observations `mp` visits in `episodes` deterministic episodes on `task` (the `t`-th
+/// of its dataset, which picks the reset seeds), conditioned on `z`: the states a policy meets
+/// off its demos, for calibration and the quantization-aware fine-tune alike.
+pub(crate) fn closed_loop_states(
+    mp: &MetaPolicy,
+    plant: &mut dyn sim::Environment,
+    t: usize,
+    task: &sim::Task,
+    z: &[f32],
+    episodes: usize,
+) -> Result<Vec<Vec<f32>>> {
+    let mut states = Vec::new();
+    let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
+    for e in 0..episodes {
+        let seed = sim::seeds::EVALUATION_SEED + (t * episodes + e) as u64;
+        let mut obs = plant.reset(task, seed)?.to_vec();
+        loop {
+            let action = mp.act(&obs, z, true, &mut rng)?;
+            states.push(obs);
+            let done = plant.step(&action)?.done;
+            obs = plant.observation().to_vec();
+            if done {
+                break;
+            }
+        }
+    }
+    Ok(states)
 }
 
 /// Refuses demos (calibration or contexts) that are not of `mp`'s family and dimensions, with

@@ -30,6 +30,7 @@ use candle_core::{Device, Tensor};
 use rand::{Rng, SeedableRng};
 use sim::DemoDataset;
 
+use super::export::closed_loop_states;
 use crate::error::{Error, Result};
 use crate::model::{MetaPolicy, Mlp};
 use crate::optim::{Adam, AdamConfig};
@@ -184,19 +185,8 @@ fn inputs(
             .flat_map(|tr| tr.obs.chunks_exact(od))
             .for_each(&mut push);
         if let (Some(plant), Some((_, episodes))) = (plant.as_mut(), closed_loop) {
-            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
-            for e in 0..episodes {
-                let seed = sim::seeds::EVALUATION_SEED + (t * episodes + e) as u64;
-                let mut obs = plant.reset(&td.task, seed)?.to_vec();
-                loop {
-                    let action = mp.act(&obs, &z, true, &mut rng)?;
-                    push(&obs);
-                    if plant.step(&action)?.done {
-                        break;
-                    }
-                    obs = plant.observation().to_vec();
-                }
-            }
+            let visited = closed_loop_states(mp, plant.as_mut(), t, &td.task, &z, episodes)?;
+            visited.iter().for_each(|obs| push(obs));
         }
     }
     let width = od + mp.z_dim();
