@@ -4,7 +4,8 @@
 # kept and last policies, the checkpoint) and its held-out validation curve. Run it with the
 # binary before and after a change; the two outputs must be identical.
 #   docs/scripts/same-results.sh target/release/smile /tmp/same-before > before.txt
-# Takes about 3 minutes on one core. Everything is single-threaded (`--threads 1`).
+# Takes about 2 minutes on two cores. Everything runs candle single-threaded (`--threads 1`);
+# the last two runs use two learner threads.
 set -euo pipefail
 bin=${1:?usage: same-results.sh SMILE_BINARY OUT_DIR}
 out=${2:?usage: same-results.sh SMILE_BINARY OUT_DIR}
@@ -67,3 +68,11 @@ done
 "$bin" export --policy "$out/meta-bc" --quant w8a8 --demos $demos --contexts $cv/demos-test-4x-sub20.safetensors \
   --rollouts 1 --horizon 100 -o "$out/meta-bc.blob" > /dev/null
 echo "export meta-bc.blob $(sha256sum < "$out/meta-bc.blob" | cut -c1-16)"
+
+# SMILe and SMILe + BC on two learner threads: the overlapped pair and the rollouts beside it
+# (added 2026-12-05 with SMILe in one file; the lines above are those of the older records).
+for bc in 0 100; do
+  "$bin" train --algo smile --bc-weight $bc --learner-threads 2 --demos $demos -o "$out/smile-lt2-bc$bc" \
+    --config docs/configs/authors-cv-smile-narrow.toml --updates 200 --eval-every 100 --seed 5 "${q[@]}" > /dev/null
+  digest "$out/smile-lt2-bc$bc"
+done

@@ -9,7 +9,7 @@
 //!    `a' ~ pi(.|s')`; `L_Q = sum_j mean (Q_j(s, a) - y)^2`
 //! 2. actor:       `L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~))`, `a~ = tanh(mu + sigma eps)`;
 //!    the critic weights are constants here, so no critic gradient is computed.
-//!    With an auxiliary cloning term ([`BcTerm`], SMILe + BC) on expert rows `(s_E, a_E)`:
+//!    With an auxiliary cloning term ([`ActorTerm`], SMILe + BC) on expert rows `(s_E, a_E)`:
 //!    `L_pi += w mean_rows ||tanh(mu(s_E)) - a_E||^2` (squared error summed over action dims).
 //! 3. temperature: `L_alpha = mean -log(alpha) (log pi(a~|s) + H_target)`
 //! 4. targets:     `theta'_j <- (1 - tau) theta'_j + tau theta_j`
@@ -164,11 +164,24 @@ pub struct SacStats {
     /// `charts/entropy`: `-mean log pi(a~|s)`.
     pub entropy: f32,
     /// `losses/bc`: the cloning term's `mean ||tanh(mu(s_E)) - a_E||^2` before its weight
-    /// (`None` without a [`BcTerm`]).
+    /// (`None` without an [`ActorTerm`]).
     pub bc_loss: Option<f32>,
 }
 
 impl SacStats {
+    /// The statistics of one update from its steps' reports.
+    pub fn of(alpha: f32, critic: CriticStep, actor: ActorStep, alpha_loss: f32) -> Self {
+        Self {
+            qf_loss: critic.qf_loss,
+            qf1_mean: critic.qf1_mean,
+            actor_loss: actor.actor_loss,
+            alpha_loss,
+            alpha,
+            entropy: -actor.mean_logp,
+            bc_loss: actor.term,
+        }
+    }
+
     /// The scalars under their metric names, for the metrics log.
     pub fn fields(&self) -> Vec<(&'static str, f64)> {
         let mut f = vec![
@@ -186,18 +199,29 @@ impl SacStats {
     }
 }
 
-/// An auxiliary behaviour-cloning term on the actor's loss (SMILe + BC, after Jena et al.
-/// 2020's BC-augmented GAIL): expert rows and their actions, and the weight of
-/// `mean ||tanh(mu(s_E)) - a_E||^2` in the actor loss.
-#[derive(Debug, Clone)]
-pub struct BcTerm {
-    /// Policy inputs of the expert rows `(rows, obs_dim)` (for SMILe `[norm(s_E), z]`, z the
-    /// task's detached latent).
-    pub obs: Tensor,
-    /// The expert's actions `(rows, act_dim)`.
-    pub act: Tensor,
-    /// The term's weight `w` (> 0).
-    pub weight: f32,
+/// A term added to the actor's loss (SMILe + BC's cloning term, written beside its equation in
+/// `algo/smile.rs`): given the actor, the term's weighted loss (a scalar on the actor's graph)
+/// and its value before the weight, logged as `losses/bc`.
+pub type ActorTerm<'a> = &'a dyn Fn(&TanhGaussianPolicy) -> Result<(Tensor, f32)>;
+
+/// What [`Sac::critic_step`] reports.
+#[derive(Debug, Clone, Copy)]
+pub struct CriticStep {
+    /// The critics' mean squared TD error, averaged over the two critics.
+    pub qf_loss: f32,
+    /// Mean Q1(s, a) on the batch.
+    pub qf1_mean: f32,
+}
+
+/// What [`Sac::actor_step`] reports.
+#[derive(Debug, Clone, Copy)]
+pub struct ActorStep {
+    /// The actor's loss, its term included.
+    pub actor_loss: f32,
+    /// The added term's value before its weight (`None` without one).
+    pub term: Option<f32>,
+    /// `mean log pi(a~|s)` on the batch (the temperature's step reads it).
+    pub mean_logp: f32,
 }
 
 /// A SAC agent: actor, twin critics, their targets, optimisers and temperature.
@@ -310,27 +334,30 @@ impl Sac {
     /// One SAC update (critic, actor, temperature, targets) on `b`. Noise comes from `rng`.
     ///
     /// A non-finite loss aborts before the corresponding optimiser step with
-    /// [`Error::NonFinite`].
+    /// [`Error::NonFinite`]. SMILe runs the same four steps with its cloning term on the
+    /// actor's (`algo/smile.rs`, `sac_update`).
     pub fn update(&mut self, b: &Batch, rng: &mut impl Rng) -> Result<SacStats> {
-        self.update_with_bc(b, None, rng)
+        let alpha = self.begin_update()?;
+        let critic = self.critic_step(b, alpha, rng)?;
+        let actor = self.actor_step(b, alpha, None, rng)?;
+        let alpha_loss = self.temperature_step(actor.mean_logp)?;
+        self.target_step()?;
+        Ok(SacStats::of(alpha, critic, actor, alpha_loss))
     }
 
-    /// [`Sac::update`] with an optional cloning term added to the actor's loss (step 2 of the
-    /// module doc). `None` is exactly [`Sac::update`]: same arithmetic, same draws from `rng`.
-    pub fn update_with_bc(
-        &mut self,
-        b: &Batch,
-        bc: Option<&BcTerm>,
-        rng: &mut impl Rng,
-    ) -> Result<SacStats> {
+    /// Counts the update and returns the temperature its steps use (read before any step).
+    pub fn begin_update(&mut self) -> Result<f32> {
         self.updates += 1;
-        let alpha = self.alpha()?;
-        let (gamma, c) = (self.cfg.gamma as f64, self.cfg.reward_scale as f64);
+        self.alpha()
+    }
 
+    /// Step 1 of the module doc, the critics' loss and their optimiser step.
+    pub fn critic_step(&mut self, b: &Batch, alpha: f32, rng: &mut impl Rng) -> Result<CriticStep> {
+        let (gamma, c) = (self.cfg.gamma as f64, self.cfg.reward_scale as f64);
         // (Where the batch is task-major with each task's z on its rows, every network's first
         // layer computes the z block once per task: `Batch::z_cols`.)
         let zc = b.z_cols;
-        // 1. critic. y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))
+        // y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))
         let next = self
             .actor
             .sample_const(Input::shared(&b.next_obs, zc), rng)?;
@@ -344,7 +371,7 @@ impl Sac {
         let soft_v = (q_targ - (next.log_prob * alpha as f64)?)?;
         let not_done = b.done.affine(-gamma, gamma)?; // gamma (1 - d)
         let y = ((&b.rew * c)? + (not_done * soft_v)?)?.detach();
-        //    L_Q = mean (Q1(s,a) - y)^2 + mean (Q2(s,a) - y)^2
+        // L_Q = mean (Q1(s,a) - y)^2 + mean (Q2(s,a) - y)^2
         // Each critic's weights get gradient from its own term only, so the two terms' backward
         // passes are separate and their gradients the same bits as one backward of the sum;
         // inside a learner pool the two critics run as the sides of a join.
@@ -363,53 +390,65 @@ impl Sac {
         let (c1, c2) = crate::threads::join(|| critic(&self.q1), || critic(&self.q2));
         let ((q1, l1, mut grads), (_, l2, g2)) = (c1?, c2?);
         // Summed over the two critics for the step; logged as their mean, as CleanRL does.
-        let qf_loss_v = self.finite("losses/qf_loss", l1 + l2)? / 2.0;
+        let qf_loss = self.finite("losses/qf_loss", l1 + l2)? / 2.0;
         grads.extend(g2)?;
         self.critic_opt.step(&grads)?;
+        Ok(CriticStep {
+            qf_loss,
+            qf1_mean: scalar(&q1.mean_all()?)?,
+        })
+    }
 
-        // 2. actor. L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
-        let cur = self.actor.sample(Input::shared(&b.obs, zc), rng)?;
-        let q_pi = self.q_min(&b.obs, &cur.action, zc, true)?;
+    /// Step 2 of the module doc, the actor's loss (with `term` added: SMILe + BC's cloning
+    /// term) and its optimiser step.
+    pub fn actor_step(
+        &mut self,
+        b: &Batch,
+        alpha: f32,
+        term: Option<ActorTerm<'_>>,
+        rng: &mut impl Rng,
+    ) -> Result<ActorStep> {
+        // L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
+        let cur = self.actor.sample(Input::shared(&b.obs, b.z_cols), rng)?;
+        let q_pi = self.q_min(&b.obs, &cur.action, b.z_cols, true)?;
         let mut actor_loss = ((&cur.log_prob * alpha as f64)? - q_pi)?.mean_all()?;
         if self.cfg.policy_reg > 0.0 {
             let reg = (cur.mean.sqr()?.mean_all()? + cur.log_std.sqr()?.mean_all()?)?;
             actor_loss = (actor_loss + (reg * self.cfg.policy_reg as f64)?)?;
         }
-        //    + BC: L_pi += w mean_rows ||tanh(mu(s_E)) - a_E||^2
-        let mut bc_loss_v = None;
-        if let Some(bc) = bc {
-            let err = (self.actor.mean_action(&bc.obs)? - &bc.act)?;
-            let bc_loss = err.sqr()?.sum_keepdim(1)?.mean_all()?;
-            bc_loss_v = Some(self.finite("losses/bc", scalar(&bc_loss)?)?);
-            actor_loss = (actor_loss + (bc_loss * bc.weight as f64)?)?;
+        let mut term_v = None;
+        if let Some(term) = term {
+            let (weighted, v) = term(&self.actor)?;
+            term_v = Some(self.finite("losses/bc", v)?);
+            actor_loss = (actor_loss + weighted)?;
         }
         let actor_loss_v = self.finite("losses/actor_loss", scalar(&actor_loss)?)?;
         self.actor_opt.backward_step(&actor_loss)?;
+        Ok(ActorStep {
+            actor_loss: actor_loss_v,
+            term: term_v,
+            mean_logp: scalar(&cur.log_prob.mean_all()?)?,
+        })
+    }
 
-        // 3. temperature. L_alpha = -log(alpha) * mean(log pi(a~|s) + H_target)
-        let mean_logp = scalar(&cur.log_prob.mean_all()?)?;
-        let mut alpha_loss_v = 0.0;
-        if self.cfg.learn_alpha {
-            let alpha_loss = (self.log_alpha.as_tensor()
-                * -(mean_logp + self.target_entropy) as f64)?
-                .sum_all()?;
-            alpha_loss_v = self.finite("losses/alpha_loss", scalar(&alpha_loss)?)?;
-            self.alpha_opt.backward_step(&alpha_loss)?;
+    /// Step 3 of the module doc, the temperature's loss and step (none with a fixed one):
+    /// `L_alpha = -log(alpha) * (mean log pi(a~|s) + H_target)`. Returns the loss (0 if fixed).
+    pub fn temperature_step(&mut self, mean_logp: f32) -> Result<f32> {
+        if !self.cfg.learn_alpha {
+            return Ok(0.0);
         }
+        let alpha_loss =
+            (self.log_alpha.as_tensor() * -(mean_logp + self.target_entropy) as f64)?.sum_all()?;
+        let v = self.finite("losses/alpha_loss", scalar(&alpha_loss)?)?;
+        self.alpha_opt.backward_step(&alpha_loss)?;
+        Ok(v)
+    }
 
-        // 4. targets. theta' <- (1 - tau) theta' + tau theta
+    /// Step 4 of the module doc: `theta' <- (1 - tau) theta' + tau theta`.
+    pub fn target_step(&mut self) -> Result<()> {
         self.q1_targ.polyak_update(&self.q1, self.cfg.tau)?;
         self.q2_targ.polyak_update(&self.q2, self.cfg.tau)?;
-
-        Ok(SacStats {
-            qf_loss: qf_loss_v,
-            qf1_mean: scalar(&q1.mean_all()?)?,
-            actor_loss: actor_loss_v,
-            alpha_loss: alpha_loss_v,
-            alpha,
-            entropy: -mean_logp,
-            bc_loss: bc_loss_v,
-        })
+        Ok(())
     }
 
     /// Every tensor of the agent's state by a stable name: networks, targets, Adam moments and

@@ -10,7 +10,7 @@
 //!   task, a context of k in 1..=4 of its demos, z sampled, stochastic actions) into that
 //!   task's replay buffer, then `d = updates_per_iter` x (1 discriminator+encoder step, 1 SAC
 //!   step). With `learner_threads >= 2` the rollouts run beside the pairs and reach the replays
-//!   after them ([`Smile::iteration`], module `rollouts`).
+//!   after them ([`Smile::iteration`], module `overlap`).
 //!
 //! Discriminator step, on `tasks_per_batch` distinct tasks, each with a fresh context and its
 //! z (with gradient into the encoder) attached to `disc_per_task` expert transitions (label 1,
@@ -39,36 +39,43 @@
 //! L_pi += w(u) mean ||tanh(mu([norm(s_E), z])) - a_E||^2,
 //! w(u) = bc_weight (1 - u / bc_decay_updates)+   (or bc_weight when bc_decay_updates = 0)
 //! ```
+//!
+//! This file is the algorithm, read top to bottom: the run, its rollouts and iteration, the
+//! update pair, then the pair's two halves with each loss above its optimiser step (the
+//! discriminator's here; SAC's critic, actor and temperature steps called in order, their
+//! arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term here). Around it: `batch`
+//! draws both halves' batches, `overlap` runs a pair's halves and the rollouts at once on N
+//! learner threads, `persist` checkpoints a run, `fit` puts it in the shared fit loop and
+//! `config` holds its settings.
 
-use candle_core::{Device, Tensor};
+use candle_core::backprop::GradStore;
+use candle_core::{DType, Device, Tensor};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim::Environment;
 
+mod batch;
 mod config;
-mod disc;
 mod fit;
+mod overlap;
 mod persist;
-mod rollouts;
+#[cfg(test)]
+mod tests;
 
+pub use batch::DiscBatch;
 pub use config::SmileConfig;
-pub(crate) use disc::disc_grads;
-pub use disc::{DiscBatch, DiscLearner, disc_update};
 pub use fit::train;
 
-use crate::algo::sac::{BcTerm, Sac, SacStats};
-use crate::data::{
-    Batch, BatchVecs, MetaData, TaskReplay, distinct_tasks, quick_eval, run_episode, sample_context,
-};
-use crate::error::Result;
-use crate::model::scalar;
+use crate::algo::sac::{ActorStep, Sac, SacStats};
+use crate::data::{MetaData, TaskReplay, quick_eval, run_episode, sample_context};
+use crate::error::{Error, Result};
 use crate::model::{
-    ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator, Input, MetaPolicy,
-    SharedCols, TrainingMark, policy_input,
+    ContextEncoder, DiscInput, DiscStats, Discriminator, Input, MetaPolicy, SharedCols,
+    TanhGaussianPolicy, TrainingMark, bce_with_logits, scalar,
 };
 use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
-use rollouts::{PlannedEpisode, RolloutJob};
+use batch::{BatchSource, DemoRows};
 
 /// A SMILe run: data, networks, optimisers, replay, counters.
 pub struct Smile {
@@ -262,18 +269,11 @@ impl Smile {
     /// task, then `updates_per_iter` update pairs (fewer where `total_updates` ends the run);
     /// `on_pair` sees the update count after every pair. With `learner_threads >= 2` the
     /// rollouts run beside the pairs on the learner pool and enter the replays after them
-    /// (module `rollouts` says how, and the one way that differs from one thread).
+    /// (module `overlap` says how, and the one way that differs from one thread).
     pub fn iteration(&mut self, on_pair: &mut dyn FnMut(u64)) -> Result<IterationReport> {
         let (m, t0) = (self.cfg.rollouts_per_iter, std::time::Instant::now());
         let in_flight = if self.cfg.learner_threads >= 2 && m > 0 {
-            let job = self.plan_rollouts(m)?;
-            let pool = match self.pool.take() {
-                Some(p) => p,
-                None => LearnerPool::new(self.cfg.learner_threads)?,
-            };
-            let in_flight = job.start(&pool);
-            self.pool = Some(pool);
-            Some(in_flight)
+            Some(self.start_rollouts(m)?)
         } else {
             for _ in 0..m {
                 let ti = self.rng.random_range(0..self.data.train.len());
@@ -293,41 +293,10 @@ impl Smile {
         }
         if let Some(in_flight) = in_flight {
             let t1 = std::time::Instant::now();
-            let done = in_flight.wait()?;
-            done.store(&mut self.replay)?;
-            self.env_steps += done.steps;
-            self.rollout_env = Some(done.env);
+            self.land_rollouts(in_flight)?;
             rollout_s += t1.elapsed().as_secs_f64();
         }
         Ok(IterationReport { last, rollout_s })
-    }
-
-    /// Plans `n` rollouts (see module `rollouts`): the draws of `n` sequential rollouts from the
-    /// run's RNG (task, context, z, for each in turn), then the job's own RNG's seed.
-    fn plan_rollouts(&mut self, n: usize) -> Result<RolloutJob> {
-        let mut episodes = Vec::with_capacity(n);
-        for _ in 0..n {
-            let ti = self.rng.random_range(0..self.data.train.len());
-            let z = self.rollout_z(ti)?;
-            episodes.push(PlannedEpisode {
-                task_index: ti,
-                task: self.data.train[ti].task,
-                seed: self.episode_seed(),
-                z,
-            });
-            self.episodes += 1;
-        }
-        let env = match self.rollout_env.take() {
-            Some(env) => env,
-            None => sim::make_env(self.cfg.env, self.cfg.rollout_env_config())?,
-        };
-        Ok(RolloutJob {
-            actor: self.sac.actor.deep_copy()?,
-            norm: self.data.norm.clone(),
-            env,
-            episodes,
-            rng: ChaCha8Rng::seed_from_u64(self.rng.random()),
-        })
     }
 
     /// Warm start: one rollout of the current policy in every training task.
@@ -338,104 +307,44 @@ impl Smile {
         Ok(())
     }
 
-    /// Samples the discriminator's batch: `tasks_per_batch` distinct tasks, each with a fresh
-    /// context and `disc_per_task` expert rows (uniform over its demo transitions) and as many
-    /// policy rows (its replay).
-    fn sample_disc_batch(&mut self) -> Result<DiscBatch> {
-        let (source, _, rng) = self.sac_side();
-        source.disc_batch(rng)
+    /// One update pair: a discriminator (+ encoder) step, then a SAC step; with N > 1 learner
+    /// threads both at once inside the run's thread pool, SAC's reward then coming from the
+    /// discriminator as it is before this pair's step (module `overlap`). Deterministic for a
+    /// seed and thread count.
+    pub fn update_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
+        if self.cfg.learner_threads >= 2 {
+            return self.overlapped_pair();
+        }
+        let ds = self.disc_step()?;
+        let (ss, r) = self.sac_step()?;
+        Ok((ds, ss, r))
     }
 
-    /// One discriminator + encoder step (Algorithm 1's inner loop, first half; the losses are
-    /// in the module doc and in [`crate::model::Discriminator`]).
+    /// One discriminator + encoder step (Algorithm 1's inner loop, first half).
     pub fn disc_step(&mut self) -> Result<DiscStats> {
-        let batch = self.sample_disc_batch()?;
-        disc_update(
-            DiscLearner {
-                encoder: &self.encoder,
-                disc: &self.disc,
-                disc_opt: &mut self.disc_opt,
-                enc_opt: &mut self.enc_opt,
-                gp_weight: self.cfg.gp_weight,
-            },
-            &batch,
-            self.updates,
-            &mut self.rng,
-        )
+        let (source, _, rng) = self.parts();
+        let batch = source.disc_batch(rng)?;
+        let learner = DiscLearner {
+            encoder: &self.encoder,
+            disc: &self.disc,
+            disc_opt: &mut self.disc_opt,
+            enc_opt: &mut self.enc_opt,
+            gp_weight: self.cfg.gp_weight,
+        };
+        disc_update(learner, &batch, self.updates, &mut self.rng)
     }
 
     /// One SAC step on fresh tasks and contexts with the discriminator's reward (Algorithm 1's
-    /// inner loop, second half).
+    /// inner loop, second half); returns its statistics and the reward's mean.
     pub fn sac_step(&mut self) -> Result<(SacStats, f32)> {
-        let (batch, reward_mean, bc) = self.sac_batch()?;
-        let stats = self
-            .sac
-            .update_with_bc(&batch, bc.as_ref(), &mut self.rng)?;
-        Ok((stats, reward_mean))
-    }
-
-    /// One update pair: a discriminator (+ encoder) step and a SAC step, one after the other
-    /// (`learner_threads = 1`), or with N > 1 learner threads both at once inside the run's
-    /// thread pool (SAC's reward then comes from the discriminator before this pair's
-    /// update): the two steps are the sides of a `rayon::join`, their large matrix products
-    /// are split across the pool, and the side that finishes first steals the other's blocks
-    /// (`crate::threads`). Deterministic for a seed: the order of every draw from the run's
-    /// RNG is fixed before the two steps start, and a split product equals an unsplit one.
-    pub fn update_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
-        if self.cfg.learner_threads < 2 {
-            let ds = self.disc_step()?;
-            let (ss, r) = self.sac_step()?;
-            return Ok((ds, ss, r));
-        }
-        let pool = match self.pool.take() {
-            Some(p) => p,
-            None => LearnerPool::new(self.cfg.learner_threads)?,
-        };
-        let out = pool.install(|| self.overlapped_pair());
-        self.pool = Some(pool);
-        out
-    }
-
-    /// [`Self::update_pair`] with N > 1 learner threads, run inside the pool: the
-    /// discriminator's batch, loss and gradients on one side of a join; the SAC batch (its
-    /// reward from the discriminator as it is before this pair) and the SAC step on the other;
-    /// then the discriminator's and encoder's optimiser steps. Both sides only read the
-    /// networks, data and replay; every random draw has a fixed order (the discriminator side
-    /// draws from its own RNG, seeded from the run's RNG before the join; the SAC side draws
-    /// from the run's RNG alone). Nothing but that seed runs before the join, so neither core
-    /// waits there.
-    fn overlapped_pair(&mut self) -> Result<(DiscStats, SacStats, f32)> {
-        let mut disc_rng = ChaCha8Rng::seed_from_u64(self.rng.random());
-        let update = self.updates;
-        let (source, sac, rng) = self.sac_side();
-        let (encoder, disc, gp_weight) = (source.encoder, source.disc, source.cfg.gp_weight);
-        let (d, s) = rayon::join(
-            || {
-                let disc_batch = source.disc_batch(&mut disc_rng)?;
-                disc_grads(encoder, disc, gp_weight, &disc_batch, update, &mut disc_rng)
-            },
-            || -> Result<(SacStats, f32)> {
-                let (batch, reward_mean, bc) = source.draw(rng)?;
-                Ok((sac.update_with_bc(&batch, bc.as_ref(), rng)?, reward_mean))
-            },
-        );
-        let ((grads, ds), (ss, reward_mean)) = (d?, s?);
-        self.disc_opt.step(&grads)?;
-        self.enc_opt.step(&grads)?;
-        Ok((ds, ss, reward_mean))
-    }
-
-    /// Samples a SAC batch on fresh tasks and contexts and labels it with the discriminator's
-    /// reward; returns it with the reward's mean and, for SMILe + BC, the cloning term's rows.
-    fn sac_batch(&mut self) -> Result<(Batch, f32, Option<BcTerm>)> {
-        let (source, _, rng) = self.sac_side();
-        source.draw(rng)
+        let (source, sac, rng) = self.parts();
+        sac_update(&source, sac, rng)
     }
 
     /// The run borrowed field by field: what both batches are drawn from (read only, so the
-    /// two sides of an overlapped pair may read the same networks at once), the SAC learner
+    /// two halves of an overlapped pair may read the same networks at once), the SAC learner
     /// and the run's RNG.
-    fn sac_side(&mut self) -> (BatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
+    fn parts(&mut self) -> (BatchSource<'_>, &mut Sac, &mut ChaCha8Rng) {
         let Smile {
             cfg,
             data,
@@ -472,156 +381,226 @@ impl Smile {
     }
 }
 
-/// A transition drawn uniformly from trajectories of `lens` transitions: (trajectory, step).
-fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
-    let mut k = rng.random_range(0..lens.iter().sum::<usize>());
-    let mut j = 0;
-    while k >= lens[j] {
-        k -= lens[j];
-        j += 1;
-    }
-    (j, k)
+// ---------------------------------------------------------------------------------------------
+// The discriminator's half: L_D = L_bce + lambda_gp L_gp, then its two optimisers' step.
+
+/// What one discriminator + encoder update changes: the networks and their optimisers.
+pub struct DiscLearner<'a> {
+    /// The context encoder (trained only through this loss).
+    pub encoder: &'a ContextEncoder,
+    /// The discriminator.
+    pub disc: &'a Discriminator,
+    /// The discriminator's optimiser (betas (0, 0.999) in the authors' recipe).
+    pub disc_opt: &'a mut Adam,
+    /// The encoder's optimiser.
+    pub enc_opt: &'a mut Adam,
+    /// The gradient penalty's weight (`gp_weight`).
+    pub gp_weight: f32,
 }
 
-/// The networks, data and replay that both steps' batches are drawn from, borrowed field by
-/// field, so that the two sides of an overlapped pair can draw their batches at once while
-/// both read the same networks.
-struct BatchSource<'a> {
-    cfg: &'a SmileConfig,
-    data: &'a MetaData,
-    encoder: &'a ContextEncoder,
-    disc: &'a Discriminator,
-    replay: &'a TaskReplay,
-    updates: u64,
+/// One discriminator + encoder update on `batch` (shared by [`Smile::disc_step`] and
+/// `smile bench --workload disc`); `update` only names the step in a non-finite-loss error.
+pub fn disc_update(
+    l: DiscLearner<'_>,
+    batch: &DiscBatch,
+    update: u64,
+    rng: &mut impl Rng,
+) -> Result<DiscStats> {
+    // L_D = L_bce + lambda_gp L_gp (disc_loss)
+    let (grads, stats) = disc_loss(l.encoder, l.disc, l.gp_weight, batch, update, rng)?;
+    // One backward pass, two optimisers: the discriminator (betas (0, 0.999)) and the
+    // encoder (trained only through this loss).
+    l.disc_opt.step(&grads)?;
+    l.enc_opt.step(&grads)?;
+    Ok(stats)
 }
 
-impl BatchSource<'_> {
-    /// [`Smile::sample_disc_batch`]: every random choice drawn from `rng`.
-    fn disc_batch(&self, rng: &mut ChaCha8Rng) -> Result<DiscBatch> {
-        let cfg = &self.cfg;
-        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
-        let per_task = cfg.disc_per_task;
-        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
-        let norm = &self.data.norm;
-        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(tasks.len());
-        let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
-        for &ti in &tasks {
-            let demos = &self.data.train[ti];
-            specs.push(sample_context(demos, cfg.context_draw(), rng));
-            // Expert rows: uniform over the task's demo transitions.
-            let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-            for _ in 0..per_task {
-                let (j, k) = draw_transition(&lens, rng);
-                let tr = &demos.trajectories[j];
-                self.disc.push_x(
-                    norm,
-                    &tr.obs[k * od..(k + 1) * od],
-                    &tr.actions[k * ad..(k + 1) * ad],
-                    &tr.next_obs[k * od..(k + 1) * od],
-                    &mut x_exp,
-                );
+/// `L_D = L_bce + lambda_gp L_gp` of one discriminator + encoder update (the module doc) and
+/// its gradients, the networks only read (an overlapped pair computes them while the SAC half
+/// reads the same networks for its reward, and steps the optimisers after both are done).
+///
+/// `L_bce` and `L_gp` share no node but the discriminator's weights (the penalty's `z` is
+/// detached), so their gradients come from separate backward passes, added afterwards: inside
+/// a learner pool they run as the sides of joins ([`crate::threads::join`]), which a free core
+/// can take whole instead of only the blocks of their matrix products. Deterministic for a
+/// thread count; one thread and a pool differ in the last bits (the penalty's split).
+fn disc_loss(
+    encoder: &ContextEncoder,
+    disc: &Discriminator,
+    gp_weight: f32,
+    batch: &DiscBatch,
+    update: u64,
+    rng: &mut impl Rng,
+) -> Result<(GradStore, DiscStats)> {
+    // z ~ q(z | c) per task, with gradient into the encoder; x~ = u x_E + (1 - u) x_pi
+    let rows = batch.tasks * batch.per_task;
+    let z = encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
+    let z_rows = batch.z_rows(&z)?; // (t n, z)
+    // The penalty's mixing weights, drawn before the two halves split (a fixed draw order).
+    let u = if gp_weight > 0.0 {
+        let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
+        Some(Tensor::from_vec(u, (rows, 1), &Device::Cpu)?)
+    } else {
+        None
+    };
+    // Inside a learner pool the penalty is two halves of the tasks (a mean over rows is the
+    // halves' means weighted by their rows), pieces a free core can take whole: 2% off a
+    // two-thread pair at the authors' shapes. One thread keeps it whole (1% faster there).
+    let half = if crate::threads::in_pool() {
+        (batch.tasks / 2) * batch.per_task
+    } else {
+        rows
+    };
+    let gp_part = |start: usize, len: usize| -> Result<Option<(GradStore, f32)>> {
+        match &u {
+            Some(u) if len > 0 => {
+                gp_grads(disc, batch, &z_rows, u, (start, len), gp_weight, update).map(Some)
             }
-            let mut pol = BatchVecs::default();
-            self.replay.task(ti).sample_into(per_task, rng, &mut pol)?;
-            for r in 0..per_task {
-                self.disc.push_x(
-                    norm,
-                    &pol.obs[r * od..(r + 1) * od],
-                    &pol.act[r * ad..(r + 1) * ad],
-                    &pol.next_obs[r * od..(r + 1) * od],
-                    &mut x_pol,
-                );
-            }
+            _ => Ok(None),
         }
-        let context = self.encoder.batch(norm, &specs)?;
-        DiscBatch::new(context, x_exp, x_pol, tasks.len(), per_task)
+    };
+    let (bce, (gp_a, gp_b)) = crate::threads::join(
+        || bce_grads(disc, batch, &z_rows, update),
+        || crate::threads::join(|| gp_part(0, half), || gp_part(half, rows - half)),
+    );
+    let (mut grads, bce_v, lg) = bce?;
+    let mut gp_v = 0.0;
+    for (gp_grads, v) in [gp_a?, gp_b?].into_iter().flatten() {
+        // dL_D/dtheta = dL_bce/dtheta + lambda_gp dL_gp/dtheta
+        grads.extend(gp_grads)?;
+        gp_v += v; // each share was checked finite before its backward
     }
+    let acc_e = lg[..rows].iter().filter(|v| **v > 0.0).count() as f32 / rows as f32;
+    let acc_p = lg[rows..].iter().filter(|v| **v < 0.0).count() as f32 / rows as f32;
+    let stats = DiscStats {
+        bce: bce_v,
+        gp: gp_v,
+        acc_expert: acc_e,
+        acc_policy: acc_p,
+    };
+    Ok((grads, stats))
+}
 
-    /// [`Smile::sac_batch`]: every random choice drawn from `rng`.
-    fn draw(&self, rng: &mut ChaCha8Rng) -> Result<(Batch, f32, Option<BcTerm>)> {
-        let cfg = &self.cfg;
-        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
-        let n = cfg.sac_per_task;
-        let specs: Vec<ContextSpec<'_>> = tasks
-            .iter()
-            .map(|&ti| sample_context(&self.data.train[ti], cfg.context_draw(), rng))
-            .collect();
-        let b = self.encoder.batch(&self.data.norm, &specs)?;
-        // z from the discriminator's encoder, detached: SAC never updates the encoder.
-        let z = self.encoder.z(&b, true, rng)?.detach().to_vec2::<f32>()?;
-        let mut bv = BatchVecs::default();
-        let mut z_rows = Vec::with_capacity(tasks.len() * n * z[0].len());
-        for (k, &ti) in tasks.iter().enumerate() {
-            self.replay.task(ti).sample_into(n, rng, &mut bv)?;
-            for _ in 0..n {
-                z_rows.extend_from_slice(&z[k]);
-            }
-        }
-        let rows = bv.rew.len();
-        let (od, ad, zd) = (
-            self.data.family.obs_dim(),
-            self.data.family.act_dim(),
-            z[0].len(),
-        );
-        // r = clamp(D([x, z]), -10, 10); the SAC config's reward_scale multiplies it.
-        let xzd = self.disc.x_dim() + zd;
-        let mut dx = Vec::with_capacity(rows * xzd);
-        for r in 0..rows {
-            self.disc.push_x(
-                &self.data.norm,
-                &bv.obs[r * od..(r + 1) * od],
-                &bv.act[r * ad..(r + 1) * ad],
-                &bv.next_obs[r * od..(r + 1) * od],
-                &mut dx,
-            );
-            dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
-        }
-        // Each task's z on its n rows: the first layer's z block once per task.
-        let xz = Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?;
-        let rew = self.disc.reward(Input::shared(
-            &xz,
-            Some(SharedCols {
-                start: self.disc.x_dim(),
-                len: zd,
-                group_rows: n,
-            }),
-        ))?;
-        let reward_mean = scalar(&rew.mean_all()?)?;
-        let batch = Batch {
-            obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
-            act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
-            rew,
-            next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
-            done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
-            z_cols: Some(SharedCols {
-                start: od,
-                len: zd,
-                group_rows: n,
-            }),
-        };
-        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
-        // when the weight is 0, so such a run is SMILe's, bit for bit.
-        let w = self.cfg.bc_weight_at(self.updates);
-        let bc = if w > 0.0 {
-            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
-            for &ti in &tasks {
-                let demos = &self.data.train[ti];
-                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-                for _ in 0..n {
-                    let (j, k) = draw_transition(&lens, rng);
-                    let tr = &demos.trajectories[j];
-                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
-                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
-                }
-            }
-            Some(BcTerm {
-                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
-                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
-                weight: w,
-            })
-        } else {
-            None
-        };
-        Ok((batch, reward_mean, bc))
+/// `L_bce`'s gradients (discriminator and encoder), its value and the batch's logits.
+fn bce_grads(
+    disc: &Discriminator,
+    batch: &DiscBatch,
+    z_rows: &Tensor,
+    update: u64,
+) -> Result<(GradStore, f32, Vec<f32>)> {
+    let rows = batch.tasks * batch.per_task;
+    let inp = Tensor::cat(
+        &[
+            &Tensor::cat(&[&batch.x_expert, z_rows], 1)?,
+            &Tensor::cat(&[&batch.x_policy, z_rows], 1)?,
+        ],
+        0,
+    )?;
+    // (2 t n, 1): expert rows, then policy rows; each task's z on its n rows of each half, so
+    // the first layer computes the z block once per n rows.
+    let zd = z_rows.dim(1)?;
+    let shared = SharedCols {
+        start: inp.dim(1)? - zd,
+        len: zd,
+        group_rows: batch.per_task,
+    };
+    let logits = disc.logits(Input::shared(&inp, Some(shared)))?;
+    let labels = Tensor::cat(
+        &[
+            Tensor::ones((rows, 1), DType::F32, &Device::Cpu)?,
+            Tensor::zeros((rows, 1), DType::F32, &Device::Cpu)?,
+        ],
+        0,
+    )?;
+    // L_bce = mean[softplus(l) - y l]
+    let bce = bce_with_logits(&logits, &labels)?;
+    let v = finite("losses/disc_bce", scalar(&bce)?, update)?;
+    let grads = bce.backward()?;
+    Ok((grads, v, logits.detach().flatten_all()?.to_vec1::<f32>()?))
+}
+
+/// The gradients of `lambda_gp L_gp`'s share from the rows `(start, len)` (the
+/// discriminator's only) and that share of `L_gp`.
+fn gp_grads(
+    disc: &Discriminator,
+    batch: &DiscBatch,
+    z_rows: &Tensor,
+    u: &Tensor,
+    (start, len): (usize, usize),
+    gp_weight: f32,
+    update: u64,
+) -> Result<(GradStore, f32)> {
+    // L_gp = mean[(||dD/dx~|| - 1)^2], x~ = u x_E + (1 - u) x_pi, z detached; these rows'
+    // share of it is their mean times len / rows.
+    let share = len as f64 / (batch.tasks * batch.per_task) as f64;
+    let rows = |t: &Tensor| t.narrow(0, start, len);
+    let gp = (disc.gradient_penalty(
+        &rows(&batch.x_expert)?,
+        &rows(&batch.x_policy)?,
+        &rows(z_rows)?,
+        &rows(u)?,
+        Some(batch.per_task),
+    )? * share)?;
+    let v = finite("losses/disc_gp", scalar(&gp)?, update)?;
+    Ok(((gp * gp_weight as f64)?.backward()?, v))
+}
+
+/// `v`, or the non-finite-loss error naming `what` and the update.
+fn finite(what: &'static str, v: f32, update: u64) -> Result<f32> {
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(Error::NonFinite {
+            what,
+            value: v,
+            update,
+        })
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The SAC half: the reward, then the critics', the actor's (with SMILe + BC's cloning term) and
+// the temperature's losses, each above its optimiser step (the arithmetic in `algo/sac.rs`,
+// shared with the experts' SAC).
+
+/// One SAC update on a fresh batch from `source`, rewarded by its discriminator; returns its
+/// statistics and the reward's mean.
+fn sac_update(
+    source: &BatchSource<'_>,
+    sac: &mut Sac,
+    rng: &mut ChaCha8Rng,
+) -> Result<(SacStats, f32)> {
+    // r = clamp(D([x, z]), -10, 10) on replay rows, z detached: SAC never updates the encoder
+    let (batch, reward_mean, demos) = source.sac_batch(rng)?;
+    let alpha = sac.begin_update()?;
+    // L_Q = sum_j mean (Q_j(s, a) - y)^2, y = c r + gamma (1 - d)(min_j Q'_j(s', a') - alpha log pi(a'|s'))
+    let critic = sac.critic_step(&batch, alpha, rng)?;
+    // L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~))  [+ w(u) L_bc, SMILe + BC]
+    let actor = actor_step(sac, &batch, demos.as_ref(), alpha, rng)?;
+    // L_alpha = -log(alpha) (mean log pi(a~|s) + H_target)
+    let alpha_loss = sac.temperature_step(actor.mean_logp)?;
+    // theta'_j <- (1 - tau) theta'_j + tau theta_j
+    sac.target_step()?;
+    Ok((SacStats::of(alpha, critic, actor, alpha_loss), reward_mean))
+}
+
+/// SAC's actor step with SMILe + BC's cloning term on the batch's tasks' demos (each row with
+/// its task's z), where the run has one:
+/// `L_bc = mean_rows ||tanh(mu([norm(s_E), z])) - a_E||^2`, added to `L_pi` with weight `w(u)`.
+fn actor_step(
+    sac: &mut Sac,
+    batch: &crate::data::Batch,
+    demos: Option<&DemoRows>,
+    alpha: f32,
+    rng: &mut ChaCha8Rng,
+) -> Result<ActorStep> {
+    let cloning = |actor: &TanhGaussianPolicy| -> Result<(Tensor, f32)> {
+        let d = demos.expect("the cloning term runs only with demo rows");
+        let err = (actor.mean_action(&d.obs)? - &d.act)?;
+        let l_bc = err.sqr()?.sum_keepdim(1)?.mean_all()?;
+        let v = scalar(&l_bc)?;
+        Ok(((l_bc * d.weight as f64)?, v))
+    };
+    let term = demos.map(|_| &cloning as crate::algo::sac::ActorTerm<'_>);
+    sac.actor_step(batch, alpha, term, rng)
 }

@@ -1,0 +1,226 @@
+//! SMILe's two batches, drawn from the run's data, replay and networks (read only): the
+//! discriminator's (expert and policy rows of the same tasks, each task with a fresh context)
+//! and SAC's (replay rows labelled with the discriminator's reward, and for SMILe + BC the
+//! demos of the same tasks).
+
+use candle_core::{Device, Tensor};
+use rand::Rng;
+use rand_chacha::ChaCha8Rng;
+
+use super::SmileConfig;
+use crate::data::{Batch, BatchVecs, MetaData, TaskReplay, distinct_tasks, sample_context};
+use crate::error::Result;
+use crate::model::{
+    ContextBatch, ContextEncoder, ContextSpec, Discriminator, Input, SharedCols, policy_input,
+    scalar,
+};
+
+/// One discriminator batch: `tasks` tasks, each with a context and `per_task` expert and
+/// `per_task` policy rows of `x` (row `r` belongs to task `r / per_task`).
+pub struct DiscBatch {
+    pub(super) context: ContextBatch,
+    pub(super) x_expert: Tensor,
+    pub(super) x_policy: Tensor,
+    pub(super) tasks: usize,
+    pub(super) per_task: usize,
+}
+
+impl DiscBatch {
+    /// A batch from encoder inputs and row-major `x` rows (`tasks * per_task` each).
+    pub fn new(
+        context: ContextBatch,
+        x_expert: Vec<f32>,
+        x_policy: Vec<f32>,
+        tasks: usize,
+        per_task: usize,
+    ) -> Result<Self> {
+        let rows = tasks * per_task;
+        let x_dim = x_expert.len() / rows.max(1);
+        Ok(Self {
+            context,
+            x_expert: Tensor::from_vec(x_expert, (rows, x_dim), &Device::Cpu)?,
+            x_policy: Tensor::from_vec(x_policy, (rows, x_dim), &Device::Cpu)?,
+            tasks,
+            per_task,
+        })
+    }
+
+    /// Each task's `z` (rows of `z`, shape `(tasks, z)`) repeated for its rows, through a
+    /// one-hot matrix so that gradients flow back into `z`.
+    pub(super) fn z_rows(&self, z: &Tensor) -> Result<Tensor> {
+        let (t, n) = (self.tasks, self.per_task);
+        let mut onehot = vec![0.0f32; t * n * t];
+        for r in 0..t * n {
+            onehot[r * t + r / n] = 1.0;
+        }
+        Ok(Tensor::from_vec(onehot, (t * n, t), &Device::Cpu)?.matmul(z)?)
+    }
+}
+
+/// A transition drawn uniformly from trajectories of `lens` transitions: (trajectory, step).
+fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
+    let mut k = rng.random_range(0..lens.iter().sum::<usize>());
+    let mut j = 0;
+    while k >= lens[j] {
+        k -= lens[j];
+        j += 1;
+    }
+    (j, k)
+}
+
+/// The networks, data and replay that both steps' batches are drawn from, borrowed field by
+/// field, so that the two sides of an overlapped pair can draw their batches at once while
+/// both read the same networks.
+pub(super) struct BatchSource<'a> {
+    pub(super) cfg: &'a SmileConfig,
+    pub(super) data: &'a MetaData,
+    pub(super) encoder: &'a ContextEncoder,
+    pub(super) disc: &'a Discriminator,
+    pub(super) replay: &'a TaskReplay,
+    pub(super) updates: u64,
+}
+
+impl BatchSource<'_> {
+    /// The discriminator's batch: `tasks_per_batch` distinct tasks, each with a fresh context
+    /// and `disc_per_task` expert rows (uniform over its demo transitions) and as many policy
+    /// rows (its replay); every random choice drawn from `rng`.
+    pub(super) fn disc_batch(&self, rng: &mut ChaCha8Rng) -> Result<DiscBatch> {
+        let cfg = &self.cfg;
+        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
+        let per_task = cfg.disc_per_task;
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        let norm = &self.data.norm;
+        let mut specs: Vec<ContextSpec<'_>> = Vec::with_capacity(tasks.len());
+        let (mut x_exp, mut x_pol) = (Vec::new(), Vec::new());
+        for &ti in &tasks {
+            let demos = &self.data.train[ti];
+            specs.push(sample_context(demos, cfg.context_draw(), rng));
+            // Expert rows: uniform over the task's demo transitions.
+            let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+            for _ in 0..per_task {
+                let (j, k) = draw_transition(&lens, rng);
+                let tr = &demos.trajectories[j];
+                self.disc.push_x(
+                    norm,
+                    &tr.obs[k * od..(k + 1) * od],
+                    &tr.actions[k * ad..(k + 1) * ad],
+                    &tr.next_obs[k * od..(k + 1) * od],
+                    &mut x_exp,
+                );
+            }
+            let mut pol = BatchVecs::default();
+            self.replay.task(ti).sample_into(per_task, rng, &mut pol)?;
+            for r in 0..per_task {
+                self.disc.push_x(
+                    norm,
+                    &pol.obs[r * od..(r + 1) * od],
+                    &pol.act[r * ad..(r + 1) * ad],
+                    &pol.next_obs[r * od..(r + 1) * od],
+                    &mut x_pol,
+                );
+            }
+        }
+        let context = self.encoder.batch(norm, &specs)?;
+        DiscBatch::new(context, x_exp, x_pol, tasks.len(), per_task)
+    }
+
+    /// A SAC batch on `tasks_per_batch` fresh tasks and contexts, labelled with the
+    /// discriminator's reward; with its reward's mean and, for SMILe + BC, the cloning term's
+    /// rows. Every random choice drawn from `rng`.
+    pub(super) fn sac_batch(&self, rng: &mut ChaCha8Rng) -> Result<(Batch, f32, Option<DemoRows>)> {
+        let cfg = &self.cfg;
+        let tasks = distinct_tasks(self.data.train.len(), cfg.tasks_per_batch, rng);
+        let n = cfg.sac_per_task;
+        let specs: Vec<ContextSpec<'_>> = tasks
+            .iter()
+            .map(|&ti| sample_context(&self.data.train[ti], cfg.context_draw(), rng))
+            .collect();
+        let b = self.encoder.batch(&self.data.norm, &specs)?;
+        // z from the discriminator's encoder, detached: SAC never updates the encoder.
+        let z = self.encoder.z(&b, true, rng)?.detach().to_vec2::<f32>()?;
+        let mut bv = BatchVecs::default();
+        let mut z_rows = Vec::with_capacity(tasks.len() * n * z[0].len());
+        for (k, &ti) in tasks.iter().enumerate() {
+            self.replay.task(ti).sample_into(n, rng, &mut bv)?;
+            for _ in 0..n {
+                z_rows.extend_from_slice(&z[k]);
+            }
+        }
+        let rows = bv.rew.len();
+        let (od, ad, zd) = (
+            self.data.family.obs_dim(),
+            self.data.family.act_dim(),
+            z[0].len(),
+        );
+        // r = clamp(D([x, z]), -10, 10); the SAC config's reward_scale multiplies it.
+        let xzd = self.disc.x_dim() + zd;
+        let mut dx = Vec::with_capacity(rows * xzd);
+        for r in 0..rows {
+            self.disc.push_x(
+                &self.data.norm,
+                &bv.obs[r * od..(r + 1) * od],
+                &bv.act[r * ad..(r + 1) * ad],
+                &bv.next_obs[r * od..(r + 1) * od],
+                &mut dx,
+            );
+            dx.extend_from_slice(&z_rows[r * zd..(r + 1) * zd]);
+        }
+        // Each task's z on its n rows: the first layer's z block once per task.
+        let xz = Tensor::from_vec(dx, (rows, xzd), &Device::Cpu)?;
+        let rew = self.disc.reward(Input::shared(
+            &xz,
+            Some(SharedCols {
+                start: self.disc.x_dim(),
+                len: zd,
+                group_rows: n,
+            }),
+        ))?;
+        let reward_mean = scalar(&rew.mean_all()?)?;
+        let batch = Batch {
+            obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
+            act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
+            rew,
+            next_obs: policy_input(&self.data.norm, &bv.next_obs, &z_rows, zd)?,
+            done: Tensor::from_slice(&bv.done, (rows, 1), &Device::Cpu)?,
+            z_cols: Some(SharedCols {
+                start: od,
+                len: zd,
+                group_rows: n,
+            }),
+        };
+        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
+        // when the weight is 0, so such a run is SMILe's, bit for bit.
+        let w = self.cfg.bc_weight_at(self.updates);
+        let bc = if w > 0.0 {
+            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
+            for &ti in &tasks {
+                let demos = &self.data.train[ti];
+                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+                for _ in 0..n {
+                    let (j, k) = draw_transition(&lens, rng);
+                    let tr = &demos.trajectories[j];
+                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
+                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
+                }
+            }
+            Some(DemoRows {
+                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
+                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
+                weight: w,
+            })
+        } else {
+            None
+        };
+        Ok((batch, reward_mean, bc))
+    }
+}
+
+/// SMILe + BC's cloning rows: the demos of a SAC batch's tasks, `sac_per_task` per task.
+pub(super) struct DemoRows {
+    /// Policy inputs `[norm(s_E), z]`, each row with its task's detached z.
+    pub(super) obs: Tensor,
+    /// The expert's actions `a_E`.
+    pub(super) act: Tensor,
+    /// The term's weight at this update, `w(u)` (> 0).
+    pub(super) weight: f32,
+}
