@@ -126,7 +126,7 @@ mod family_name {
 impl Default for QuickstartConfig {
     fn default() -> Self {
         Self {
-            env: Family::PointGoal,
+            env: Family::default(),
             out: PathBuf::from("runs/quickstart"),
             seed: 0,
             budget: Budget::Short,

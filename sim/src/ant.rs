@@ -1,5 +1,5 @@
 //! The 3-D quadruped of the Ant families: Gymnasium's `ant.xml` as a Rapier 3-D multibody
-//! (reduced coordinates: no joint drift), declared in one function, [`ant`].
+//! (reduced coordinates: no joint drift), declared in one function, `ant`.
 //!
 //! Torques are applied as in [`crate::planar`] (and Rapier's MJCF loader): a force-based
 //! velocity motor aimed at +-1e9 with gain 0 and `max_force = |torque|`. Joint damping and
@@ -15,6 +15,7 @@ use crate::dynamics::WalkerDynamics;
 use crate::planar::Start;
 use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};
+use crate::sensing::{ObsComponent, rate};
 
 mod episode;
 pub(crate) use episode::AntEpisode;
@@ -52,6 +53,42 @@ pub mod obs {
     /// Torso (x, y) position (m): 2 entries.
     pub const XY: usize = 27;
 }
+
+/// What each observation entry is ([`obs`]): torso z, orientation quaternion (an IMU's attitude:
+/// direct), eight joint angles, torso linear velocity (world frame: the rates of x, y, z),
+/// angular velocity (a gyro's: direct, not the derivative of the quaternion entries), eight
+/// joint velocities, torso x and y.
+pub(crate) const OBS_COMPONENTS: [ObsComponent; OBS_DIM] = [
+    ObsComponent::Position,
+    ObsComponent::Direct,
+    ObsComponent::Direct,
+    ObsComponent::Direct,
+    ObsComponent::Direct,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    rate(27),
+    rate(28),
+    rate(0),
+    ObsComponent::Direct,
+    ObsComponent::Direct,
+    ObsComponent::Direct,
+    rate(5),
+    rate(6),
+    rate(7),
+    rate(8),
+    rate(9),
+    rate(10),
+    rate(11),
+    rate(12),
+    ObsComponent::Position,
+    ObsComponent::Position,
+];
 
 /// One leg as ant.xml declares it, in the torso frame at rest (joint angles 0: the leg lies
 /// flat, pointing outwards).

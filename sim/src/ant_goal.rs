@@ -10,7 +10,9 @@ use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
 use crate::kinds::Family;
 use crate::render::Frame;
-use crate::task::Task;
+use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
+use crate::spec::{goal_test_angles, goal_train_angles, write_goal};
+use crate::task::{MetricKind, TASK_VALUE_TOLERANCE, Task};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;
@@ -115,6 +117,39 @@ impl Environment for AntGoalEnv {
             .frame(crate::point_goal::goal_marks(self.goal).to_vec())
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The family's declaration (`families.rs` lists it).
+
+/// ant-goal: point-goal's goals for the 3-D ant; Figure 2's protocol.
+pub(crate) const SPEC: FamilySpec = FamilySpec {
+    name: "ant-goal",
+    obs_dim: crate::ant::OBS_DIM,
+    act_dim: crate::ant::ACT_DIM,
+    task_dim: 2,
+    metric: MetricKind::MinGoalDistance,
+    value_name: "goal angle (rad)",
+    value_tolerance: TASK_VALUE_TOLERANCE,
+    value_key: "goal_angle",
+    value_decimals: 4,
+    write_parameter: write_goal,
+    train_tasks: || goal_train_angles().map(Task::ant_goal).collect(),
+    test_tasks: || goal_test_angles().map(Task::ant_goal).collect(),
+    task_from_value: |v| Ok(Task::ant_goal(v as f32)),
+    nominal_task: None,
+    obs_components: &crate::ant::OBS_COMPONENTS,
+    eval: EvalDefaults {
+        context_sizes: &[1],
+        draws: 3,
+        rollouts: 10,
+        falls_end_episodes: false,
+    },
+    estimator_accel_std: LEGGED_ACCEL_STD,
+    view: RunView::GoalPath {
+        xy: crate::ant::obs::XY,
+    },
+    make_env: |config| Ok(Box::new(AntGoalEnv::new(config)?)),
+};
 
 #[cfg(test)]
 mod tests;

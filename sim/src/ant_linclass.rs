@@ -32,7 +32,9 @@ use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
 use crate::kinds::Family;
 use crate::render::{Frame, Role, Shape};
-use crate::task::Task;
+use crate::sensing::ObsComponent;
+use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView, seed_of};
+use crate::task::{MetricKind, Task};
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
 pub const HORIZON: usize = 50;
@@ -286,6 +288,63 @@ impl Environment for AntLinClassEnv {
         self.ant.frame(vec![target(0), target(1)])
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The family's declaration (`families.rs` lists it).
+
+/// ant-linclass: 64 train and 32 test hyperplane seeds; aggregating demos is what this family
+/// tests, so the success is read per context size (1, 2, 4, 8).
+pub(crate) const SPEC: FamilySpec = FamilySpec {
+    name: "ant-linclass",
+    obs_dim: OBS_DIM,
+    act_dim: crate::ant::ACT_DIM,
+    task_dim: POINT_DIM,
+    metric: MetricKind::ClassificationSuccess,
+    value_name: "hyperplane seed",
+    value_tolerance: 0.0,
+    value_key: "hyperplane_seed",
+    value_decimals: 0,
+    write_parameter: |task, out| out.copy_from_slice(&task.linclass_normal().unwrap_or_default()),
+    train_tasks: || {
+        (0..TRAIN_TASKS)
+            .map(|i| Task::ant_linclass(TRAIN_SEED_BASE + i))
+            .collect()
+    },
+    test_tasks: || {
+        (0..TEST_TASKS)
+            .map(|i| Task::ant_linclass(TEST_SEED_BASE + i))
+            .collect()
+    },
+    task_from_value: |v| {
+        seed_of(v)
+            .map(Task::ant_linclass)
+            .ok_or("a hyperplane seed must be a non-negative integer")
+    },
+    nominal_task: None,
+    obs_components: &OBS_COMPONENTS,
+    eval: EvalDefaults {
+        context_sizes: &[1, 2, 4, 8],
+        draws: 3,
+        rollouts: 5,
+        falls_end_episodes: false,
+    },
+    estimator_accel_std: LEGGED_ACCEL_STD,
+    view: RunView::Velocity { target: false },
+    make_env: |config| Ok(Box::new(AntLinClassEnv::new(config)?)),
+};
+
+/// ant-linclass: the ant's entries, then the two points to classify, which the device is given
+/// (as data, not measured by a sensor): passed through.
+pub(crate) const OBS_COMPONENTS: [ObsComponent; OBS_DIM] = {
+    let mut table = [ObsComponent::Direct; OBS_DIM];
+    const ANT: [ObsComponent; crate::ant::OBS_DIM] = crate::ant::OBS_COMPONENTS;
+    let mut i = 0;
+    while i < ANT.len() {
+        table[i] = ANT[i];
+        i += 1;
+    }
+    table
+};
 
 #[cfg(test)]
 mod tests;

@@ -3,7 +3,7 @@
 //! XMLs, so a Rapier robot can be held against MuJoCo's (`sim/tests/fidelity.rs`).
 //!
 //! [`probe`] returns the JSON document both programs write (keys in FIDELITY.md);
-//! [`compare`] scores one against the other within the band.
+//! `compare` scores one against the other within the band.
 
 use std::f32::consts::{PI, TAU};
 use std::str::FromStr;

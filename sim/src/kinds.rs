@@ -6,13 +6,15 @@
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
 /// `walker-dyn`, `ant-goal`, `ant-linclass`.
 ///
-/// What the workspace knows about each family is its [`crate::FamilySpec`] ([`Family::spec`]), one
-/// declarative block per family in `spec.rs`. Deliberately not `#[non_exhaustive]`: a new
-/// family fails to compile at [`Family::spec`] (and the app's per-family recipes) instead of
-/// falling silently into a catch-all arm.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+/// What the workspace knows about each family is its [`crate::FamilySpec`] ([`Family::spec`]),
+/// declared in the family's own module and listed in `families.rs`. Deliberately not
+/// `#[non_exhaustive]`: a new family fails to compile at [`Family::spec`] (and the app's
+/// per-family recipes) instead of falling silently into a catch-all arm. The default is point-goal, the toy every learner's
+/// configuration starts from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
 pub enum Family {
     /// Planar point robot reaching a goal on the circle of radius 2 (top view).
+    #[default]
     PointGoal,
     /// Planar HalfCheetah analogue running at a target forward velocity.
     CheetahVel,

@@ -15,12 +15,35 @@ use rapier2d::prelude::*;
 use crate::dynamics::WalkerDynamics;
 use crate::plant::{Plant, TorsoPose};
 use crate::render::{Role, Shape};
+use crate::sensing::{ObsComponent, rate};
 
 /// Both planar legged robots have six torque-controlled joints.
 pub const ACT_DIM: usize = 6;
 /// Observation of both planar legged robots: torso height and angle, six joint angles, torso
 /// (vx, vz, angular velocity), six joint velocities. The torso x is never observed.
 pub const OBS_DIM: usize = 17;
+
+/// What each observation entry is (cheetah-vel and walker-dyn): torso height, torso angle, six joint angles, torso (vx, vz,
+/// angular velocity), six joint velocities. vx is the derivative of the unobserved torso x.
+pub(crate) const OBS_COMPONENTS: [ObsComponent; OBS_DIM] = [
+    ObsComponent::Position,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Angle,
+    ObsComponent::Direct,
+    rate(0),
+    rate(1),
+    rate(2),
+    rate(3),
+    rate(4),
+    rate(5),
+    rate(6),
+    rate(7),
+];
 /// Number of limbs (each hangs from one actuated joint).
 pub(crate) const LIMBS: usize = 6;
 /// Generalised dofs of the floating torso (x, z, angle).

@@ -12,8 +12,13 @@ use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
 use crate::kinds::Family;
+use crate::kinds::Physics;
 use crate::render::{Frame, Role, Shape, View};
-use crate::task::Task;
+use crate::sensing::ObsComponent;
+use crate::spec::{
+    EvalDefaults, FamilySpec, RunView, goal_test_angles, goal_train_angles, write_goal,
+};
+use crate::task::{MetricKind, POINT_GOAL_ACT_DIM, POINT_GOAL_OBS_DIM, TASK_VALUE_TOLERANCE, Task};
 
 /// What a goal family (point-goal, ant-goal) draws under its robot (top view): the dashed
 /// circle the goals lie on and the goal at `goal`.
@@ -244,6 +249,64 @@ impl PointGoalPdExpert {
         Ok(())
     }
 }
+
+// ---------------------------------------------------------------------------------------------
+// The family's declaration (`families.rs` lists it).
+
+/// point-goal: 32 train goals at k pi/16, 16 test goals between them; Figure 2's protocol.
+pub(crate) const SPEC: FamilySpec = FamilySpec {
+    name: "point-goal",
+    obs_dim: POINT_GOAL_OBS_DIM,
+    act_dim: POINT_GOAL_ACT_DIM,
+    task_dim: 2,
+    metric: MetricKind::MinGoalDistance,
+    value_name: "goal angle (rad)",
+    value_tolerance: TASK_VALUE_TOLERANCE,
+    value_key: "goal_angle",
+    value_decimals: 4,
+    write_parameter: write_goal,
+    train_tasks: || goal_train_angles().map(Task::point_goal).collect(),
+    test_tasks: || goal_test_angles().map(Task::point_goal).collect(),
+    task_from_value: |v| Ok(Task::point_goal(v as f32)),
+    nominal_task: None,
+    obs_components: &OBS_COMPONENTS,
+    eval: EvalDefaults {
+        context_sizes: &[1],
+        draws: 3,
+        rollouts: 10,
+        falls_end_episodes: false,
+    },
+    estimator_accel_std: 2.0,
+    view: RunView::GoalPath { xy: 0 },
+    make_env: |config| {
+        if config.physics != Physics::Rapier {
+            return Err(SimError::PhysicsUnavailable {
+                physics: config.physics,
+                how: "point-goal is a Rapier point mass with no MuJoCo model; run it on Rapier"
+                    .into(),
+            });
+        }
+        Ok(Box::new(PointGoalEnv::new(config)))
+    },
+};
+
+/// Rapier integrates the point's position with the velocity before the step's damping and
+/// reports the velocity after it.
+const POINT_GOAL_RATE_SCALE: f32 = 1.0 / (1.0 + LINEAR_DAMPING * CONTROL_DT);
+
+/// point-goal: `[x, y, vx, vy]`.
+pub(crate) const OBS_COMPONENTS: [ObsComponent; 4] = [
+    ObsComponent::Position,
+    ObsComponent::Position,
+    ObsComponent::Rate {
+        of: 0,
+        scale: POINT_GOAL_RATE_SCALE,
+    },
+    ObsComponent::Rate {
+        of: 1,
+        scale: POINT_GOAL_RATE_SCALE,
+    },
+];
 
 #[cfg(test)]
 mod tests {

@@ -1,7 +1,8 @@
 //! What each observation component physically is, for a device that measures positions only
 //! and estimates the rest (firmware-sim's `--sensing positions`).
 //!
-//! The families own this knowledge: a velocity entry is the time derivative of a position or
+//! The families own this knowledge (each declares its table in its spec, the robots' shared
+//! layouts sit with the robots: `planar::OBS_COMPONENTS`, `ant::OBS_COMPONENTS`): a velocity entry is the time derivative of a position or
 //! angle entry of the same observation, and a position-sensing device (encoders, a tracker)
 //! can reconstruct it by filtering that position over the control step. An entry that is the
 //! derivative of something the observation does not contain (the cheetah's and walker's
@@ -40,100 +41,10 @@ impl ObsComponent {
     }
 }
 
-use ObsComponent::{Angle, Direct, Position};
-
-const fn rate(of: usize) -> ObsComponent {
+/// `ObsComponent::Rate { of, scale: 1.0 }`: the rate of entry `of` at the control step's scale.
+pub(crate) const fn rate(of: usize) -> ObsComponent {
     ObsComponent::Rate { of, scale: 1.0 }
 }
-
-/// Rapier integrates the point's position with the velocity before the step's damping and
-/// reports the velocity after it.
-const POINT_GOAL_RATE_SCALE: f32 =
-    1.0 / (1.0 + crate::point_goal::LINEAR_DAMPING * crate::point_goal::CONTROL_DT);
-
-/// point-goal: `[x, y, vx, vy]`.
-pub(crate) const POINT_GOAL: [ObsComponent; 4] = [
-    Position,
-    Position,
-    ObsComponent::Rate {
-        of: 0,
-        scale: POINT_GOAL_RATE_SCALE,
-    },
-    ObsComponent::Rate {
-        of: 1,
-        scale: POINT_GOAL_RATE_SCALE,
-    },
-];
-
-/// cheetah-vel and walker-dyn: torso height, torso angle, six joint angles, torso (vx, vz,
-/// angular velocity), six joint velocities. vx is the derivative of the unobserved torso x.
-pub(crate) const PLANAR: [ObsComponent; 17] = [
-    Position,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Direct,
-    rate(0),
-    rate(1),
-    rate(2),
-    rate(3),
-    rate(4),
-    rate(5),
-    rate(6),
-    rate(7),
-];
-
-/// ant-goal ([`crate::ant::obs`]): torso z, orientation quaternion (an IMU's attitude:
-/// direct), eight joint angles, torso linear velocity (world frame: the rates of x, y, z),
-/// angular velocity (a gyro's: direct, not the derivative of the quaternion entries), eight
-/// joint velocities, torso x and y.
-pub(crate) const ANT: [ObsComponent; 29] = [
-    Position,
-    Direct,
-    Direct,
-    Direct,
-    Direct,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    Angle,
-    rate(27),
-    rate(28),
-    rate(0),
-    Direct,
-    Direct,
-    Direct,
-    rate(5),
-    rate(6),
-    rate(7),
-    rate(8),
-    rate(9),
-    rate(10),
-    rate(11),
-    rate(12),
-    Position,
-    Position,
-];
-
-/// ant-linclass: the ant's entries, then the two points to classify, which the device is given
-/// (as data, not measured by a sensor): passed through.
-pub(crate) const ANT_LINCLASS: [ObsComponent; crate::ant_linclass::OBS_DIM] = {
-    let mut table = [Direct; crate::ant_linclass::OBS_DIM];
-    let mut i = 0;
-    while i < ANT.len() {
-        table[i] = ANT[i];
-        i += 1;
-    }
-    table
-};
 
 #[cfg(test)]
 mod tests {
@@ -141,7 +52,7 @@ mod tests {
     use crate::env::{EnvConfig, make_env};
     use crate::kinds::Family;
     use crate::task::Task;
-    use ObsComponent::Rate;
+    use ObsComponent::{Angle, Position, Rate};
     use std::f32::consts::{PI, TAU};
 
     #[test]

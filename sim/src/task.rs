@@ -71,15 +71,6 @@ pub const WALKER_NOMINAL_SEED: u64 = u32::MAX as u64;
 pub const TASK_VALUE_TOLERANCE: f64 = 1e-3;
 
 impl Family {
-    /// Every family, in CLI order.
-    pub const ALL: [Family; 5] = [
-        Family::PointGoal,
-        Family::CheetahVel,
-        Family::WalkerDyn,
-        Family::AntGoal,
-        Family::AntLinClass,
-    ];
-
     /// The CLI name of the family.
     pub fn name(self) -> &'static str {
         self.spec().name

@@ -12,6 +12,11 @@
 //!   `--flag` and no `smile` command line in their non-test code outside comments (cargo's
 //!   flags in a `cargo` build instruction aside).
 //!
+//! * **A family is named where ARCHITECTURE.md says**: the non-test files of sim, trainer,
+//!   firmware-sim and app that name one family in code (`Family::AntGoal`, `Task::AntGoal`)
+//!   are all among the files its "A family." paragraph names, and every file it names exists,
+//!   so its "what adding a family touches" stays true.
+//!
 //! Test code is left out: `tests/` and `benches/` folders, files named `tests.rs`, and
 //! everything after a file's `#[cfg(test)]` line (the house keeps unit tests at a file's end).
 
@@ -296,8 +301,91 @@ fn the_libraries_name_no_flag() {
     );
 }
 
+/// The families' variant names, as code spells them after `Family::` or `Task::`.
+const FAMILY_VARIANTS: [&str; 5] = [
+    "PointGoal",
+    "CheetahVel",
+    "WalkerDyn",
+    "AntGoal",
+    "AntLinClass",
+];
+
+/// Whether a line of code names one family's variant.
+fn names_a_family(code: &str) -> bool {
+    FAMILY_VARIANTS.iter().any(|v| {
+        ["Family::", "Task::"].iter().any(|ty| {
+            let name = format!("{ty}{v}");
+            code.match_indices(&name).any(|(i, _)| {
+                let after = code[i + name.len()..].chars().next();
+                !after.is_some_and(|c| c.is_alphanumeric() || c == '_')
+            })
+        })
+    })
+}
+
+/// The non-test files (paths from the root) of sim, trainer, firmware-sim and app whose code
+/// names one family.
+fn files_naming_a_family() -> BTreeSet<String> {
+    let mut out = BTreeSet::new();
+    for krate in ["sim", "trainer", "firmware-sim", "app"] {
+        let mut files = Vec::new();
+        sources(&root().join(krate).join("src"), &mut files);
+        for file in files {
+            if non_test_lines(&file)
+                .iter()
+                .any(|l| names_a_family(&code_of(l)))
+            {
+                let rel = file.strip_prefix(root()).unwrap_or(&file);
+                out.insert(rel.to_string_lossy().replace('\\', "/"));
+            }
+        }
+    }
+    out
+}
+
+/// The `.rs` paths ARCHITECTURE.md's "**A family.**" paragraph names (in backticks, up to the
+/// next bold paragraph; a placeholder such as `sim/src/<family>.rs` left out).
+fn architecture_family_files() -> BTreeSet<String> {
+    let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
+    let start = text
+        .find("**A family.**")
+        .expect("ARCHITECTURE.md has its family paragraph");
+    let rest = &text[start + 2..];
+    let section = &rest[..rest.find("\n**").unwrap_or(rest.len())];
+    section
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .filter(|p| p.ends_with(".rs") && p.contains('/') && !p.contains('<'))
+        .map(str::to_string)
+        .collect()
+}
+
+#[test]
+fn a_family_is_named_only_where_architecture_says() {
+    let (named, listed) = (files_naming_a_family(), architecture_family_files());
+    let unlisted: Vec<&String> = named.difference(&listed).collect();
+    assert!(
+        unlisted.is_empty(),
+        "these files name a family in code, but ARCHITECTURE.md's \"A family.\" paragraph \
+         (what adding a family touches) does not list them: read the family from its spec, or \
+         say there why the file names one:\n{unlisted:#?}"
+    );
+    let missing: Vec<&String> = listed.iter().filter(|p| !root().join(p).exists()).collect();
+    assert!(
+        missing.is_empty(),
+        "ARCHITECTURE.md lists files that do not exist: {missing:?}"
+    );
+}
+
 #[test]
 fn the_checks_see_what_they_look_for() {
+    assert!(names_a_family("if family == Family::PointGoal {"));
+    assert!(names_a_family("Task::WalkerDyn { dynamics_seed } => x,"));
+    assert!(!names_a_family("Family::PointGoals"));
+    assert!(!names_a_family("Task::point_goal(0.5)"));
+    assert!(files_naming_a_family().contains("sim/src/task.rs"));
+    assert!(architecture_family_files().contains("sim/src/families.rs"));
     assert_eq!(flags_in(r#"  "pass --env {} or", x"#), ["--env"]);
     assert_eq!(flags_in("    /// the --demos file"), Vec::<String>::new());
     assert_eq!(

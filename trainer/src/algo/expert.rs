@@ -95,7 +95,7 @@ pub struct ExpertConfig {
 impl Default for ExpertConfig {
     fn default() -> Self {
         Self {
-            env: Family::PointGoal,
+            env: Family::default(),
             physics: Physics::Rapier,
             task_index: None,
             task_value: None,

@@ -92,7 +92,7 @@ pub struct MetaBcConfig {
 impl Default for MetaBcConfig {
     fn default() -> Self {
         Self {
-            env: Family::PointGoal,
+            env: Family::default(),
             physics: sim::Physics::Rapier,
             context: ContextConfig::default(),
             policy_hidden: vec![128, 128],

@@ -134,7 +134,7 @@ fn is_zero_f64(v: &f64) -> bool {
 impl Default for SmileConfig {
     fn default() -> Self {
         Self {
-            env: Family::PointGoal,
+            env: Family::default(),
             physics: sim::Physics::Rapier,
             context: ContextConfig::default(),
             sac: SacConfig {
