@@ -3,9 +3,35 @@
 //! they can run), so nothing allocates and memory does not grow with the context length.
 
 use crate::error::{Error, Result};
-use crate::format::ModelKind;
+use crate::format::{LayerRecord, ModelKind};
 use crate::kernels;
 use crate::model::Model;
+
+/// The buffers an MLP runs in, `W` wide: its input is written to `a`, the layers ping-pong
+/// between `a` and `b` (with `q` for the int8 activations) and [`Scratch::run`] returns the
+/// one holding the output.
+#[derive(Debug)]
+struct Scratch<const W: usize> {
+    a: [f32; W],
+    b: [f32; W],
+    q: [u8; W],
+}
+
+impl<const W: usize> Scratch<W> {
+    const fn new() -> Self {
+        Self {
+            a: [0.0; W],
+            b: [0.0; W],
+            q: [0; W],
+        }
+    }
+
+    /// Runs `layers` on the input in `a`; the buffer holding the output.
+    fn run(&mut self, layers: &[LayerRecord<'_>]) -> &[f32] {
+        let in_b = kernels::mlp(layers, &mut self.a, &mut self.b, &mut self.q);
+        if in_b { &self.b } else { &self.a }
+    }
+}
 
 fn check_capacity<const W: usize>(model: &Model<'_>) -> Result<()> {
     let needed = model.max_width();
@@ -54,9 +80,7 @@ fn normalise(model: &Model<'_>, x: &[f32], out: &mut [f32]) {
 #[derive(Debug)]
 pub struct Policy<'m, 'a, const W: usize> {
     model: &'m Model<'a>,
-    a: [f32; W],
-    b: [f32; W],
-    q: [u8; W],
+    scratch: Scratch<W>,
 }
 
 impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
@@ -65,9 +89,7 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
         check_capacity::<W>(model)?;
         Ok(Self {
             model,
-            a: [0.0; W],
-            b: [0.0; W],
-            q: [0; W],
+            scratch: Scratch::new(),
         })
     }
 
@@ -101,15 +123,9 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
             self.safe_action(action);
             return Err(e);
         }
-        normalise(self.model, obs, &mut self.a[..obs_dim]);
-        self.a[obs_dim..obs_dim + z_dim].copy_from_slice(z);
-        let in_b = kernels::mlp(
-            &self.model.payload.policy,
-            &mut self.a,
-            &mut self.b,
-            &mut self.q,
-        );
-        let mean = if in_b { &self.b } else { &self.a };
+        normalise(self.model, obs, &mut self.scratch.a[..obs_dim]);
+        self.scratch.a[obs_dim..obs_dim + z_dim].copy_from_slice(z);
+        let mean = self.scratch.run(&self.model.payload.policy);
         let (scale, offset) = (self.model.act_scale(), self.model.act_offset());
         for (i, a) in action.iter_mut().enumerate() {
             *a = libm::tanhf(mean[i]) * scale.get(i) + offset.get(i);
@@ -131,9 +147,7 @@ impl<'m, 'a, const W: usize> Policy<'m, 'a, W> {
 #[derive(Debug)]
 pub struct ContextEncoder<'m, 'a, const W: usize> {
     model: &'m Model<'a>,
-    a: [f32; W],
-    b: [f32; W],
-    q: [u8; W],
+    scratch: Scratch<W>,
     trajectory_sum: [f32; W],
     trajectory_steps: u32,
     context_sum: [f32; W],
@@ -146,9 +160,7 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
         check_capacity::<W>(model)?;
         Ok(Self {
             model,
-            a: [0.0; W],
-            b: [0.0; W],
-            q: [0; W],
+            scratch: Scratch::new(),
             trajectory_sum: [0.0; W],
             trajectory_steps: 0,
             context_sum: [0.0; W],
@@ -182,21 +194,16 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
         let (obs_dim, act_dim) = (h.obs_dim as usize, h.act_dim as usize);
         check_input("obs", obs, obs_dim)?;
         check_input("next_obs", next_obs, obs_dim)?;
-        normalise(self.model, obs, &mut self.a[..obs_dim]);
+        let x = &mut self.scratch.a;
+        normalise(self.model, obs, &mut x[..obs_dim]);
         let mut at = obs_dim;
         if h.kind == ModelKind::StateAction {
             check_input("action", action, act_dim)?;
-            self.a[at..at + act_dim].copy_from_slice(action);
+            x[at..at + act_dim].copy_from_slice(action);
             at += act_dim;
         }
-        normalise(self.model, next_obs, &mut self.a[at..at + obs_dim]);
-        let in_b = kernels::mlp(
-            &self.model.payload.encoder,
-            &mut self.a,
-            &mut self.b,
-            &mut self.q,
-        );
-        let r = if in_b { &self.b } else { &self.a };
+        normalise(self.model, next_obs, &mut x[at..at + obs_dim]);
+        let r = self.scratch.run(&self.model.payload.encoder);
         let r_dim = h.r_dim as usize;
         for (s, &v) in self.trajectory_sum[..r_dim].iter_mut().zip(&r[..r_dim]) {
             *s += v;
@@ -246,15 +253,9 @@ impl<'m, 'a, const W: usize> ContextEncoder<'m, 'a, W> {
             } else {
                 0.0
             };
-            self.a[i] = self.context_sum[i] + open;
+            self.scratch.a[i] = self.context_sum[i] + open;
         }
-        let in_b = kernels::mlp(
-            &self.model.payload.z_head,
-            &mut self.a,
-            &mut self.b,
-            &mut self.q,
-        );
-        let out = if in_b { &self.b } else { &self.a };
+        let out = self.scratch.run(&self.model.payload.z_head);
         z.copy_from_slice(&out[..z_dim]);
         if z.iter().any(|v| !v.is_finite()) {
             return Err(Error::NonFiniteOutput);
