@@ -594,13 +594,14 @@ fn actor_step(
     alpha: f32,
     rng: &mut ChaCha8Rng,
 ) -> Result<ActorStep> {
+    let Some(d) = demos else {
+        return sac.actor_step(batch, alpha, None, rng);
+    };
     let cloning = |actor: &TanhGaussianPolicy| -> Result<(Tensor, f32)> {
-        let d = demos.expect("the cloning term runs only with demo rows");
         let err = (actor.mean_action(&d.obs)? - &d.act)?;
         let l_bc = err.sqr()?.sum_keepdim(1)?.mean_all()?;
         let v = scalar(&l_bc)?;
         Ok(((l_bc * d.weight as f64)?, v))
     };
-    let term = demos.map(|_| &cloning as crate::algo::sac::ActorTerm<'_>);
-    sac.actor_step(batch, alpha, term, rng)
+    sac.actor_step(batch, alpha, Some(&cloning), rng)
 }
