@@ -1,6 +1,6 @@
 //! The two kinds every module of the crate names, the task family and the physics backend,
 //! kept below them all so the error type can carry one without a loop. Their methods live
-//! with what they read: `task.rs` (tasks, splits) and `spec.rs` (a family's declaration) for
+//! with what they read: `task.rs` (tasks, splits) and `families.rs` (the list of family declarations) for
 //! [`Family`], `physics.rs` (names, availability) for [`Physics`].
 
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
