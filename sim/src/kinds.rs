@@ -1,7 +1,7 @@
 //! The two kinds every module of the crate names, the task family and the physics backend,
 //! kept below them all so the error type can carry one without a loop. Their methods live
-//! with what they read: `task.rs` (tasks, splits) and `families.rs` (the list of family declarations) for
-//! [`Family`], `physics.rs` (names, availability) for [`Physics`].
+//! with what they read: `task.rs` (tasks, splits) and `families.rs` (the list of the families'
+//! declarations) for [`Family`], `physics.rs` (names, availability) for [`Physics`].
 
 /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
 /// `walker-dyn`, `ant-goal`, `ant-linclass`.
