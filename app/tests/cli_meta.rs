@@ -7,9 +7,7 @@ use common::{ok, smile};
 use std::path::PathBuf;
 
 use sim::{Family, Split};
-use trainer::meta_bc::MetaBcConfig;
 use trainer::sac::SacConfig;
-use trainer::smile::SmileConfig;
 
 fn demos(split: Split, tasks: Vec<sim::Task>, path: &std::path::Path) {
     common::pd_demos(split, tasks, 2, 20).write(path).unwrap();
@@ -51,41 +49,15 @@ fn train_eval_export_and_refuse_meta_test_data() {
     }
 
     // Tiny SMILe and Meta-BC runs from TOML configs.
-    let mut sc = SmileConfig {
-        disc_hidden: vec![16, 16],
-        sac: SacConfig {
-            hidden: vec![16, 16],
-            reward_scale: 8.0,
-            ..SacConfig::default()
-        },
-        tasks_per_batch: 4,
-        disc_per_task: 16,
-        sac_per_task: 16,
-        rollouts_per_iter: 1,
-        updates_per_iter: 10,
-        total_updates: 20,
-        holdout_every: 4,
-        eval_every: 10,
-        eval_episodes: 1,
-        horizon: Some(20),
-        ..SmileConfig::default()
+    let (mut sc, mut bc) = common::tiny_meta_configs();
+    sc.sac = SacConfig {
+        hidden: vec![16, 16],
+        reward_scale: 8.0,
+        ..SacConfig::default()
     };
-    sc.context.enc_hidden = vec![8];
-    sc.context.r_dim = 4;
-    sc.context.z_dim = 2;
+    (sc.total_updates, sc.eval_every) = (20, 10);
     std::fs::write(dir.join("smile.toml"), toml::to_string(&sc).unwrap()).unwrap();
-    let mut bc = MetaBcConfig {
-        policy_hidden: vec![16, 16],
-        tasks_per_batch: 4,
-        per_task: 16,
-        total_steps: 60,
-        holdout_every: 4,
-        eval_every: 30,
-        eval_episodes: 1,
-        horizon: Some(20),
-        ..MetaBcConfig::default()
-    };
-    bc.context = sc.context.clone();
+    (bc.total_steps, bc.eval_every) = (60, 30);
     std::fs::write(dir.join("bc.toml"), toml::to_string(&bc).unwrap()).unwrap();
     let (run_s, run_b) = (dir.join("smile"), dir.join("bc"));
     let (smile_toml, bc_toml) = (s(&dir.join("smile.toml")), s(&dir.join("bc.toml")));

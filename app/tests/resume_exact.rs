@@ -10,9 +10,6 @@ use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
 use sim::Family;
-use trainer::meta_bc::MetaBcConfig;
-use trainer::sac::SacConfig;
-use trainer::smile::SmileConfig;
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("smile-resume-{name}-{}", std::process::id()));
@@ -85,46 +82,13 @@ fn killed_and_resumed_runs_end_byte_identical_to_uninterrupted_ones() {
     .write(&train)
     .unwrap();
 
-    let mut sc = SmileConfig {
-        disc_hidden: vec![16, 16],
-        sac: SacConfig {
-            hidden: vec![16, 16],
-            ..SmileConfig::default().sac
-        },
-        tasks_per_batch: 4,
-        disc_per_task: 16,
-        sac_per_task: 16,
-        rollouts_per_iter: 1,
-        updates_per_iter: 10,
-        total_updates: 400,
-        holdout_every: 4,
-        eval_every: 50,
-        eval_contexts: 1,
-        eval_episodes: 1,
-        checkpoint_every: 20,
-        horizon: Some(20),
-        seed: 5,
-        ..SmileConfig::default()
-    };
-    sc.context.enc_hidden = vec![8];
+    let (mut sc, mut bc) = common::tiny_meta_configs();
     sc.context.head_hidden = vec![8];
-    sc.context.r_dim = 4;
-    sc.context.z_dim = 2;
-    let mut bc = MetaBcConfig {
-        policy_hidden: vec![16, 16],
-        tasks_per_batch: 4,
-        per_task: 16,
-        total_steps: 1500,
-        holdout_every: 4,
-        eval_every: 100,
-        patience: 0,
-        eval_episodes: 1,
-        checkpoint_every: 20,
-        horizon: Some(20),
-        seed: 5,
-        ..MetaBcConfig::default()
-    };
     bc.context = sc.context.clone();
+    (sc.total_updates, sc.eval_every, sc.eval_contexts) = (400, 50, 1);
+    (bc.total_steps, bc.eval_every, bc.patience) = (1500, 100, 0);
+    (sc.checkpoint_every, bc.checkpoint_every) = (20, 20);
+    (sc.seed, bc.seed) = (5, 5);
     let (smile_toml, bc_toml) = (dir.join("smile.toml"), dir.join("bc.toml"));
     std::fs::write(&smile_toml, toml::to_string(&sc).unwrap()).unwrap();
     std::fs::write(&bc_toml, toml::to_string(&bc).unwrap()).unwrap();

@@ -287,74 +287,74 @@ fn encode_layer(
         l.activation,
     );
     let bias = f32_bytes(&l.bias);
-    let encoded = match quant {
-        Quant::F32 => EncodedLayer {
-            layer: dims,
-            quant,
-            weights: f32_bytes(&l.weights),
-            bias,
-            weight_scale: Vec::new(),
-            input_scale: Vec::new(),
-            unsigned_input: false,
-        },
+    let (weights, weight_scale, input_scale, unsigned_input) = match quant {
+        Quant::F32 => (f32_bytes(&l.weights), Vec::new(), Vec::new(), false),
         Quant::W8A32 => {
             let (weights, scales) = quantize_rows(&l.weights, l.in_dim);
-            EncodedLayer {
-                layer: dims,
-                quant,
-                weights,
-                bias,
-                weight_scale: f32_bytes(&scales),
-                input_scale: Vec::new(),
-                unsigned_input: false,
-            }
+            (weights, f32_bytes(&scales), Vec::new(), false)
         }
         Quant::W8A8 => {
-            // A hidden layer (input after a ReLU) quantizes its input unsigned with the layer's
-            // widest range: per-unit ranges overfit the calibration (a unit rarely active there
-            // clips elsewhere; measured: z error 3-10x). A first layer's channels are different
-            // quantities (observation, action, z, r sums): each gets its own scale with
-            // headroom, at most the layer's widest range.
-            let levels = if unsigned_input { 255.0 } else { 127.0 };
-            let widest = input_range.iter().fold(0.0f32, |m, r| m.max(*r));
-            let s_in: Vec<f32> = input_range
-                .iter()
-                .map(|&r| {
-                    // (A channel never non-zero in calibration takes the widest range too.)
-                    let r = if unsigned_input || r <= 0.0 {
-                        widest
-                    } else {
-                        (r * FIRST_LAYER_HEADROOM).min(widest)
-                    };
-                    if r > 0.0 { r / levels } else { 1.0 }
-                })
-                .collect();
-            // y_o = sum_i w_oi x_i = sum_i (w_oi s_i) q_i: the input scales fold into the
-            // weights, which are then quantized per row as usual.
-            let folded: Vec<f32> = l
-                .weights
-                .chunks_exact(l.in_dim.max(1))
-                .flat_map(|row| row.iter().zip(&s_in).map(|(w, s)| w * s))
-                .collect();
-            let (weights, scales) = quantize_rows(&folded, l.in_dim);
-            // Equal scales (a hidden layer's) are stored once.
-            let s_in = if s_in.iter().all(|s| *s == s_in[0]) {
-                s_in[..1.min(s_in.len())].to_vec()
-            } else {
-                s_in
-            };
-            EncodedLayer {
-                layer: dims,
-                quant,
+            let (weights, scales, s_in) = encode_w8a8(l, input_range, unsigned_input);
+            (
                 weights,
-                bias,
-                weight_scale: f32_bytes(&scales),
-                input_scale: f32_bytes(&s_in),
+                f32_bytes(&scales),
+                f32_bytes(&s_in),
                 unsigned_input,
-            }
+            )
         }
     };
-    Ok(encoded)
+    Ok(EncodedLayer {
+        layer: dims,
+        quant,
+        weights,
+        bias,
+        weight_scale,
+        input_scale,
+        unsigned_input,
+    })
+}
+
+/// A W8A8 layer's int8 weights, their per-row scales and its input scales (one where all are
+/// equal).
+fn encode_w8a8(
+    l: &FloatLayer,
+    input_range: &[f32],
+    unsigned_input: bool,
+) -> (Vec<u8>, Vec<f32>, Vec<f32>) {
+    // A hidden layer (input after a ReLU) quantizes its input unsigned with the layer's
+    // widest range: per-unit ranges overfit the calibration (a unit rarely active there
+    // clips elsewhere; measured: z error 3-10x). A first layer's channels are different
+    // quantities (observation, action, z, r sums): each gets its own scale with
+    // headroom, at most the layer's widest range.
+    let levels = if unsigned_input { 255.0 } else { 127.0 };
+    let widest = input_range.iter().fold(0.0f32, |m, r| m.max(*r));
+    let s_in: Vec<f32> = input_range
+        .iter()
+        .map(|&r| {
+            // (A channel never non-zero in calibration takes the widest range too.)
+            let r = if unsigned_input || r <= 0.0 {
+                widest
+            } else {
+                (r * FIRST_LAYER_HEADROOM).min(widest)
+            };
+            if r > 0.0 { r / levels } else { 1.0 }
+        })
+        .collect();
+    // y_o = sum_i w_oi x_i = sum_i (w_oi s_i) q_i: the input scales fold into the
+    // weights, which are then quantized per row as usual.
+    let folded: Vec<f32> = l
+        .weights
+        .chunks_exact(l.in_dim.max(1))
+        .flat_map(|row| row.iter().zip(&s_in).map(|(w, s)| w * s))
+        .collect();
+    let (weights, scales) = quantize_rows(&folded, l.in_dim);
+    // Equal scales (a hidden layer's) are stored once.
+    let s_in = if s_in.iter().all(|s| *s == s_in[0]) {
+        s_in[..1.min(s_in.len())].to_vec()
+    } else {
+        s_in
+    };
+    (weights, scales, s_in)
 }
 
 fn records(encoded: &[EncodedLayer]) -> Layers<'_> {

@@ -9,10 +9,11 @@ use crate::env::check_family;
 use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
 use crate::kinds::Family;
+use crate::kinds::Task;
 use crate::render::Frame;
 use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
 use crate::spec::{goal_test_angles, goal_train_angles, write_goal};
-use crate::task::{MetricKind, TASK_VALUE_TOLERANCE, Task};
+use crate::task::{MetricKind, TASK_VALUE_TOLERANCE};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;

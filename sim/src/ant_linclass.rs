@@ -31,10 +31,11 @@ use crate::env::check_family;
 use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
 use crate::kinds::Family;
+use crate::kinds::Task;
 use crate::render::{Frame, Role, Shape};
 use crate::sensing::ObsComponent;
 use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView, seed_of};
-use crate::task::{MetricKind, Task};
+use crate::task::MetricKind;
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
 pub const HORIZON: usize = 50;

@@ -1,8 +1,9 @@
 //! cheetah-vel, the family's declaration: the planar cheetah (`planar.rs`, on either plant
 //! through `legged.rs`) running at a target forward velocity.
 
+use crate::kinds::Task;
 use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
-use crate::task::{MetricKind, TASK_VALUE_TOLERANCE, Task};
+use crate::task::{MetricKind, TASK_VALUE_TOLERANCE};
 
 /// cheetah-vel: 31 train velocities 0..=3 by 0.1, 30 test velocities 0.05..=2.95; Table 1's
 /// protocol (context sizes 1-4).

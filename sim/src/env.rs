@@ -3,8 +3,9 @@
 use crate::error::SimError;
 use crate::kinds::Family;
 use crate::kinds::Physics;
+use crate::kinds::Task;
 use crate::render::Frame;
-use crate::task::{MetricKind, Task};
+use crate::task::MetricKind;
 
 /// Options of an environment: its episode, and which physics backend simulates it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -23,6 +24,18 @@ impl Default for EnvConfig {
             horizon: None,
             healthy_termination: true,
             physics: Physics::Rapier,
+        }
+    }
+}
+
+impl EnvConfig {
+    /// Episodes of `horizon` steps (`None`: the family's) on `physics`, ending as the family
+    /// ends them (a walker's fall among them).
+    pub fn new(horizon: Option<usize>, physics: Physics) -> Self {
+        Self {
+            horizon,
+            physics,
+            ..Self::default()
         }
     }
 }

@@ -2,18 +2,21 @@
 //! every family's module (it imports them all), so no family module and nothing below them
 //! imports it back; `task.rs` and the rest reach a family's data through [`Family::spec`].
 //!
-//! Adding a family: its module with its environment and its `SPEC` (as `point_goal.rs`), its
-//! line in [`families!`] below, a [`Family`] variant (`kinds.rs`) and a `Task` variant with its
-//! arms (`task.rs`), the two enums the compiler checks every `match` against.
+//! Adding a family: its module with its environment and its `SPEC` (as `point_goal.rs`) and its
+//! entry in the one list of families ([`with_families`], `kinds.rs`), which writes the
+//! [`Family`] and `Task` enums there and this module's map.
 
-use crate::kinds::Family;
+use crate::kinds::{Family, with_families};
 use crate::sensing::ObsComponent;
 use crate::spec::FamilySpec;
 
-/// The list: each family's variant and the module whose `SPEC` declares it, in CLI order.
-/// It writes [`Family::ALL`] and the one `match` of [`Family::spec`].
-macro_rules! families {
-    ($($variant:ident => $module:ident),+ $(,)?) => {
+/// Writes [`Family::ALL`] and the one `match` of [`Family::spec`] from the list
+/// ([`with_families`]).
+macro_rules! map_families {
+    ($(
+        $(#[$family_attr:meta])* $variant:ident in $module:ident,
+        $(#[$task_doc:meta])* task { $($param:tt)* };
+    )+) => {
         impl Family {
             /// Every family, in CLI order.
             pub const ALL: [Family; [$(Family::$variant),+].len()] = [$(Family::$variant),+];
@@ -30,13 +33,7 @@ macro_rules! families {
     };
 }
 
-families! {
-    PointGoal => point_goal,
-    CheetahVel => cheetah_vel,
-    WalkerDyn => walker_dyn,
-    AntGoal => ant_goal,
-    AntLinClass => ant_linclass,
-}
+with_families!(map_families);
 
 impl Family {
     /// Per observation index, what the entry is: a measured position or angle, the rate of

@@ -5,10 +5,10 @@ use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
 use crate::kinds::Family;
 use crate::kinds::Physics;
+use crate::kinds::Task;
 use crate::planar::{ACT_DIM, OBS_DIM};
 use crate::plant::{Plant, Robot, TorsoPose};
 use crate::render::{Frame, Role, Shape, View};
-use crate::task::Task;
 
 /// Default cheetah-vel episode length (control steps of 0.05 s).
 pub const CHEETAH_HORIZON: usize = 1000;

@@ -69,7 +69,7 @@ pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
 pub use fsio::{
     canonical_safetensors, remove_any, sha256_hex, temp_sibling, write_atomic, write_atomic_with,
 };
-pub use kinds::{Family, Physics};
+pub use kinds::{Family, Physics, Task};
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use physics::MUJOCO_VERSION;
 pub use plant::{Robot, TorsoPose};
@@ -78,7 +78,7 @@ pub use render::Frame;
 pub use sensing::ObsComponent;
 pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
-    GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, Task, WALKER_NOMINAL_SEED,
+    GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, WALKER_NOMINAL_SEED,
     WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,
 };
 

@@ -13,12 +13,13 @@ use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
 use crate::kinds::Family;
 use crate::kinds::Physics;
+use crate::kinds::Task;
 use crate::render::{Frame, Role, Shape, View};
 use crate::sensing::ObsComponent;
 use crate::spec::{
     EvalDefaults, FamilySpec, RunView, goal_test_angles, goal_train_angles, write_goal,
 };
-use crate::task::{MetricKind, POINT_GOAL_ACT_DIM, POINT_GOAL_OBS_DIM, TASK_VALUE_TOLERANCE, Task};
+use crate::task::{MetricKind, POINT_GOAL_ACT_DIM, POINT_GOAL_OBS_DIM, TASK_VALUE_TOLERANCE};
 
 /// What a goal family (point-goal, ant-goal) draws under its robot (top view): the dashed
 /// circle the goals lie on and the goal at `goal`.

@@ -126,25 +126,23 @@ fn frame_elements(frame: &Frame) -> String {
                 center,
                 radius,
                 role,
-            } => {
-                let (cx, cy) = px(center);
-                format!(
-                    r#"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="{}"/>"#,
-                    radius * scale,
-                    colour(role)
-                )
             }
-            Shape::Ring {
+            | Shape::Ring {
                 center,
                 radius,
                 role,
             } => {
                 let (cx, cy) = px(center);
-                format!(
-                    r#"<circle cx="{cx:.1}" cy="{cy:.1}" r="{:.1}" fill="none" stroke="{}" stroke-dasharray="4 4"/>"#,
-                    radius * scale,
-                    colour(role)
-                )
+                let paint = if matches!(shape, Shape::Ring { .. }) {
+                    format!(
+                        r#"fill="none" stroke="{}" stroke-dasharray="4 4""#,
+                        colour(role)
+                    )
+                } else {
+                    format!(r#"fill="{}""#, colour(role))
+                };
+                let r = radius * scale;
+                format!(r#"<circle cx="{cx:.1}" cy="{cy:.1}" r="{r:.1}" {paint}/>"#)
             }
             Shape::Capsule { a, b, radius, role } => {
                 let ((ax, ay), (bx, by)) = (px(a), px(b));

@@ -51,7 +51,7 @@ mod tests {
     use super::*;
     use crate::env::{EnvConfig, make_env};
     use crate::kinds::Family;
-    use crate::task::Task;
+    use crate::kinds::Task;
     use ObsComponent::{Angle, Position, Rate};
     use std::f32::consts::{PI, TAU};
 

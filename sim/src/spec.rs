@@ -9,8 +9,9 @@ use std::f32::consts::PI;
 
 use crate::env::{EnvConfig, Environment};
 use crate::error::SimError;
+use crate::kinds::Task;
 use crate::sensing::ObsComponent;
-use crate::task::{MetricKind, Task};
+use crate::task::MetricKind;
 
 /// What the workspace knows about one family. Plain data and plain functions: read a field,
 /// never match on the family.

@@ -6,7 +6,7 @@ use std::str::FromStr;
 use crate::dynamics::WalkerDynamics;
 use crate::error::SimError;
 use crate::hyperplane as linclass;
-use crate::kinds::Family;
+use crate::kinds::{Family, Task};
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
 pub(crate) const POINT_GOAL_OBS_DIM: usize = 4;
@@ -257,39 +257,6 @@ impl FromStr for Split {
     }
 }
 
-/// One task: the hidden parameter the learner must infer from demonstrations.
-#[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
-pub enum Task {
-    /// point-goal: reach the goal at this angle (radians) on the circle of radius 2.
-    PointGoal {
-        /// Angle of the goal on the circle, radians.
-        goal_angle: f32,
-    },
-    /// cheetah-vel: run forward at this speed (m/s).
-    CheetahVel {
-        /// Target forward velocity v*, m/s.
-        target_velocity: f32,
-    },
-    /// walker-dyn: walk under the dynamics drawn from this seed.
-    WalkerDyn {
-        /// Seed of the dynamics randomisation (see [`WalkerDynamics::from_seed`]);
-        /// [`WALKER_NOMINAL_SEED`] means the unmodified robot.
-        dynamics_seed: u64,
-    },
-    /// ant-goal: walk the ant's torso to the goal at this angle (radians) on the circle of
-    /// radius 2.
-    AntGoal {
-        /// Angle of the goal on the circle, radians.
-        goal_angle: f32,
-    },
-    /// ant-linclass: classify pairs of 4-D points by the hyperplane drawn from this seed.
-    AntLinClass {
-        /// Seed of the hyperplane's normal ([`crate::ant_linclass::hyperplane_normal`]).
-        hyperplane_seed: u64,
-    },
-}
-
 /// Radius of the circle the point-goal and ant-goal goals lie on.
 pub const GOAL_RADIUS: f32 = 2.0;
 
@@ -348,17 +315,6 @@ impl Task {
         }
     }
 
-    /// The family this task belongs to.
-    pub fn family(&self) -> Family {
-        match self {
-            Task::PointGoal { .. } => Family::PointGoal,
-            Task::CheetahVel { .. } => Family::CheetahVel,
-            Task::WalkerDyn { .. } => Family::WalkerDyn,
-            Task::AntGoal { .. } => Family::AntGoal,
-            Task::AntLinClass { .. } => Family::AntLinClass,
-        }
-    }
-
     /// The goal position of a point-goal or ant-goal task.
     pub fn goal(&self) -> Option<[f32; 2]> {
         match *self {
@@ -367,17 +323,6 @@ impl Task {
                 GOAL_RADIUS * goal_angle.sin(),
             ]),
             _ => None,
-        }
-    }
-
-    /// The single number naming this task: goal angle, target velocity or dynamics seed.
-    /// `family.task_from_value(task.value())` gives the task back.
-    pub fn value(&self) -> f64 {
-        match *self {
-            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => goal_angle as f64,
-            Task::CheetahVel { target_velocity } => target_velocity as f64,
-            Task::WalkerDyn { dynamics_seed } => dynamics_seed as f64,
-            Task::AntLinClass { hyperplane_seed } => hyperplane_seed as f64,
         }
     }
 

@@ -14,8 +14,8 @@
 //! * `algo`: one file per algorithm, its loss next to its equation: [`sac`], [`expert`],
 //!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger). The meta-learners implement one
 //!   interface, [`MetaLearner`], named by [`Algo`] and reporting [`Progress`]: `smile train`,
-//!   the quickstart and the sweep drive them through it, so a new algorithm is its folder, an
-//!   `Algo` arm and an `impl MetaLearner`.
+//!   the quickstart and the sweep drive them through it, so a new algorithm is its folder (with its
+//!   `impl MetaLearner`) and its entry in the one list that writes [`Algo`].
 //! * `data`: demos ([`record_demos`]), the meta-train / held-out split ([`MetaData`]),
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
@@ -53,7 +53,7 @@ pub use error::{Error, Input, Result};
 pub use model::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator,
     FrozenMlp, META_POLICY_FILE, MetaPolicy, Mlp, ObsNorm, PolicySample, TanhGaussianPolicy,
-    TrainingMark, bce_with_logits, gradient_penalty, input_gradient, mlp_to_layers, policy_input,
+    TrainingMark, bce_with_logits, input_gradient, mlp_to_layers, policy_input,
 };
 
 /// The optimiser.

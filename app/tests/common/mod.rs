@@ -171,3 +171,36 @@ pub fn point_goal_demos_args<'a>(
     let env = ["demos", "--env", "point-goal"];
     [&env[..], options, &["--expert", expert, "-o", out]].concat()
 }
+
+/// The tiny SMILe and Meta-BC configurations the CLI tests train with (widths 16 and 8, four
+/// tasks a batch, 20-step episodes, one evaluation episode), sharing one context encoder; a
+/// test sets its budget and cadence on them.
+pub fn tiny_meta_configs() -> (trainer::smile::SmileConfig, trainer::meta_bc::MetaBcConfig) {
+    let mut sc = trainer::smile::SmileConfig {
+        disc_hidden: vec![16, 16],
+        tasks_per_batch: 4,
+        disc_per_task: 16,
+        sac_per_task: 16,
+        rollouts_per_iter: 1,
+        updates_per_iter: 10,
+        holdout_every: 4,
+        eval_episodes: 1,
+        horizon: Some(20),
+        ..Default::default()
+    };
+    sc.sac.hidden = vec![16, 16];
+    sc.context.enc_hidden = vec![8];
+    sc.context.r_dim = 4;
+    sc.context.z_dim = 2;
+    let bc = trainer::meta_bc::MetaBcConfig {
+        policy_hidden: vec![16, 16],
+        tasks_per_batch: 4,
+        per_task: 16,
+        holdout_every: 4,
+        eval_episodes: 1,
+        horizon: Some(20),
+        context: sc.context.clone(),
+        ..Default::default()
+    };
+    (sc, bc)
+}

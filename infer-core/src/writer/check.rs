@@ -134,32 +134,22 @@ fn check_widths(
     };
     let mut width = input;
     for (layer, l) in layers.iter().enumerate() {
-        let side = "input";
-        if l.in_dim != width {
-            let (expected, got) = (width, l.in_dim);
-            return Err(Error::LayerWidth {
-                part,
-                layer,
-                side,
-                expected,
-                got,
-            });
-        }
         // A hidden layer may have any width but zero; the last one gives the MLP's output.
-        let expected = if layer == last {
+        let out = if layer == last {
             output
         } else {
             l.out_dim.max(1)
         };
-        if l.out_dim != expected {
-            let (side, got) = ("output", l.out_dim);
-            return Err(Error::LayerWidth {
-                part,
-                layer,
-                side,
-                expected,
-                got,
-            });
+        for (side, expected, got) in [("input", width, l.in_dim), ("output", out, l.out_dim)] {
+            if expected != got {
+                return Err(Error::LayerWidth {
+                    part,
+                    layer,
+                    side,
+                    expected,
+                    got,
+                });
+            }
         }
         width = l.out_dim;
     }

@@ -115,3 +115,23 @@ pub enum DatasetError {
     #[error("recording a demo failed: {0}")]
     Sim(#[from] SimError),
 }
+
+impl DatasetError {
+    /// [`DatasetError::DimensionMismatch`] for the first `(what, expected, got)` whose lengths
+    /// differ.
+    pub(crate) fn check_lengths(
+        checks: impl IntoIterator<Item = (&'static str, usize, usize)>,
+    ) -> Result<(), Self> {
+        match checks
+            .into_iter()
+            .find(|(_, expected, got)| expected != got)
+        {
+            Some((what, expected, got)) => Err(Self::DimensionMismatch {
+                what,
+                expected,
+                got,
+            }),
+            None => Ok(()),
+        }
+    }
+}

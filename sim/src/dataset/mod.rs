@@ -14,7 +14,9 @@ use crate::kinds::Physics;
 
 use crate::kinds::Family;
 
-use crate::task::{Split, Task};
+use crate::kinds::Task;
+
+use crate::task::Split;
 
 pub use error::DatasetError;
 
@@ -135,15 +137,7 @@ impl Trajectory {
             ("trajectory next_obs", n * obs_dim, self.next_obs.len()),
             ("trajectory actions", n * act_dim, self.actions.len()),
         ];
-        for (what, expected, got) in checks {
-            if expected != got {
-                return Err(DatasetError::DimensionMismatch {
-                    what,
-                    expected,
-                    got,
-                });
-            }
-        }
+        DatasetError::check_lengths(checks)?;
         Ok(())
     }
 
@@ -281,15 +275,7 @@ impl DemoDataset {
             ("obs_dim", self.family.obs_dim(), self.obs_dim),
             ("act_dim", self.family.act_dim(), self.act_dim),
         ];
-        for (what, expected, got) in dims {
-            if expected != got {
-                return Err(DatasetError::DimensionMismatch {
-                    what,
-                    expected,
-                    got,
-                });
-            }
-        }
+        DatasetError::check_lengths(dims)?;
         if self.subsample_factor == 0 {
             return Err(DatasetError::Subsample("factor 0".into()));
         }

@@ -229,15 +229,7 @@ impl Meta {
             ("act_dim", family.act_dim(), meta.act_dim),
             ("task_dim", family.task_dim(), meta.task_dim),
         ];
-        for (what, expected, got) in dims {
-            if expected != got {
-                return Err(DatasetError::DimensionMismatch {
-                    what,
-                    expected,
-                    got,
-                });
-            }
-        }
+        DatasetError::check_lengths(dims)?;
         Ok(meta)
     }
 }

@@ -132,11 +132,7 @@ impl ExpertConfig {
     }
 
     fn env_config(&self) -> EnvConfig {
-        EnvConfig {
-            horizon: self.horizon,
-            physics: self.physics,
-            ..EnvConfig::default()
-        }
+        EnvConfig::new(self.horizon, self.physics)
     }
 
     /// The tasks this expert trains on.

@@ -3,8 +3,9 @@
 //!
 //! `smile train`, the quickstart and `smile sweep` drive every learner through these. Adding
 //! an algorithm is its folder under `algo/` (its update step and models, its `Fit` hooks for
-//! the shared loop and its `impl MetaLearner`, as `smile/fit.rs`), a variant of [`Algo`] with
-//! its registry line here, and its arm of [`Algo::with_learner`] (`registry.rs`).
+//! the shared loop and its `impl MetaLearner`, as `smile/fit.rs`) and its entry in the one
+//! list here ([`with_algorithms`]), which writes [`Algo`] and, in `registry.rs` (which imports
+//! the learner type), [`Algo::with_learner`].
 
 use std::fmt;
 use std::path::Path;
@@ -22,29 +23,63 @@ use crate::data::MetaData;
 use crate::error::{Error, Result};
 use crate::model::MetaPolicy;
 
-/// The meta-learners, by the name `smile train --algo` and sweep plans take.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Algo {
-    /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
-    Smile,
-    /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
-    SmileStateOnly,
-    /// Meta-BC: encoder and policy regressing the demos' actions.
-    MetaBc,
-    /// Meta-DAgger: Meta-BC plus online relabelling by an expert.
-    MetaDagger,
+/// The one list of meta-learners, in the order help texts list them: per algorithm what it is
+/// (its [`Algo`] variant's doc), its variant, its name on the command line and in plans and
+/// run directories, the learner type that runs it and whether it queries an expert while
+/// training. This module writes [`Algo`] and its registry from it; `registry.rs` writes
+/// [`Algo::with_learner`], the map to the learner types (which it imports). Adding an
+/// algorithm is its folder (its `mod` line in `algo/mod.rs`), its entry here and the import of
+/// its learner type in `registry.rs`.
+macro_rules! with_algorithms {
+    ($then:ident) => {
+        $then! {
+            /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
+            Smile = "smile", learner Smile, expert false;
+            /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
+            SmileStateOnly = "smile-state-only", learner Smile, expert false;
+            /// Meta-BC: encoder and policy regressing the demos' actions.
+            MetaBc = "meta-bc", learner MetaBc, expert false;
+            /// Meta-DAgger: Meta-BC plus online relabelling by an expert.
+            MetaDagger = "meta-dagger", learner MetaBc, expert true;
+        }
+    };
+}
+pub(crate) use with_algorithms;
+
+/// Writes [`Algo`], [`Algo::ALL`], [`Algo::name`] and [`Algo::needs_expert`] from the list.
+macro_rules! declare_algorithms {
+    ($(
+        $(#[$doc:meta])* $variant:ident = $name:literal,
+        learner $learner:ident, expert $expert:literal;
+    )+) => {
+        /// The meta-learners, by the name `smile train --algo` and sweep plans take.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+        pub enum Algo {
+            $($(#[$doc])* $variant,)+
+        }
+
+        impl Algo {
+            /// Every algorithm, in the list's order (the order help texts list them).
+            pub const ALL: [Algo; [$(Algo::$variant),+].len()] = [$(Algo::$variant),+];
+
+            /// The name on the command line and in plans and run directories.
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Algo::$variant => $name,)+
+                }
+            }
+
+            /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
+            pub fn needs_expert(self) -> bool {
+                match self {
+                    $(Algo::$variant => $expert,)+
+                }
+            }
+        }
+    };
 }
 
-/// The registry: per algorithm its name and whether it needs an expert; the learner type that
-/// runs it is its arm of [`Algo::with_learner`] (`registry.rs`). Adding an algorithm is its
-/// folder, a variant, a line here and that arm.
-const REGISTRY: &[(Algo, &str, bool)] = &[
-    // (algorithm, name on the command line and in plans, queries an expert while training)
-    (Algo::Smile, "smile", false),
-    (Algo::SmileStateOnly, "smile-state-only", false),
-    (Algo::MetaBc, "meta-bc", false),
-    (Algo::MetaDagger, "meta-dagger", true),
-];
+with_algorithms!(declare_algorithms);
 
 /// A computation generic over the learner type, run for an [`Algo`] by
 /// [`Algo::with_learner`]: how code that serves every algorithm (a run directory, a plan
@@ -54,36 +89,6 @@ pub trait WithLearner {
     type Output;
     /// Runs it with `L`, the learner of `algo`.
     fn call<L: MetaLearner>(self, algo: Algo) -> Self::Output;
-}
-
-impl Algo {
-    /// Every algorithm, in the registry's order (the order help texts list them).
-    pub const ALL: [Algo; REGISTRY.len()] = {
-        let mut all = [Algo::Smile; REGISTRY.len()];
-        let mut i = 0;
-        while i < all.len() {
-            all[i] = REGISTRY[i].0;
-            i += 1;
-        }
-        all
-    };
-
-    fn entry(self) -> &'static (Algo, &'static str, bool) {
-        REGISTRY
-            .iter()
-            .find(|e| e.0 == self)
-            .expect("every algorithm has its registry line")
-    }
-
-    /// The name on the command line and in plans and run directories.
-    pub fn name(self) -> &'static str {
-        self.entry().1
-    }
-
-    /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
-    pub fn needs_expert(self) -> bool {
-        self.entry().2
-    }
 }
 
 impl fmt::Display for Algo {

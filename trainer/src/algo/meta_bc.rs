@@ -186,14 +186,9 @@ impl MetaBc {
 
     /// The current policy as a [`MetaPolicy`] (shares the live weights).
     pub fn meta_policy(&self) -> MetaPolicy {
-        MetaPolicy {
-            family: self.data.family,
-            physics: self.cfg.physics,
-            algo: self.cfg.algo_name().into(),
-            norm: self.data.norm.clone(),
-            encoder: self.encoder.clone(),
-            policy: self.policy.clone(),
-        }
+        let cfg = &self.cfg;
+        self.data
+            .meta_policy(cfg.physics, cfg.algo_name(), &self.encoder, &self.policy)
     }
 
     /// `mean ||tanh(mu([norm(s), z])) - a||^2 / act_dim` with one z per context.

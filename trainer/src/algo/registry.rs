@@ -1,24 +1,35 @@
-//! The registry's other half: which learner type runs each [`Algo`], and what is asked of
-//! an algorithm through it. The only module that names every learner.
+//! The registry's other half: which learner type runs each [`Algo`] (written from the one list,
+//! `learner.rs`), and what is asked of an algorithm through it.
 
 use sim::Family;
 
-use crate::algo::learner::{Algo, MetaLearner, WithLearner};
+use crate::algo::learner::{Algo, MetaLearner, WithLearner, with_algorithms};
 use crate::algo::meta_bc::MetaBc;
 use crate::algo::settings::Overrides;
 use crate::algo::smile::Smile;
 use crate::error::Result;
 
-impl Algo {
-    /// Runs `f` with the learner type of this algorithm: the one place mapping an algorithm
-    /// to the type that trains it.
-    pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
-        match self {
-            Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
-            Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
+/// Writes [`Algo::with_learner`] from the list ([`with_algorithms`]).
+macro_rules! map_algorithms {
+    ($(
+        $(#[$doc:meta])* $variant:ident = $name:literal,
+        learner $learner:ident, expert $expert:literal;
+    )+) => {
+        impl Algo {
+            /// Runs `f` with the learner type of this algorithm: the one place mapping an
+            /// algorithm to the type that trains it.
+            pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
+                match self {
+                    $(Algo::$variant => f.call::<$learner>(self),)+
+                }
+            }
         }
-    }
+    };
+}
 
+with_algorithms!(map_algorithms);
+
+impl Algo {
     /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
     /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.

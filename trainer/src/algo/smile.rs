@@ -211,14 +211,9 @@ impl Smile {
 
     /// The current policy as a [`MetaPolicy`] (shares the live weights).
     pub fn meta_policy(&self) -> MetaPolicy {
-        MetaPolicy {
-            family: self.data.family,
-            physics: self.cfg.physics,
-            algo: self.cfg.algo_name().into(),
-            norm: self.data.norm.clone(),
-            encoder: self.encoder.clone(),
-            policy: self.sac.actor.clone(),
-        }
+        let cfg = &self.cfg;
+        self.data
+            .meta_policy(cfg.physics, cfg.algo_name(), &self.encoder, &self.sac.actor)
     }
 
     /// A fresh context of training task `ti` and its sampled z (a rollout's first draws).

@@ -10,7 +10,7 @@ use rand::seq::SliceRandom;
 use sim::{DemoDataset, Family, Split, TaskDemos, Trajectory};
 
 use crate::error::{Error, Result};
-use crate::model::{ContextSpec, ObsNorm};
+use crate::model::{ContextEncoder, ContextSpec, MetaPolicy, ObsNorm, TanhGaussianPolicy};
 
 /// Meta-train demos, split into training tasks and held-out train tasks.
 #[derive(Debug, Clone)]
@@ -28,6 +28,25 @@ pub struct MetaData {
 }
 
 impl MetaData {
+    /// The meta-policy `algo` trains on these demos, on `physics`: `encoder` and `policy` (the
+    /// live weights, shared) over the demos' family and observation statistics.
+    pub fn meta_policy(
+        &self,
+        physics: sim::Physics,
+        algo: &str,
+        encoder: &ContextEncoder,
+        policy: &TanhGaussianPolicy,
+    ) -> MetaPolicy {
+        MetaPolicy {
+            family: self.family,
+            physics,
+            algo: algo.into(),
+            norm: self.norm.clone(),
+            encoder: encoder.clone(),
+            policy: policy.clone(),
+        }
+    }
+
     /// Errors unless these demos are of `family` and were recorded on `physics`: what a
     /// learner configured for that family and plant can train on.
     pub fn ensure_fits(&self, family: Family, physics: sim::Physics) -> Result<()> {

@@ -112,8 +112,10 @@ impl Discriminator {
         Ok(self.net.forward_const_weights(xz)?.clamp(-c, c)?.detach())
     }
 
-    /// `L_gp` on interpolates of expert and policy rows `x` with their `z` rows (see
-    /// [`gradient_penalty`]).
+    /// `L_gp = mean[(||dD([x~, z])/dx~|| - 1)^2]` with `x~ = u x_E + (1 - u) x_pi` per row; `z`
+    /// is detached (the penalty does not train the encoder) and the gradient is taken with
+    /// respect to `x~` only. `z_group_rows`: `z`'s rows repeat in groups of that many (a task's z
+    /// on its rows), so the first layer computes the z block once per group.
     pub fn gradient_penalty(
         &self,
         x_expert: &Tensor,
@@ -122,7 +124,19 @@ impl Discriminator {
         u: &Tensor,
         z_group_rows: Option<usize>,
     ) -> Result<Tensor> {
-        gradient_penalty(&self.net, x_expert, x_policy, z, u, z_group_rows)
+        let xd = x_expert.dim(1)?;
+        let x_mix =
+            (x_expert.broadcast_mul(u)? + x_policy.broadcast_mul(&u.affine(-1.0, 1.0)?)?)?;
+        let mix = Tensor::cat(&[&x_mix, &z.detach()], 1)?;
+        let zd = z.dim(1)?;
+        let shared = z_group_rows.map(|group_rows| SharedCols {
+            start: xd,
+            len: zd,
+            group_rows,
+        });
+        let g = input_gradient_first_cols(&self.net, Input::shared(&mix, shared), xd)?;
+        let norm = (g.sqr()?.sum_keepdim(1)? + 1e-12)?.sqrt()?;
+        Ok((norm - 1.0)?.sqr()?.mean_all()?)
     }
 }
 
@@ -187,32 +201,6 @@ fn input_gradient_first_cols(net: &Mlp, input: Input<'_>, cols: usize) -> Result
 pub fn bce_with_logits(logits: &Tensor, labels: &Tensor) -> Result<Tensor> {
     let softplus = (logits.relu()? + logits.abs()?.neg()?.exp()?.affine(1.0, 1.0)?.log()?)?;
     Ok((softplus - (logits * labels)?)?.mean_all()?)
-}
-
-/// `L_gp = mean[(||dD([x~, z])/dx~|| - 1)^2]` with `x~ = u x_E + (1 - u) x_pi` per row; `z`
-/// is detached (the penalty does not train the encoder) and the gradient is taken with
-/// respect to `x~` only. `z_group_rows`: `z`'s rows repeat in groups of that many (a task's z
-/// on its rows), so the first layer computes the z block once per group.
-pub fn gradient_penalty(
-    net: &Mlp,
-    x_expert: &Tensor,
-    x_policy: &Tensor,
-    z: &Tensor,
-    u: &Tensor,
-    z_group_rows: Option<usize>,
-) -> Result<Tensor> {
-    let xd = x_expert.dim(1)?;
-    let x_mix = (x_expert.broadcast_mul(u)? + x_policy.broadcast_mul(&u.affine(-1.0, 1.0)?)?)?;
-    let mix = Tensor::cat(&[&x_mix, &z.detach()], 1)?;
-    let zd = z.dim(1)?;
-    let shared = z_group_rows.map(|group_rows| SharedCols {
-        start: xd,
-        len: zd,
-        group_rows,
-    });
-    let g = input_gradient_first_cols(net, Input::shared(&mix, shared), xd)?;
-    let norm = (g.sqr()?.sum_keepdim(1)? + 1e-12)?.sqrt()?;
-    Ok((norm - 1.0)?.sqr()?.mean_all()?)
 }
 
 /// Scalars of one discriminator step.

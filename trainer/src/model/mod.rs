@@ -17,9 +17,7 @@ mod policy;
 pub use context::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, ObsNorm, policy_input,
 };
-pub use discriminator::{
-    DiscInput, DiscStats, Discriminator, bce_with_logits, gradient_penalty, input_gradient,
-};
+pub use discriminator::{DiscInput, DiscStats, Discriminator, bce_with_logits, input_gradient};
 pub use fused::SharedCols;
 pub(crate) use fused::TanhGaussian;
 pub(crate) use fused::{f32_slice, f32_slice_mut};

@@ -132,9 +132,18 @@ impl TanhGaussianPolicy {
         obs: impl Into<Input<'a>>,
         rng: &mut impl Rng,
     ) -> Result<PolicySample> {
-        let obs = obs.into();
+        self.sample_fresh(obs.into(), rng, true)
+    }
+
+    /// A sample with fresh noise from `rng`; `const_w`: no graph into the weights.
+    fn sample_fresh(
+        &self,
+        obs: Input<'_>,
+        rng: &mut impl Rng,
+        const_w: bool,
+    ) -> Result<PolicySample> {
         let eps = self.noise(obs.x.dim(0)?, rng)?;
-        self.sample_impl(obs, &eps, true)
+        self.sample_impl(obs, &eps, const_w)
     }
 
     fn sample_impl(&self, obs: Input<'_>, eps: &Tensor, const_w: bool) -> Result<PolicySample> {
@@ -185,9 +194,7 @@ impl TanhGaussianPolicy {
         obs: impl Into<Input<'a>>,
         rng: &mut impl Rng,
     ) -> Result<PolicySample> {
-        let obs = obs.into();
-        let eps = self.noise(obs.x.dim(0)?, rng)?;
-        self.sample_with_noise(obs, &eps)
+        self.sample_fresh(obs.into(), rng, false)
     }
 
     /// The deterministic action `tanh(mu)` used for evaluation and demos.

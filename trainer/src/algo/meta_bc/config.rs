@@ -141,11 +141,7 @@ impl MetaBcConfig {
 
     /// Episode options (the horizon override).
     pub fn env_config(&self) -> EnvConfig {
-        EnvConfig {
-            horizon: self.horizon,
-            physics: self.physics,
-            ..EnvConfig::default()
-        }
+        EnvConfig::new(self.horizon, self.physics)
     }
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.

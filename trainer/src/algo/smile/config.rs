@@ -184,11 +184,7 @@ impl SmileConfig {
 
     /// Episode options of the evaluations (the family's own termination).
     pub fn env_config(&self) -> EnvConfig {
-        EnvConfig {
-            horizon: self.horizon,
-            physics: self.physics,
-            ..EnvConfig::default()
-        }
+        EnvConfig::new(self.horizon, self.physics)
     }
 
     /// Episode options of the training rollouts (`rollout_termination`).
