@@ -488,7 +488,7 @@ pub fn write_blob_with(
     blob.extend_from_slice(&format::crc32(&body).to_le_bytes());
     blob.extend_from_slice(&body);
     // Loaded back: a failure here is a writer bug, returned as the loader's error.
-    crate::Model::from_bytes(&blob)?;
+    crate::model::Model::from_bytes(&blob)?;
     Ok(blob)
 }
 
