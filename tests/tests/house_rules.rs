@@ -310,10 +310,12 @@ const FAMILY_VARIANTS: [&str; 5] = [
     "AntLinClass",
 ];
 
-/// Whether a line of code names one family's variant.
-fn names_a_family(code: &str) -> bool {
-    FAMILY_VARIANTS.iter().any(|v| {
-        ["Family::", "Task::"].iter().any(|ty| {
+const ALGO_VARIANTS: [&str; 4] = ["Smile", "SmileStateOnly", "MetaBc", "MetaDagger"];
+
+/// Whether a line of code names one of `variants` of one of the enums `types` (`Family::`).
+fn names_a_variant(code: &str, types: &[&str], variants: &[&str]) -> bool {
+    variants.iter().any(|v| {
+        types.iter().any(|ty| {
             let name = format!("{ty}{v}");
             code.match_indices(&name).any(|(i, _)| {
                 let after = code[i + name.len()..].chars().next();
@@ -323,18 +325,25 @@ fn names_a_family(code: &str) -> bool {
     })
 }
 
-/// The non-test files (paths from the root) of sim, trainer, firmware-sim and app whose code
-/// names one family.
-fn files_naming_a_family() -> BTreeSet<String> {
+/// Whether a line of code names one family's variant.
+fn names_a_family(code: &str) -> bool {
+    names_a_variant(code, &["Family::", "Task::"], &FAMILY_VARIANTS)
+}
+
+/// Whether a line of code names one algorithm's variant.
+fn names_an_algorithm(code: &str) -> bool {
+    names_a_variant(code, &["Algo::"], &ALGO_VARIANTS)
+}
+
+/// The non-test files (paths from the root) of sim, trainer, firmware-sim and app with a line
+/// of code that `names` says names one thing.
+fn files_naming(names: fn(&str) -> bool) -> BTreeSet<String> {
     let mut out = BTreeSet::new();
     for krate in ["sim", "trainer", "firmware-sim", "app"] {
         let mut files = Vec::new();
         sources(&root().join(krate).join("src"), &mut files);
         for file in files {
-            if non_test_lines(&file)
-                .iter()
-                .any(|l| names_a_family(&code_of(l)))
-            {
+            if non_test_lines(&file).iter().any(|l| names(&code_of(l))) {
                 let rel = file.strip_prefix(root()).unwrap_or(&file);
                 out.insert(rel.to_string_lossy().replace('\\', "/"));
             }
@@ -343,13 +352,18 @@ fn files_naming_a_family() -> BTreeSet<String> {
     out
 }
 
-/// The `.rs` paths ARCHITECTURE.md's "**A family.**" paragraph names (in backticks, up to the
-/// next bold paragraph; a placeholder such as `sim/src/<family>.rs` left out).
-fn architecture_family_files() -> BTreeSet<String> {
+/// The non-test files (paths from the root) whose code names one family.
+fn files_naming_a_family() -> BTreeSet<String> {
+    files_naming(names_a_family)
+}
+
+/// The `.rs` paths a bold paragraph of ARCHITECTURE.md (`**A family.**`) names, in backticks
+/// up to the next bold paragraph (a placeholder such as `sim/src/<family>.rs` left out).
+fn architecture_files(paragraph: &str) -> BTreeSet<String> {
     let text = std::fs::read_to_string(root().join("ARCHITECTURE.md")).unwrap();
     let start = text
-        .find("**A family.**")
-        .expect("ARCHITECTURE.md has its family paragraph");
+        .find(paragraph)
+        .unwrap_or_else(|| panic!("ARCHITECTURE.md has its {paragraph} paragraph"));
     let rest = &text[start + 2..];
     let section = &rest[..rest.find("\n**").unwrap_or(rest.len())];
     section
@@ -361,15 +375,20 @@ fn architecture_family_files() -> BTreeSet<String> {
         .collect()
 }
 
-#[test]
-fn a_family_is_named_only_where_architecture_says() {
-    let (named, listed) = (files_naming_a_family(), architecture_family_files());
-    let unlisted: Vec<&String> = named.difference(&listed).collect();
+/// The files ARCHITECTURE.md's "**A family.**" paragraph names.
+fn architecture_family_files() -> BTreeSet<String> {
+    architecture_files("**A family.**")
+}
+
+/// Fails naming the files of `named` that `listed` (ARCHITECTURE.md's `what` paragraph) does
+/// not list, and the listed files that do not exist.
+fn check_listed(what: &str, named: &BTreeSet<String>, listed: &BTreeSet<String>) {
+    let unlisted: Vec<&String> = named.difference(listed).collect();
     assert!(
         unlisted.is_empty(),
-        "these files name a family in code, but ARCHITECTURE.md's \"A family.\" paragraph \
-         (what adding a family touches) does not list them: read the family from its spec, or \
-         say there why the file names one:\n{unlisted:#?}"
+        "these files name {what} in code, but ARCHITECTURE.md's paragraph on adding one does \
+         not list them: reach it through its list, or say there why the file names one:\n\
+         {unlisted:#?}"
     );
     let missing: Vec<&String> = listed.iter().filter(|p| !root().join(p).exists()).collect();
     assert!(
@@ -379,11 +398,25 @@ fn a_family_is_named_only_where_architecture_says() {
 }
 
 #[test]
+fn a_family_is_named_only_where_architecture_says() {
+    let listed = architecture_family_files();
+    check_listed("a family", &files_naming_a_family(), &listed);
+}
+
+#[test]
+fn an_algorithm_is_named_only_where_architecture_says() {
+    let listed = architecture_files("**An algorithm.**");
+    check_listed("an algorithm", &files_naming(names_an_algorithm), &listed);
+}
+
+#[test]
 fn the_checks_see_what_they_look_for() {
     assert!(names_a_family("if family == Family::PointGoal {"));
     assert!(names_a_family("Task::WalkerDyn { dynamics_seed } => x,"));
     assert!(!names_a_family("Family::PointGoals"));
     assert!(!names_a_family("Task::point_goal(0.5)"));
+    assert!(names_an_algorithm("cfg.dagger = algo == Algo::MetaDagger;"));
+    assert!(!names_an_algorithm("Algo::ALL"));
     assert!(files_naming_a_family().contains("sim/src/task.rs"));
     assert!(architecture_family_files().contains("sim/src/families.rs"));
     assert_eq!(flags_in(r#"  "pass --env {} or", x"#), ["--env"]);
