@@ -137,8 +137,7 @@ impl Trajectory {
             ("trajectory next_obs", n * obs_dim, self.next_obs.len()),
             ("trajectory actions", n * act_dim, self.actions.len()),
         ];
-        DatasetError::check_lengths(checks)?;
-        Ok(())
+        DatasetError::check_lengths(checks)
     }
 
     /// Errors on the first NaN or infinite float, naming its tensor, task and trajectory.
