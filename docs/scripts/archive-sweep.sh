@@ -20,6 +20,14 @@ for cell in "$src"/*/; do
   cell=${cell%/}
   name=$(basename "$cell")
   [ -f "$cell/eval/eval.json" ] || continue   # only finished, evaluated cells
+  # Evaluations of other weights of the cell made by hand (eval-last: its train/last/ policy),
+  # copied whenever they exist, also into a cell archived before.
+  for extra in "$cell"/eval-*/; do
+    [ -f "$extra/eval.json" ] || continue
+    x=$(basename "$extra")
+    mkdir -p "$dest/$name/$x"
+    for f in eval.json plan.json eval.md; do [ -f "$extra/$f" ] && cp "$extra/$f" "$dest/$name/$x/"; done
+  done
   # Archived before with this evaluation: keep that copy (thinning a thinned log again would
   # drop more of it, and a sweep restored from the archive holds only the thinned logs).
   if cmp -s "$cell/eval/eval.json" "$dest/$name/eval/eval.json"; then n=$((n + 1)); continue; fi
