@@ -12,18 +12,7 @@
 # docs/bench/pytorch/torch_reference.py). Takes about 17 minutes on a 2-vCPU machine.
 set -euo pipefail
 source "$(dirname "$0")/bench-common.sh"
-echo "== sgemm anchor (torch, 1 thread)"
-$py - <<'PY' | tee "$out/sgemm.txt"
-import time, torch
-torch.set_num_threads(1)
-for m, n, k in [(2048, 512, 512), (1024, 512, 512), (1024, 256, 256)]:
-    a, b = torch.randn(m, k), torch.randn(k, n)
-    for _ in range(5): a @ b
-    t = time.perf_counter(); r = 50
-    for _ in range(r): a @ b
-    s = (time.perf_counter() - t) / r
-    print(f"{m}x{n}x{k}: {2*m*n*k/s/1e9:.1f} GFLOP/s")
-PY
+sgemm_anchor
 for round in $(seq 1 "${ROUNDS:-2}"); do
   for t in 1 2; do
     echo "== ours sac+disc, authors' shapes, learner threads $t (round $round)"

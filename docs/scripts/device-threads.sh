@@ -7,34 +7,20 @@
 #   SMILE=BIN [MUJOCO_LIB=DIR] docs/scripts/device-threads.sh OUT_DIR
 #
 # BIN: a release `smile` built with `--features mujoco` (the ant-goal pair steps MuJoCo);
-# MUJOCO_LIB: the folder holding libmujoco.so.3.*; python3: one with torch. About 4 minutes on
+# MUJOCO_LIB: the folder holding libmujoco.so.3.*; PY (default python3): one with torch. About 4 minutes on
 # the device machine's 16 cores.
 set -euo pipefail
-cd "$(dirname "${BASH_SOURCE[0]}")/../.."
-out=${1:?usage: SMILE=BIN device-threads.sh OUT_DIR}
-smile=${SMILE:?SMILE must name a release smile binary}
-py=${PY:-python3}
+: "${SMILE:?SMILE must name a release smile binary}"
+PY=${PY:-python3}
+source "$(dirname "$0")/bench-common.sh"
 [ -n "${MUJOCO_LIB:-}" ] && export LD_LIBRARY_PATH="$MUJOCO_LIB:${LD_LIBRARY_PATH:-}"
 export RAYON_NUM_THREADS=1 # candle's own matmul threads: the learner pool does the splitting
-mkdir -p "$out"
 threads=(1 2 4 8 16)
 {
-  echo "machine: $(nproc) vCPUs, $(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2), $(date -u +%FT%TZ), load $(cut -d' ' -f1-3 /proc/loadavg)"
   grep -m1 -o 'avx512[a-z]*' /proc/cpuinfo | head -1 | sed 's/^/first avx512 flag: /' || echo "no avx512"
   $py -c 'import torch; print("torch", torch.__version__)'
-} | tee "$out/machine.txt"
-echo "== sgemm anchor (torch, 1 thread)"
-$py - <<'PY' | tee "$out/sgemm.txt"
-import time, torch
-torch.set_num_threads(1)
-for m, n, k in [(2048, 512, 512), (1024, 256, 256)]:
-    a, b = torch.randn(m, k), torch.randn(k, n)
-    for _ in range(5): a @ b
-    t = time.perf_counter(); r = 50
-    for _ in range(r): a @ b
-    s = (time.perf_counter() - t) / r
-    print(f"{m}x{n}x{k}: {2*m*n*k/s/1e9:.1f} GFLOP/s")
-PY
+} | tee -a "$out/machine.txt"
+sgemm_anchor
 for t in "${threads[@]}"; do
   echo "== ours SMILe pair, docs/configs/authors-cv-smile.toml, learner threads $t"
   $smile bench --workload pair --config docs/configs/authors-cv-smile.toml \
