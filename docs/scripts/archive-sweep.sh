@@ -15,6 +15,13 @@ dest=${2:-docs/results/$(basename "$src")}
 [ -f "$src/manifest.json" ] || { echo "$src has no manifest.json: not a sweep directory" >&2; exit 1; }
 mkdir -p "$dest"
 cp "$src/manifest.json" "$dest/"
+# One evaluation's files (SRC a cell's eval folder, DEST its copy), those that exist.
+copy_eval() {
+  mkdir -p "$2"
+  for f in eval.json plan.json eval.md; do
+    if [ -f "$1/$f" ]; then cp "$1/$f" "$2/"; fi
+  done
+}
 n=0
 for cell in "$src"/*/; do
   cell=${cell%/}
@@ -23,23 +30,17 @@ for cell in "$src"/*/; do
   # Evaluations of other weights of the cell made by hand (eval-last: its train/last/ policy),
   # copied whenever they exist, also into a cell archived before.
   for extra in "$cell"/eval-*/; do
-    [ -f "$extra/eval.json" ] || continue
-    x=$(basename "$extra")
-    mkdir -p "$dest/$name/$x"
-    for f in eval.json plan.json eval.md; do [ -f "$extra/$f" ] && cp "$extra/$f" "$dest/$name/$x/"; done
+    [ -f "$extra/eval.json" ] && copy_eval "$extra" "$dest/$name/$(basename "$extra")"
   done
   # Archived before with this evaluation: keep that copy (thinning a thinned log again would
   # drop more of it, and a sweep restored from the archive holds only the thinned logs).
   if cmp -s "$cell/eval/eval.json" "$dest/$name/eval/eval.json"; then n=$((n + 1)); continue; fi
   mkdir -p "$dest/$name/eval" "$dest/$name/train"
   for f in cell.toml cell.json; do [ -f "$cell/$f" ] && cp "$cell/$f" "$dest/$name/"; done
-  for f in eval.json plan.json eval.md; do [ -f "$cell/eval/$f" ] && cp "$cell/eval/$f" "$dest/$name/eval/"; done
+  copy_eval "$cell/eval" "$dest/$name/eval"
   # An extended cell's evaluations at its earlier budgets (`smile sweep`: eval.before-KEY).
   for before in "$cell"/eval.before-*/; do
-    [ -f "$before/eval.json" ] || continue
-    b=$(basename "$before")
-    mkdir -p "$dest/$name/$b"
-    for f in eval.json plan.json eval.md; do [ -f "$before/$f" ] && cp "$before/$f" "$dest/$name/$b/"; done
+    [ -f "$before/eval.json" ] && copy_eval "$before" "$dest/$name/$(basename "$before")"
   done
   for f in config.toml run.json compute.json; do
     [ -f "$cell/train/$f" ] && cp "$cell/train/$f" "$dest/$name/train/"

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The learner on more than two threads (docs/BENCHMARKS.md, "Beyond two threads"): on a lent
+# The learner on more than two threads (docs/BENCHMARKS.md: "Not measured: more than two threads"): on a lent
 # 16-core machine, our SMILe pair and SAC step at 1, 2, 4, 8 and 16 learner threads beside
 # PyTorch doing the same work at the same thread counts, in one sitting, plus the narrow ant-goal
 # pair of the long cells (docs/plans/ant-goal-mujoco-long.toml). Nothing else runs meanwhile.
