@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Re-exports every shipped meta-policy's device blob (assets/policies/*/policy.blob and its
-# report) with the current `smile export` defaults: format v3, w8a8 with its first and last
-# layers in w8a32. The weights are not touched. Run from the repository root after a release
+# Re-exports every shipped Rapier meta-policy's device blob (assets/policies/*-rapier-*/ and
+# point-goal's policy.blob and its report; the MuJoCo ones need a `--features mujoco` build and
+# their folders' commands in assets/policies/README.md) with the current `smile export`
+# defaults: format v3, w8a8 with its first and last layers in w8a32. The weights are not touched. Run from the repository root after a release
 # build; about 10 minutes on one core of a 2-vCPU Intel Xeon (the cheetah's two are most of it).
 #   docs/scripts/reexport-shipped.sh [target/release/smile]
 set -euo pipefail
