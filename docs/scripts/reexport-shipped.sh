@@ -18,7 +18,7 @@ for m in smile-bc meta-bc; do
   ship cheetah-vel-rapier-$m $E/demos-train-4x-sub20.safetensors $E/demos-test-4x-sub20.safetensors --horizon 1000
 done
 A=assets/experts/ant-goal
-for m in smile-bc meta-bc; do
+for m in smile-bc meta-bc meta-bc-long; do
   ship ant-goal-rapier-$m $A/demos-train-4x-sub1.safetensors $A/demos-test-4x-sub1.safetensors --rollouts 1
 done
 W=assets/experts/walker-dyn
