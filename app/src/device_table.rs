@@ -82,6 +82,11 @@ pub struct Cell {
     /// `(worse - float) / |float|` in percent, the sign making a loss positive whichever way
     /// the metric points.
     pub degradation_pct: f32,
+    /// The standard error of `degradation_pct`, paired by task: the sample standard deviation
+    /// of the per-task differences against float, over the square root of the task count, in
+    /// percent of |float| (NaN with one task). Every column runs the same episodes as float,
+    /// so this is what says whether a table's episodes can resolve a 1% bar at all.
+    pub stderr_pct: f32,
 }
 
 /// A device column: the cell and the loop's per-tick compute.
@@ -151,18 +156,38 @@ pub const DEVICE_COLUMNS: [&str; 4] = [
     "lossy link (5%)",
 ];
 
-fn degradation(family: Family, float: f32, x: f32) -> f32 {
-    let worse = match family.metric_kind().lower_is_better() {
+/// How much worse `x` is than `float`, in the metric's units (positive: worse).
+fn worse(family: Family, float: f64, x: f64) -> f64 {
+    match family.metric_kind().lower_is_better() {
         true => x - float,
         false => float - x,
-    };
-    100.0 * worse / float.abs().max(1e-9)
+    }
 }
 
-fn cell(family: Family, float: f32, metric: f32) -> Cell {
+/// The column whose per-task metrics are `tasks` against float's `float_tasks` (the same tasks,
+/// in the same order, on the same episodes). The means are [`eval::mean_std`]'s, so a column
+/// reads as the host's evaluation of the same episodes does, to the last bit.
+fn cell(family: Family, float_tasks: &[f32], tasks: &[f32]) -> Cell {
+    assert_eq!(float_tasks.len(), tasks.len(), "columns over other tasks");
+    let float = eval::mean_std(float_tasks).0;
+    let metric = eval::mean_std(tasks).0;
+    let scale = 100.0 / (float.abs() as f64).max(1e-9);
+    let diffs: Vec<f64> = float_tasks
+        .iter()
+        .zip(tasks)
+        .map(|(&f, &x)| worse(family, f as f64, x as f64))
+        .collect();
+    let n = diffs.len() as f64;
+    let mean = diffs.iter().sum::<f64>() / n;
+    // Sample variance (n - 1): the tasks are a sample of the family's.
+    let var = diffs.iter().map(|d| (d - mean).powi(2)).sum::<f64>() / (n - 1.0);
     Cell {
         metric,
-        degradation_pct: degradation(family, float, metric),
+        degradation_pct: (scale * worse(family, float as f64, metric as f64)) as f32,
+        stderr_pct: match diffs.len() {
+            0 | 1 => f32::NAN,
+            _ => (scale * (var / n).sqrt()) as f32,
+        },
     }
 }
 
@@ -215,6 +240,7 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
     protocol.rollouts = config.rollouts;
     protocol.horizon = manifest.horizon;
     protocol.physics = mp.physics;
+    // Per-task metrics, in the test split's order.
     let host = |actor: &mut dyn eval::ConditionedActor, name: &str| {
         eval::evaluate(
             actor,
@@ -225,9 +251,10 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
             &protocol,
             &mut |_, _| {},
         )
-        .map(|r| r.mean)
+        .map(|r| r.tasks.iter().map(|t| t.metric).collect::<Vec<f32>>())
     };
-    let float = host(&mut mp, "float")?;
+    let float_tasks = host(&mut mp, "float")?;
+    let float = eval::mean_std(&float_tasks).0;
     on(format!("{}: float {float:.4}", dir.display()));
     let tuned = fine_tuned(&mp, &train, &manifest, on)?;
     // The deployed blob is the last: w8a8 with its first and last layers, and its context
@@ -248,16 +275,23 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         };
         let blob = export::export_blob_with(source, quant, Some(&train), None, &options)?;
         bytes[i] = blob.len();
-        let metric = {
+        let column = {
             let model = export::load_blob(&blob)?;
-            host(&mut BlobActor::new(&model)?, "blob")?
+            cell(
+                family,
+                &float_tasks,
+                &host(&mut BlobActor::new(&model)?, "blob")?,
+            )
         };
         on(format!(
-            "  {} blob ({} B): {metric:.4}",
+            "  {} blob ({} B): {:.4} ({:+.1}% +- {:.1})",
             BLOB_COLUMNS[i],
-            blob.len()
+            blob.len(),
+            column.metric,
+            column.degradation_pct,
+            column.stderr_pct
         ));
-        blobs.push((blob, cell(family, float, metric)));
+        blobs.push((blob, column));
     }
     let w8a8 = &blobs[3].0;
     let does_not_fit = misfit(w8a8)?;
@@ -271,7 +305,7 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
                 .iter()
                 .enumerate()
                 .map(|(c, name)| {
-                    let d = device_column(w8a8, c, &test, &protocol, family, float)?;
+                    let d = device_column(w8a8, c, &test, &protocol, family, &float_tasks)?;
                     on(format!("  device, {name}: {:.4}", d.cell.metric));
                     Ok(d)
                 })
@@ -371,7 +405,7 @@ fn device_column(
     test: &DemoDataset,
     protocol: &Protocol,
     family: Family,
-    float: f32,
+    float_tasks: &[f32],
 ) -> Result<DeviceCell> {
     let tasks = family.test_tasks();
     let contexts = eval::contexts_for(test, family, &tasks)?;
@@ -404,11 +438,10 @@ fn device_column(
         // same number to the last bit.
         per_task.push(eval::mean_std(&metrics).0);
     }
-    let metric = eval::mean_std(&per_task).0;
     ticks.sort_by(f64::total_cmp);
     let at = |q: f64| ticks[((ticks.len() - 1) as f64 * q).round() as usize];
     Ok(DeviceCell {
-        cell: cell(family, float, metric),
+        cell: cell(family, float_tasks, &per_task),
         tick_us: (at(0.5), at(0.99)),
         link_retries: retries,
     })
@@ -417,12 +450,17 @@ fn device_column(
 /// The table in markdown: one row per policy.
 pub fn markdown(rows: &[Row]) -> String {
     let mut md = String::from(
-        "| family, plant | method | metric | float | f32 blob | w8a32 blob | w8a8 blob (int8 \
+        "| family, plant | method | metric | float | f32 blob (% worse than float +- its paired s.e.) | w8a32 blob | w8a8 blob (int8 \
          throughout) | w8a8 blob, w8a32 edges and context | device: ideal | noise + ADC | positions + \
          estimator | lossy link | blob B | RAM B | fits | tick us (median / p99) | tasks x \
          episodes |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
-    let pct = |c: &Cell| format!("{:.4} ({:+.1}%)", c.metric, c.degradation_pct);
+    let pct = |c: &Cell| {
+        format!(
+            "{:.4} ({:+.1}% +- {:.1})",
+            c.metric, c.degradation_pct, c.stderr_pct
+        )
+    };
     for r in rows {
         // A metric's name may hold a pipe (`mean |v - v*|`): escaped, it stays one cell.
         let metric = r.metric.replace('|', "\\|");
@@ -482,6 +520,32 @@ mod tests {
         };
         let model = FloatModel::random(ModelKind::StateAction, dims, 3);
         infer_core::write_blob(&model, Quant::W8A32, &Calibration::default()).unwrap()
+    }
+
+    /// A column's degradation is read from the means, with the metric's direction; its
+    /// standard error from the per-task differences, so a column that moves every task alike
+    /// is resolved however much the tasks differ, and one that moves them apart is not.
+    #[test]
+    fn a_column_is_paired_with_float_task_by_task() {
+        let float = [10.0, 20.0, 30.0, 40.0];
+        // A return, higher is better: every task 1 lower is 4% worse, with no spread.
+        let c = cell(Family::WalkerDyn, &float, &[9.0, 19.0, 29.0, 39.0]);
+        assert!((c.degradation_pct - 4.0).abs() < 1e-5, "{c:?}");
+        assert!(c.stderr_pct.abs() < 1e-6, "{c:?}");
+        // The same mean from per-task losses 3, -1, 3, -1: sample variance 16 / 3, s.e.
+        // sqrt(16 / 3 / 4), in percent of the float mean 25.
+        let c = cell(Family::WalkerDyn, &float, &[7.0, 21.0, 27.0, 41.0]);
+        assert!((c.degradation_pct - 4.0).abs() < 1e-5, "{c:?}");
+        let se = (16.0f64 / 3.0 / 4.0).sqrt() / 25.0 * 100.0;
+        assert!(
+            (c.stderr_pct as f64 - se).abs() < 1e-5,
+            "{c:?} against {se}"
+        );
+        // A distance, lower is better: larger is worse.
+        let c = cell(Family::PointGoal, &[0.1, 0.3], &[0.2, 0.4]);
+        assert!((c.degradation_pct - 50.0).abs() < 1e-4, "{c:?}");
+        // One task has no spread to measure.
+        assert!(cell(Family::PointGoal, &[0.1], &[0.2]).stderr_pct.is_nan());
     }
 
     /// A blob the device can hold is not flagged; one with 256-wide layers is, with the width,
