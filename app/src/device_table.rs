@@ -257,42 +257,13 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
     let float = eval::mean_std(&float_tasks).0;
     on(format!("{}: float {float:.4}", dir.display()));
     let tuned = fine_tuned(&mp, &train, &manifest, on)?;
-    // The deployed blob is the last: w8a8 with its first and last layers, and its context
-    // encoder, in w8a32 (`smile export`'s defaults).
-    use infer_core::Quant::{F32, W8A8, W8A32};
-    let variants = [(F32, F32), (W8A32, W8A32), (W8A8, W8A8), (W8A8, W8A32)];
-    let mut blobs = Vec::new();
-    let mut bytes = [0; 4];
-    for (i, (quant, edges)) in variants.into_iter().enumerate() {
-        let options = infer_core::WriteOptions {
-            edges: Some(edges),
-            context: (edges != quant).then_some(edges),
-            ..Default::default()
-        };
-        let source = match (quant, &tuned) {
-            (W8A32 | W8A8, Some(tuned)) => tuned,
-            _ => &mp,
-        };
-        let blob = export::export_blob_with(source, quant, Some(&train), None, &options)?;
-        bytes[i] = blob.len();
-        let column = {
-            let model = export::load_blob(&blob)?;
-            cell(
-                family,
-                &float_tasks,
-                &host(&mut BlobActor::new(&model)?, "blob")?,
-            )
-        };
-        on(format!(
-            "  {} blob ({} B): {:.4} ({:+.1}% +- {:.1})",
-            BLOB_COLUMNS[i],
-            blob.len(),
-            column.metric,
-            column.degradation_pct,
-            column.stderr_pct
-        ));
-        blobs.push((blob, column));
-    }
+    let blobs = blob_columns(
+        &mp,
+        tuned.as_ref(),
+        &train,
+        &mut |actor| Ok(cell(family, &float_tasks, &host(actor, "blob")?)),
+        on,
+    )?;
     let w8a8 = &blobs[3].0;
     let does_not_fit = misfit(w8a8)?;
     let device = match &does_not_fit {
@@ -325,13 +296,52 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         episodes_per_task: config.draws * config.rollouts,
         float,
         blobs: [blobs[0].1, blobs[1].1, blobs[2].1, blobs[3].1],
-        blob_bytes: bytes[3],
-        blob_bytes_all: bytes,
+        blob_bytes: blobs[3].0.len(),
+        blob_bytes_all: [0, 1, 2, 3].map(|i| blobs[i].0.len()),
         ram_bytes: ram,
         fits: does_not_fit.is_none(),
         device,
         does_not_fit,
     })
+}
+
+/// The blobs of [`BLOB_COLUMNS`], each with its column as `score` measures it; the int8 ones
+/// from `tuned` when the manifest fine-tunes, the f32 blob always from `mp` as trained.
+fn blob_columns(
+    mp: &MetaPolicy,
+    tuned: Option<&MetaPolicy>,
+    train: &DemoDataset,
+    score: &mut dyn FnMut(&mut dyn eval::ConditionedActor) -> Result<Cell>,
+    on: &mut dyn FnMut(String),
+) -> Result<Vec<(Vec<u8>, Cell)>> {
+    // The deployed blob is the last: w8a8 with its first and last layers, and its context
+    // encoder, in w8a32 (`smile export`'s defaults).
+    use infer_core::Quant::{F32, W8A8, W8A32};
+    let variants = [(F32, F32), (W8A32, W8A32), (W8A8, W8A8), (W8A8, W8A32)];
+    let mut blobs = Vec::new();
+    for (i, (quant, edges)) in variants.into_iter().enumerate() {
+        let options = infer_core::WriteOptions {
+            edges: Some(edges),
+            context: (edges != quant).then_some(edges),
+            ..Default::default()
+        };
+        let source = match (quant, tuned) {
+            (W8A32 | W8A8, Some(tuned)) => tuned,
+            _ => mp,
+        };
+        let blob = export::export_blob_with(source, quant, Some(train), None, &options)?;
+        let column = score(&mut BlobActor::new(&export::load_blob(&blob)?)?)?;
+        on(format!(
+            "  {} blob ({} B): {:.4} ({:+.1}% +- {:.1})",
+            BLOB_COLUMNS[i],
+            blob.len(),
+            column.metric,
+            column.degradation_pct,
+            column.stderr_pct
+        ));
+        blobs.push((blob, column));
+    }
+    Ok(blobs)
 }
 
 /// Why `blob` cannot run on the default device (64 KiB flash, 16 KiB RAM, layers at most
