@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 use firmware_sim::link::LinkConfig;
 use firmware_sim::{DeviceConfig, LoopConfig, Sensing, SessionConfig, ram_needed, run_session};
 use serde::{Deserialize, Serialize};
-use sim::{DemoDataset, EnvConfig, Family, Split};
+use sim::{DemoDataset, EnvConfig, Family, Task};
 use trainer::eval::{self, Protocol};
 use trainer::export::{self, BlobActor};
 use trainer::{Error, MetaPolicy, Result};
@@ -56,13 +56,18 @@ impl DeployManifest {
     }
 }
 
-/// How much to measure.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// How much to measure, and on which tasks.
+#[derive(Debug, Clone, PartialEq)]
 pub struct TableConfig {
     /// Context draws per task (demo `d` of the task teaches draw `d`).
     pub draws: usize,
     /// Rollouts per draw.
     pub rollouts: usize,
+    /// Demos of new tasks (`smile demos --task-params`): measure on the tasks this file holds,
+    /// its demos the contexts, instead of the test split with the manifest's contexts. A
+    /// family's test split is small (16-32 tasks); where int8 moves single tasks apart, only
+    /// more tasks narrow the standard error.
+    pub new_tasks: Option<PathBuf>,
 }
 
 impl Default for TableConfig {
@@ -70,6 +75,7 @@ impl Default for TableConfig {
         Self {
             draws: 3,
             rollouts: 1,
+            new_tasks: None,
         }
     }
 }
@@ -116,8 +122,11 @@ pub struct Row {
     pub qat_steps: Option<usize>,
     /// Metric name.
     pub metric: String,
-    /// Test tasks and episodes per task per column.
+    /// Tasks measured: the test split's, or those of `new_tasks`.
     pub tasks: usize,
+    /// The demo file of new tasks measured instead of the test split, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub new_tasks: Option<PathBuf>,
     /// Episodes per task per column (draws x rollouts).
     pub episodes_per_task: usize,
     /// Float policy on the host.
@@ -202,6 +211,30 @@ fn demos_at(dir: &Path, file: &Path, input: trainer::Input) -> Result<DemoDatase
     })
 }
 
+/// The tasks a row measures and the demos that teach them: the family's test split with the
+/// manifest's contexts, or every task of `config.new_tasks`, which must be of the policy's
+/// family and plant (checked where the tasks are evaluated) and hold at least one task.
+fn tasks_measured(
+    dir: &Path,
+    manifest: &DeployManifest,
+    config: &TableConfig,
+    family: Family,
+) -> Result<(DemoDataset, Vec<Task>)> {
+    let Some(path) = &config.new_tasks else {
+        let test = demos_at(dir, &manifest.contexts, trainer::Input::Contexts)?;
+        return Ok((test, family.test_tasks()));
+    };
+    let demos = trainer::run::read_demos(path, trainer::Input::Contexts)?;
+    if demos.tasks.is_empty() {
+        return Err(Error::Data(format!(
+            "the new tasks' demos {} hold no task",
+            path.display()
+        )));
+    }
+    let tasks = demos.tasks.iter().map(|t| t.task).collect();
+    Ok((demos, tasks))
+}
+
 /// `mp` fine-tuned through its int8 rounding when the manifest asks (`qat_steps`).
 fn fine_tuned(
     mp: &MetaPolicy,
@@ -227,26 +260,26 @@ fn fine_tuned(
 }
 
 /// Measures the shipped policy in `dir`.
-pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> Result<Row> {
+pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> Result<Row> {
     let manifest = DeployManifest::read(dir)?;
     let mut mp = MetaPolicy::load(dir)?;
     MetaPolicy::ensure_finished(dir, false)?;
     let family = mp.family;
     let train = demos_at(dir, &manifest.demos, trainer::Input::Demos)?;
-    let test = demos_at(dir, &manifest.contexts, trainer::Input::Contexts)?;
+    let (test, tasks) = tasks_measured(dir, &manifest, config, family)?;
     let mut protocol = Protocol::for_family(family);
     protocol.context_sizes = vec![1];
     protocol.draws = config.draws;
     protocol.rollouts = config.rollouts;
     protocol.horizon = manifest.horizon;
     protocol.physics = mp.physics;
-    // Per-task metrics, in the test split's order.
+    // Per-task metrics, in the order of `tasks`.
     let host = |actor: &mut dyn eval::ConditionedActor, name: &str| {
-        eval::evaluate(
+        eval::evaluate_tasks(
             actor,
             name,
             family,
-            Split::Test,
+            &tasks,
             &test,
             &protocol,
             &mut |_, _| {},
@@ -276,7 +309,8 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
                 .iter()
                 .enumerate()
                 .map(|(c, name)| {
-                    let d = device_column(w8a8, c, &test, &protocol, family, &float_tasks)?;
+                    let d =
+                        device_column(w8a8, c, (&tasks, &test), &protocol, family, &float_tasks)?;
                     on(format!("  device, {name}: {:.4}", d.cell.metric));
                     Ok(d)
                 })
@@ -292,7 +326,8 @@ pub fn measure(dir: &Path, config: TableConfig, on: &mut dyn FnMut(String)) -> R
         method: manifest.method,
         qat_steps: manifest.qat_steps,
         metric: eval::metric_name(family.metric_kind()).into(),
-        tasks: family.test_tasks().len(),
+        tasks: tasks.len(),
+        new_tasks: config.new_tasks.clone(),
         episodes_per_task: config.draws * config.rollouts,
         float,
         blobs: [blobs[0].1, blobs[1].1, blobs[2].1, blobs[3].1],
@@ -407,18 +442,18 @@ fn session(column: usize, seed: u64, plant: EnvConfig) -> SessionConfig {
     }
 }
 
-/// The w8a8 blob on the device under condition `column`, over every test task, draw and
-/// rollout of `protocol`.
+/// The w8a8 blob on the device under condition `column`, over every task of `measured` (the
+/// tasks and their contexts), draw and rollout of `protocol`.
 fn device_column(
     blob: &[u8],
     column: usize,
-    test: &DemoDataset,
+    measured: (&[Task], &DemoDataset),
     protocol: &Protocol,
     family: Family,
     float_tasks: &[f32],
 ) -> Result<DeviceCell> {
-    let tasks = family.test_tasks();
-    let contexts = eval::contexts_for(test, family, &tasks)?;
+    let (tasks, test) = measured;
+    let contexts = eval::contexts_for(test, family, tasks)?;
     let plant = EnvConfig {
         horizon: protocol.horizon,
         physics: protocol.physics,
@@ -508,7 +543,10 @@ pub fn markdown(rows: &[Row]) -> String {
             r.ram_bytes,
             if r.fits { "yes" } else { "no" },
             tick,
-            r.tasks,
+            match r.new_tasks {
+                Some(_) => format!("{} new", r.tasks),
+                None => r.tasks.to_string(),
+            },
             r.episodes_per_task,
         ));
     }

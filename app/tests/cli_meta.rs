@@ -296,6 +296,85 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// `smile device-table --new-tasks`: the row is measured on the tasks the file holds (new
+/// goals recorded with `smile demos --task-params`), says so in its JSON and markdown, and
+/// keeps the loop equal to the host's evaluation there; a missing file is refused by name.
+#[test]
+fn device_table_measures_the_new_tasks_a_demo_file_holds() {
+    let dir = common::fresh_dir("smile-device-table-new", "pg");
+    let (train, test) = common::point_goal_demo_files(&dir);
+    let policy = dir.join("policy");
+    common::tiny_bc(&train, &policy);
+    std::fs::write(
+        policy.join("deploy.toml"),
+        format!(
+            "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
+            common::s(&train),
+            common::s(&test)
+        ),
+    )
+    .unwrap();
+    let pd = common::scripted_pd_expert(dir.join("pd"));
+    let new = dir.join("new.safetensors");
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        "0.1,1.7,2.9",
+        "--per-task",
+        "2",
+        "--expert",
+        common::s(&pd),
+        "-o",
+        common::s(&new),
+    ]));
+    let missing = dir.join("no-such-demos.safetensors");
+    let e = smile(&[
+        "device-table",
+        common::s(&policy),
+        "--draws",
+        "1",
+        "--new-tasks",
+        common::s(&missing),
+        "-o",
+        common::s(&dir.join("t")),
+    ]);
+    let stderr = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        !e.status.success() && stderr.contains("no-such-demos"),
+        "{stderr}"
+    );
+    let out = dir.join("table");
+    ok(&smile(&[
+        "device-table",
+        common::s(&policy),
+        "--draws",
+        "2",
+        "--new-tasks",
+        common::s(&new),
+        "-o",
+        common::s(&out),
+    ]));
+    let rows: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("device-table.json")).unwrap())
+            .unwrap();
+    let row = &rows[0];
+    assert_eq!(row["tasks"], 3, "{row}");
+    assert_eq!(row["episodes_per_task"], 2, "{row}");
+    assert!(
+        row["new_tasks"]
+            .as_str()
+            .unwrap()
+            .ends_with("new.safetensors"),
+        "{row}"
+    );
+    assert_eq!(row["device"][0]["cell"], row["blobs"][3], "{row}");
+    let md = std::fs::read_to_string(out.join("device-table.md")).unwrap();
+    assert!(md.contains("| 3 new x 2 |"), "{md}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 /// Issue 57: `smile eval --contexts-tasks` scores the tasks the contexts file holds (new goals
 /// recorded with `smile demos --task-params`), where a split's evaluation needs demos of the
 /// split's tasks; the family comes from the contexts without `--env`.

@@ -19,6 +19,11 @@ pub struct DeviceTableArgs {
     /// Rollouts per draw.
     #[arg(long, default_value_t = 1, value_parser = crate::positive)]
     rollouts: usize,
+    /// Measure on the tasks this demo file holds (new tasks recorded with `smile demos
+    /// --task-params`, its demos the one-demo contexts) instead of each policy's test split and
+    /// `deploy.toml` contexts: more tasks narrow a standard error that more episodes cannot.
+    #[arg(long)]
+    new_tasks: Option<PathBuf>,
     /// Output directory for device-table.md and device-table.json.
     #[arg(short, long, default_value = "runs/device-table")]
     out: PathBuf,
@@ -29,10 +34,11 @@ pub fn run(a: DeviceTableArgs) -> Result<()> {
     let config = TableConfig {
         draws: a.draws,
         rollouts: a.rollouts,
+        new_tasks: a.new_tasks,
     };
     let mut rows = Vec::new();
     for dir in &a.policies {
-        let row = device_table::measure(dir, config, &mut |line| eprintln!("{line}"))
+        let row = device_table::measure(dir, &config, &mut |line| eprintln!("{line}"))
             .with_context(|| format!("measuring {}", dir.display()))?;
         rows.push(row);
     }

@@ -89,7 +89,7 @@ enum Cmd {
     Latents(latents::LatentsArgs),
     /// Shipped meta-policies from float to int8 to the device loop: the deployment table.
     #[command(
-        after_help = "Examples:\n  smile device-table assets/policies/* -o runs/device-table\n  smile device-table assets/policies/cheetah-vel-rapier-smile-bc --draws 3 --rollouts 2"
+        after_help = "Examples:\n  smile device-table assets/policies/* -o runs/device-table\n  smile device-table assets/policies/cheetah-vel-rapier-smile-bc --draws 3 --rollouts 2\n  smile device-table assets/policies/point-goal-rapier-smile --new-tasks demos/pg-new-goals.safetensors"
     )]
     DeviceTable(device_table::DeviceTableArgs),
 }
