@@ -224,6 +224,43 @@ fn train_eval_export_and_refuse_meta_test_data() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// Makes the trained `policy` a shipped one: its `deploy.toml` naming the demos.
+fn ship(policy: &std::path::Path, train: &std::path::Path, test: &std::path::Path) {
+    let manifest = format!(
+        "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
+        common::s(train),
+        common::s(test)
+    );
+    std::fs::write(policy.join("deploy.toml"), manifest).unwrap();
+}
+
+/// Demos of the point-goal goals `angles` (comma separated), `per_task` each, by the scripted
+/// PD expert, in `dir/new.safetensors`: tasks in neither split.
+fn new_goals(dir: &std::path::Path, angles: &str, per_task: &str) -> std::path::PathBuf {
+    let pd = common::scripted_pd_expert(dir.join("pd"));
+    let new = dir.join("new.safetensors");
+    ok(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--task-params",
+        angles,
+        "--per-task",
+        per_task,
+        "--expert",
+        common::s(&pd),
+        "-o",
+        common::s(&new),
+    ]));
+    new
+}
+
+/// The rows `smile device-table -o out` wrote.
+fn table_rows(out: &std::path::Path) -> serde_json::Value {
+    let json = std::fs::read_to_string(out.join("device-table.json")).unwrap();
+    serde_json::from_str(&json).unwrap()
+}
+
 /// Issue 59: `smile device-table` on a shipped policy directory (weights and `deploy.toml`):
 /// every column is measured, the f32 blob scores as the float policy, and the w8a8 blob on the
 /// device with ideal sensing scores exactly as the same blob evaluated on the host (the loop
@@ -246,15 +283,7 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     )
     .into_owned();
     assert!(e.contains("deploy.toml"), "{e}");
-    std::fs::write(
-        policy.join("deploy.toml"),
-        format!(
-            "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
-            common::s(&train),
-            common::s(&test)
-        ),
-    )
-    .unwrap();
+    ship(&policy, &train, &test);
     let out = dir.join("table");
     ok(&smile(&[
         "device-table",
@@ -264,9 +293,7 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
         "-o",
         common::s(&out),
     ]));
-    let rows: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("device-table.json")).unwrap())
-            .unwrap();
+    let rows = table_rows(&out);
     let row = &rows[0];
     let float = row["float"].as_f64().unwrap();
     let f32_blob = row["blobs"][0]["metric"].as_f64().unwrap();
@@ -305,30 +332,8 @@ fn device_table_measures_the_new_tasks_a_demo_file_holds() {
     let (train, test) = common::point_goal_demo_files(&dir);
     let policy = dir.join("policy");
     common::tiny_bc(&train, &policy);
-    std::fs::write(
-        policy.join("deploy.toml"),
-        format!(
-            "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
-            common::s(&train),
-            common::s(&test)
-        ),
-    )
-    .unwrap();
-    let pd = common::scripted_pd_expert(dir.join("pd"));
-    let new = dir.join("new.safetensors");
-    ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--task-params",
-        "0.1,1.7,2.9",
-        "--per-task",
-        "2",
-        "--expert",
-        common::s(&pd),
-        "-o",
-        common::s(&new),
-    ]));
+    ship(&policy, &train, &test);
+    let new = new_goals(&dir, "0.1,1.7,2.9", "2");
     let missing = dir.join("no-such-demos.safetensors");
     let e = smile(&[
         "device-table",
@@ -356,9 +361,7 @@ fn device_table_measures_the_new_tasks_a_demo_file_holds() {
         "-o",
         common::s(&out),
     ]));
-    let rows: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("device-table.json")).unwrap())
-            .unwrap();
+    let rows = table_rows(&out);
     let row = &rows[0];
     assert_eq!(row["tasks"], 3, "{row}");
     assert_eq!(row["episodes_per_task"], 2, "{row}");
@@ -384,21 +387,7 @@ fn eval_scores_the_contexts_own_new_tasks() {
     let (train, _) = common::point_goal_demo_files(&dir);
     let policy = dir.join("bc");
     common::tiny_bc(&train, &policy);
-    let pd = common::scripted_pd_expert(dir.join("pd"));
-    let new = dir.join("new.safetensors");
-    ok(&smile(&[
-        "demos",
-        "--env",
-        "point-goal",
-        "--task-params",
-        "0.1,1.7",
-        "--per-task",
-        "1",
-        "--expert",
-        common::s(&pd),
-        "-o",
-        common::s(&new),
-    ]));
+    let new = new_goals(&dir, "0.1,1.7", "1");
     let out = dir.join("eval");
     let args = common::eval_args(&policy, &new, &out);
     let refused = smile(&args);
