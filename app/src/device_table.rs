@@ -213,7 +213,8 @@ fn demos_at(dir: &Path, file: &Path, input: trainer::Input) -> Result<DemoDatase
 
 /// The tasks a row measures and the demos that teach them: the family's test split with the
 /// manifest's contexts, or every task of `config.new_tasks`, which must be of the policy's
-/// family and plant (checked where the tasks are evaluated) and hold at least one task.
+/// family (checked here) and plant (checked where the tasks are evaluated) and hold at least
+/// one task.
 fn tasks_measured(
     dir: &Path,
     manifest: &DeployManifest,
@@ -224,7 +225,10 @@ fn tasks_measured(
         let test = demos_at(dir, &manifest.contexts, trainer::Input::Contexts)?;
         return Ok((test, family.test_tasks()));
     };
-    let demos = trainer::run::read_demos(path, trainer::Input::Contexts)?;
+    // As `demos_at`: a data error naming the file, where an input error would point the
+    // user at a flag this table does not have.
+    let demos = trainer::run::read_demos_of(path, trainer::Input::Contexts, family)
+        .map_err(|e| Error::Data(format!("{e} (the demos of the new tasks to measure on)")))?;
     if demos.tasks.is_empty() {
         return Err(Error::Data(format!(
             "the new tasks' demos {} hold no task",
