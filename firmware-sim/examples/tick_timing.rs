@@ -9,7 +9,7 @@
 //! gives the repeatable instruction count per `act`.
 
 use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, run};
+use firmware_sim::{Controller, DeviceConfig, LoopConfig, host, run};
 use infer_core::{Calibration, Dims, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{EnvConfig, Family, Trajectory, TransitionRef, make_env};
 
@@ -57,7 +57,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 flash_bytes: 256 * 1024,
                 ..DeviceConfig::default()
             };
-            let mut device = Device::new(config);
+            let mut device = firmware_sim::erased(config);
             let mut link = SimLink::new(LinkConfig::default());
             host::upload_blob(&mut link, &mut device, &blob)?;
             let model = Model::from_bytes(device.blob()?)?;

@@ -32,7 +32,9 @@ pub mod session;
 pub mod trace;
 
 pub use control::{Brain, LoopConfig, LoopError, Outcome, RunReport, TickRecord, run};
-pub use device::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, ram_needed};
+pub use device::{
+    CAPACITY, Controller, Device, DeviceConfig, DeviceError, check_fits, erased, ram_needed,
+};
 pub use estimation::Sensing;
 pub use files::write_atomic;
 pub use session::{Session, SessionConfig, SessionError, run_session};

@@ -1,165 +1,17 @@
 //! The serial link between host and device: postcard messages, a CRC-32 per frame, COBS
 //! framing (a zero byte ends every frame), and stop-and-wait retransmission.
 //!
-//! The device side (`decode_frame`, `encode_frame`) uses only fixed buffers; the host side
-//! and the simulated wire ([`SimLink`]) may allocate.
+//! The messages and the device side of the framing are `device-core`'s (one definition, run
+//! by this crate and by the firmware); the host side and the simulated wire ([`SimLink`]) may
+//! allocate.
 
-use heapless::Vec as HVec;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde::{Deserialize, Serialize};
 
-/// Largest observation or action a transition message carries.
-pub const MAX_DIM: usize = 64;
-/// Blob bytes per chunk message.
-pub const CHUNK_BYTES: usize = 192;
-/// Largest encoded frame, COBS overhead and delimiter included.
-pub const MAX_FRAME: usize = 400;
-/// The wire protocol's version (`docs/PROTOCOL.md`): 1 was the in-process link (upload and
-/// teach); 2 added `Hello`/`Status` and `Tick`/`Action` for a device on a serial port. A device
-/// answers `Hello` with its own version and the host refuses a mismatch.
-pub const PROTOCOL_VERSION: u16 = 2;
-
-/// A vector of floats small enough for one frame.
-pub type Floats = HVec<f32, MAX_DIM>;
-
-/// What the host sends. Variants differ in size on purpose: messages live on the stack one
-/// at a time, and boxing would put a heap into the device's receive path.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum HostMessage<'a> {
-    /// A blob of `len` bytes with CRC-32 `crc` follows in chunks.
-    BlobBegin {
-        /// Total blob bytes.
-        len: u32,
-        /// CRC-32 of the whole blob.
-        crc: u32,
-    },
-    /// Blob bytes at `offset`; chunks arrive in order.
-    BlobChunk {
-        /// Where these bytes go.
-        offset: u32,
-        /// The bytes.
-        #[serde(borrow)]
-        data: &'a [u8],
-    },
-    /// All chunks sent: verify and commit the blob.
-    BlobEnd,
-    /// Forget the current context: a new demo follows.
-    TeachBegin,
-    /// One demo transition.
-    Transition {
-        /// State.
-        obs: Floats,
-        /// Expert action (ignored by state-only models).
-        action: Floats,
-        /// Next state.
-        next_obs: Floats,
-    },
-    /// The current demo trajectory is complete.
-    EndTrajectory,
-    /// The context is complete: fix z.
-    TeachEnd,
-    /// Who are you and what do you hold? Answered with [`DeviceMessage::Status`] in any state
-    /// (the host sends it first, and again after losing the device).
-    Hello {
-        /// The host's [`PROTOCOL_VERSION`].
-        version: u16,
-    },
-    /// One control tick: the sensed observation; answered with [`DeviceMessage::Action`].
-    Tick {
-        /// Tick index (echoed in the answer, so a late answer is never taken for a newer one).
-        tick: u32,
-        /// The observation the sensors read.
-        obs: Floats,
-    },
-}
-
-/// Why the device refused a message (a corrupt frame is simply not answered).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Refusal {
-    /// The blob does not fit the flash budget.
-    BlobTooLarge,
-    /// A chunk arrived out of order or beyond the announced length.
-    OutOfOrder,
-    /// The assembled blob fails its checksum or validation.
-    BadBlob,
-    /// A transition has wrong dimensions or non-finite values.
-    BadTransition,
-    /// The message does not fit the device's state (e.g. teaching before a blob).
-    NotReady,
-    /// The model needs more RAM than the budget or wider layers than compiled in.
-    DoesNotFit,
-}
-
-/// What the device answers. Variants differ in size on purpose, as [`HostMessage`]'s: one
-/// answer lives on the stack at a time, and boxing would put a heap into the device's reply path.
-#[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum DeviceMessage {
-    /// Message `seq` applied (or already applied: duplicates are acknowledged, not re-applied).
-    Ack {
-        /// Sequence number acknowledged.
-        seq: u16,
-    },
-    /// Message `seq` refused.
-    Refused {
-        /// Sequence number refused.
-        seq: u16,
-        /// Why.
-        reason: Refusal,
-    },
-    /// The answer to [`HostMessage::Hello`].
-    Status {
-        /// Sequence number answered.
-        seq: u16,
-        /// The device's [`PROTOCOL_VERSION`].
-        version: u16,
-        /// Bytes of the committed blob in flash; 0: none.
-        blob_len: u32,
-        /// CRC-32 of the committed blob (0 without one): the host skips a re-upload of the
-        /// same blob after a device reset.
-        blob_crc: u32,
-        /// Whether a context is taught (RAM: false after every reset).
-        taught: bool,
-        /// Times the watchdog found the host silent and held the safe action, since boot.
-        watchdog_trips: u32,
-    },
-    /// The answer to [`HostMessage::Tick`].
-    Action {
-        /// Sequence number answered.
-        seq: u16,
-        /// The tick it answers.
-        tick: u32,
-        /// The action to apply.
-        action: Floats,
-        /// A non-finite reading or output was replaced by the safe action.
-        fault: bool,
-        /// The device's compute time for this tick, microseconds.
-        compute_us: u32,
-    },
-}
-
-impl DeviceMessage {
-    /// The sequence number this answers.
-    pub fn seq(&self) -> u16 {
-        match self {
-            Self::Ack { seq }
-            | Self::Refused { seq, .. }
-            | Self::Status { seq, .. }
-            | Self::Action { seq, .. } => *seq,
-        }
-    }
-}
-
-/// A message with its sequence number, as framed on the wire.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Packet<M> {
-    /// Sequence number (wraps).
-    pub seq: u16,
-    /// The message.
-    pub message: M,
-}
+pub use device_core::{
+    CHUNK_BYTES, DeviceMessage, Endpoint, Floats, FrameError, HostMessage, MAX_DIM, MAX_FRAME,
+    PROTOCOL_VERSION, Packet, Refusal, decode_frame, decode_message, encode_frame,
+};
 
 /// Link-level failures.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -219,39 +71,14 @@ pub enum LinkError {
     },
 }
 
-/// Serialises `value`, appends its CRC-32 and COBS-encodes it into `out` with a trailing
-/// zero delimiter; returns the frame length.
-pub fn encode_frame<T: Serialize>(value: &T, out: &mut [u8]) -> Result<usize, LinkError> {
-    let mut raw = [0u8; MAX_FRAME];
-    let n = postcard::to_slice(value, &mut raw[..MAX_FRAME - 8])
-        .map_err(|_| LinkError::FrameTooLarge)?
-        .len();
-    let crc = infer_core::crc32(&raw[..n]);
-    raw[n..n + 4].copy_from_slice(&crc.to_le_bytes());
-    let m = cobs::try_encode(&raw[..n + 4], out).map_err(|_| LinkError::FrameTooLarge)?;
-    *out.get_mut(m).ok_or(LinkError::FrameTooLarge)? = 0;
-    Ok(m + 1)
-}
-
-/// Undoes [`encode_frame`] into `scratch`; returns the verified message bytes.
-pub fn decode_frame<'s>(frame: &[u8], scratch: &'s mut [u8]) -> Result<&'s [u8], LinkError> {
-    let body = frame.strip_suffix(&[0]).unwrap_or(frame);
-    let n = cobs::decode(body, scratch).map_err(|_| LinkError::Cobs)?;
-    if n < 4 {
-        return Err(LinkError::Checksum);
-    }
-    let (payload, crc) = scratch[..n].split_at(n - 4);
-    if infer_core::crc32(payload).to_le_bytes() != crc {
-        return Err(LinkError::Checksum);
-    }
-    Ok(payload)
-}
-
-/// Decodes a whole message from verified bytes, refusing trailing bytes.
-pub fn decode_message<'a, T: Deserialize<'a>>(payload: &'a [u8]) -> Result<T, LinkError> {
-    match postcard::take_from_bytes(payload) {
-        Ok((value, [])) => Ok(value),
-        _ => Err(LinkError::Decode),
+impl From<FrameError> for LinkError {
+    fn from(e: FrameError) -> Self {
+        match e {
+            FrameError::Cobs => Self::Cobs,
+            FrameError::Checksum => Self::Checksum,
+            FrameError::Decode => Self::Decode,
+            _ => Self::FrameTooLarge,
+        }
     }
 }
 
@@ -292,13 +119,6 @@ pub struct LinkStats {
     pub retries: u64,
     /// Payload bytes on the wire.
     pub bytes: u64,
-}
-
-/// Something that answers frames: the device's bootloader or its application.
-pub trait Endpoint {
-    /// Handles one received frame; writes a reply frame into `reply` and returns its length,
-    /// or `None` when the frame was unreadable (the host then times out and resends).
-    fn receive(&mut self, frame: &[u8], reply: &mut [u8]) -> Option<usize>;
 }
 
 /// The host end of a simulated, possibly lossy serial wire.
@@ -380,59 +200,12 @@ impl SimLink {
     }
 }
 
-/// Device-side duplicate filter: a resent message (its ack was lost) is acknowledged again
-/// but not applied twice.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Dedup {
-    last: Option<(u16, DeviceMessage)>,
-}
-
-impl Dedup {
-    /// The earlier answer if `seq` was already handled.
-    pub fn seen(&self, seq: u16) -> Option<DeviceMessage> {
-        self.last
-            .as_ref()
-            .filter(|(s, _)| *s == seq)
-            .map(|(_, m)| m.clone())
-    }
-    pub fn record(&mut self, seq: u16, answer: DeviceMessage) -> DeviceMessage {
-        self.last = Some((seq, answer.clone()));
-        answer
-    }
-}
-
-/// Shared device-side frame handling: verify, decode, deduplicate, apply, answer. `apply`
-/// gets the message's sequence number and returns its answer (`None`: a plain
-/// acknowledgement).
-pub(crate) fn serve(
-    frame: &[u8],
-    reply: &mut [u8],
-    dedup: &mut Dedup,
-    apply: impl FnOnce(u16, &HostMessage<'_>) -> Result<Option<DeviceMessage>, Refusal>,
-) -> Option<usize> {
-    let mut scratch = [0u8; MAX_FRAME];
-    let payload = decode_frame(frame, &mut scratch).ok()?;
-    let packet: Packet<HostMessage<'_>> = decode_message(payload).ok()?;
-    let seq = packet.seq;
-    let answer = match dedup.seen(seq) {
-        Some(answer) => answer,
-        None => {
-            let answer = match apply(seq, &packet.message) {
-                Ok(None) => DeviceMessage::Ack { seq },
-                Ok(Some(answer)) => answer,
-                Err(reason) => DeviceMessage::Refused { seq, reason },
-            };
-            dedup.record(seq, answer)
-        }
-    };
-    encode_frame(&answer, reply).ok()
-}
-
 #[cfg(test)]
 mod golden {
     //! The worked examples of `docs/PROTOCOL.md`, byte for byte: a board written from that page
     //! speaks to this code.
     use super::*;
+    use serde::Serialize;
 
     fn hex(bytes: &[u8]) -> String {
         bytes

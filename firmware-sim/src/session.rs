@@ -4,7 +4,7 @@
 use sim::{EnvConfig, Task, Trajectory, make_env};
 
 use crate::control::{LoopConfig, RunReport};
-use crate::device::{Controller, Device, DeviceConfig, DeviceError};
+use crate::device::{Controller, DeviceConfig, DeviceError};
 use crate::host;
 use crate::link::{LinkConfig, LinkError, Refusal, SimLink};
 
@@ -69,7 +69,7 @@ pub fn run_session(
     config: &SessionConfig,
 ) -> Result<Session, SessionError> {
     let family = task.family();
-    let mut device = Device::new(config.device);
+    let mut device = crate::device::erased(config.device);
     let mut link = SimLink::new(config.link);
     let uploaded = host::upload_blob(&mut link, &mut device, blob);
     if let Err(LinkError::Refused {

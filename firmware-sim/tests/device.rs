@@ -15,7 +15,7 @@ fn blob(quant: Quant, demo: &Trajectory) -> Vec<u8> {
 }
 
 fn flashed(blob: &[u8], link: LinkConfig) -> (Device, SimLink) {
-    let mut device = Device::new(DeviceConfig::default());
+    let mut device = firmware_sim::erased(DeviceConfig::default());
     let mut link = SimLink::new(link);
     host::upload_blob(&mut link, &mut device, blob).unwrap();
     (device, link)
@@ -106,7 +106,7 @@ fn corrupted_frames_are_detected_and_resent() {
 fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
     let d = demo(&Family::PointGoal.test_tasks()[0], 1);
     let bytes = blob(Quant::F32, &d);
-    let mut device = Device::new(DeviceConfig::default());
+    let mut device = firmware_sim::erased(DeviceConfig::default());
     let dead = LinkConfig {
         drop_probability: 1.0,
         max_retries: 3,
@@ -154,7 +154,7 @@ fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
 fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
     let d = demo(&Family::PointGoal.test_tasks()[0], 1);
     let bytes = blob(Quant::F32, &d);
-    let mut small = Device::new(DeviceConfig {
+    let mut small = firmware_sim::erased(DeviceConfig {
         flash_bytes: 256,
         ram_bytes: 16 * 1024,
     });

@@ -5,7 +5,7 @@ mod common;
 
 use firmware_sim::link::{Endpoint, HostMessage, LinkConfig, LinkError, Refusal, SimLink};
 use firmware_sim::session::{SessionConfig, run_session};
-use firmware_sim::{CAPACITY, Controller, Device, DeviceConfig, DeviceError, host, reference};
+use firmware_sim::{CAPACITY, Controller, DeviceConfig, DeviceError, host, reference};
 use infer_core::{Dims, Error, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{Family, Task, Trajectory};
 
@@ -32,7 +32,7 @@ fn refusal(link: &mut SimLink, device: &mut dyn Endpoint, message: HostMessage<'
 /// Asserts that uploading `blob` to a new device of `config` is refused as `DoesNotFit` and
 /// leaves the device without a blob.
 fn assert_upload_does_not_fit(blob: &[u8], config: DeviceConfig) {
-    let mut device = Device::new(config);
+    let mut device = firmware_sim::erased(config);
     let err = host::upload_blob(&mut link(), &mut device, blob).unwrap_err();
     assert!(
         matches!(
@@ -56,7 +56,7 @@ fn begin(blob: &[u8]) -> HostMessage<'static> {
 
 #[test]
 fn blob_messages_before_a_begin_are_not_ready() {
-    let mut device = Device::new(DeviceConfig::default());
+    let mut device = firmware_sim::erased(DeviceConfig::default());
     let mut link = link();
     let data = [1u8; 8];
     let early = [
@@ -91,7 +91,7 @@ fn the_application_refuses_bootloader_messages_as_not_ready() {
 #[test]
 fn chunks_out_of_order_or_past_the_announced_length_are_refused() {
     let blob = point_goal_blob();
-    let mut device = Device::new(DeviceConfig::default());
+    let mut device = firmware_sim::erased(DeviceConfig::default());
     let mut link = link();
     link.send(&mut device, &begin(&blob)).unwrap();
     let skipped = HostMessage::BlobChunk {
@@ -127,7 +127,7 @@ fn chunks_out_of_order_or_past_the_announced_length_are_refused() {
 #[test]
 fn oversize_incomplete_corrupt_and_invalid_blobs_are_refused() {
     let blob = point_goal_blob();
-    let mut device = Device::new(DeviceConfig {
+    let mut device = firmware_sim::erased(DeviceConfig {
         flash_bytes: blob.len() - 1,
         ..DeviceConfig::default()
     });
@@ -150,7 +150,7 @@ fn oversize_incomplete_corrupt_and_invalid_blobs_are_refused() {
         (begin(&not_a_model), &not_a_model),
     ];
     for (announce, bytes) in cases {
-        let mut device = Device::new(DeviceConfig::default());
+        let mut device = firmware_sim::erased(DeviceConfig::default());
         let mut link = link();
         link.send(&mut device, &announce).unwrap();
         let chunk = HostMessage::BlobChunk {

@@ -5,7 +5,7 @@ mod common;
 use common::pd_demo as demo;
 
 use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, RunReport, Sensing, host, run};
+use firmware_sim::{Controller, DeviceConfig, LoopConfig, RunReport, Sensing, host, run};
 use infer_core::{Model, Quant};
 use sim::{EnvConfig, Family, Task, make_env};
 
@@ -13,7 +13,7 @@ use sim::{EnvConfig, Family, Task, make_env};
 fn run_task(task: &Task, config: &LoopConfig) -> RunReport {
     let d = demo(task, 100);
     let blob = firmware_sim::reference::pd_point_goal_blob(Quant::W8A8, &[&d]).unwrap();
-    let mut device = Device::new(DeviceConfig::default());
+    let mut device = firmware_sim::erased(DeviceConfig::default());
     let mut link = SimLink::new(LinkConfig::default());
     host::upload_blob(&mut link, &mut device, &blob).unwrap();
     let model = Model::from_bytes(device.blob().unwrap()).unwrap();

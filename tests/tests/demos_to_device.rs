@@ -3,7 +3,7 @@
 //! which must then reach the held-out goals it was taught.
 
 use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, reference, run};
+use firmware_sim::{Controller, DeviceConfig, LoopConfig, host, reference, run};
 use infer_core::{Model, Quant};
 use sim::{DemoDataset, EnvConfig, Family, Split, make_env};
 use trainer::expert::{Expert, export_scripted_pd};
@@ -37,7 +37,7 @@ fn demos_from_the_trainer_teach_a_device_through_a_file() {
     let blob = reference::pd_point_goal_blob(Quant::W8A8, &recorded).unwrap();
 
     for task_demos in &demos.tasks {
-        let mut device = Device::new(DeviceConfig::default());
+        let mut device = firmware_sim::erased(DeviceConfig::default());
         let mut link = SimLink::new(LinkConfig {
             corrupt_probability: 0.02,
             seed: 1,

@@ -23,12 +23,20 @@
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};
 
-const CRATES: [&str; 4] = ["sim", "trainer", "firmware-sim", "infer-core"];
-const ALL: [&str; 7] = [
+const CRATES: [&str; 5] = [
     "sim",
     "trainer",
     "firmware-sim",
     "infer-core",
+    "device-core",
+];
+const ALL: [&str; 9] = [
+    "sim",
+    "trainer",
+    "firmware-sim",
+    "infer-core",
+    "device-core",
+    "firmware",
     "app",
     "nostd-check",
     "tests",

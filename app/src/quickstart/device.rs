@@ -4,7 +4,7 @@
 use std::path::Path;
 
 use firmware_sim::link::{LinkConfig, SimLink};
-use firmware_sim::{Controller, Device, DeviceConfig, LoopConfig, host, ram_needed, trace};
+use firmware_sim::{Controller, DeviceConfig, LoopConfig, host, ram_needed, trace};
 use sim::DemoDataset;
 
 use super::{DeviceSensing, Quickstart, device_err, io, write};
@@ -21,7 +21,7 @@ pub(super) fn device_run(
     let task = args.env.test_tasks()[3 % args.env.test_tasks().len()];
     let demo = eval::contexts_for(test, args.env, &[task])?[0].trajectories[0].clone();
     let config = DeviceConfig::default();
-    let mut device = Device::new(config);
+    let mut device = firmware_sim::erased(config);
     let mut link = SimLink::new(LinkConfig {
         corrupt_probability: 0.01,
         seed: args.seed,

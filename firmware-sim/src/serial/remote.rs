@@ -198,6 +198,15 @@ impl SerialLink {
         }
     }
 
+    /// The latent the device's last teach fixed (`Refused(NotReady)` before one): to check
+    /// the device's `z` against the host's own, bit for bit.
+    pub fn latent(&mut self) -> Result<Vec<f32>, LinkError> {
+        match self.request(&HostMessage::Latent)? {
+            DeviceMessage::Latent { z, .. } => Ok(z.to_vec()),
+            other => Err(LinkError::Unexpected { seq: other.seq() }),
+        }
+    }
+
     /// One tick: the action answered before `deadline`, or `None`. A tick whose answer does
     /// not come within a round trip's time (the frame or its answer lost or damaged) is sent
     /// again while the deadline leaves room; the device answers a resend from its record

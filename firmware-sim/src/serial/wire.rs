@@ -61,9 +61,8 @@ pub struct Wire {
     rx: [u8; 256],
     rx_pos: usize,
     rx_end: usize,
+    reader: device_core::FrameReader,
     frame: [u8; MAX_FRAME],
-    frame_len: usize,
-    skipping: bool,
     /// Counters.
     pub stats: WireStats,
 }
@@ -111,9 +110,8 @@ impl Wire {
             rx: [0; 256],
             rx_pos: 0,
             rx_end: 0,
+            reader: device_core::FrameReader::default(),
             frame: [0; MAX_FRAME],
-            frame_len: 0,
-            skipping: false,
             stats: WireStats::default(),
         }
     }
@@ -189,9 +187,13 @@ impl Wire {
             while self.rx_pos < self.rx_end {
                 let byte = self.rx[self.rx_pos];
                 self.rx_pos += 1;
-                if self.take(byte) {
-                    let len = self.frame_len;
-                    self.frame_len = 0;
+                let overflows = self.reader.overflows;
+                let got = self.reader.push(byte).map(|f| {
+                    self.frame[..f.len()].copy_from_slice(f);
+                    f.len()
+                });
+                self.stats.overflows += self.reader.overflows - overflows;
+                if let Some(len) = got {
                     self.stats.frames_in += 1;
                     match self.fault(len) {
                         (true, _) => continue,
@@ -223,38 +225,11 @@ impl Wire {
         }
     }
 
-    /// Adds one byte to the frame being assembled; true when it completed one.
-    fn take(&mut self, byte: u8) -> bool {
-        if byte == 0 {
-            let complete = !self.skipping && self.frame_len > 0;
-            self.skipping = false;
-            if complete {
-                self.frame[self.frame_len] = 0;
-                self.frame_len += 1;
-            }
-            return complete;
-        }
-        if self.skipping {
-            return false;
-        }
-        if self.frame_len + 1 >= MAX_FRAME {
-            // No delimiter where one must be: line noise; wait for the next delimiter.
-            self.stats.overflows += 1;
-            self.skipping = true;
-            self.frame_len = 0;
-            return false;
-        }
-        self.frame[self.frame_len] = byte;
-        self.frame_len += 1;
-        false
-    }
-
     /// Discards whatever is waiting to be read (after a reconnect).
     pub fn clear(&mut self) {
         let _ = self.port.clear(serialport::ClearBuffer::All);
         self.rx_pos = 0;
         self.rx_end = 0;
-        self.frame_len = 0;
-        self.skipping = false;
+        self.reader.clear();
     }
 }

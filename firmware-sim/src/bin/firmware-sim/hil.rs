@@ -80,7 +80,7 @@ pub(crate) fn device_cmd(a: DeviceArgs) -> Result<()> {
             }
             BoardEvent::Flash(why) => format!("flash file: {why}"),
             BoardEvent::Refused(reason) => format!("refused a message: {reason:?}"),
-            BoardEvent::Taught => "context taught; z fixed".into(),
+            BoardEvent::Taught(n) => format!("context taught from {n} transitions; z fixed"),
             BoardEvent::Watchdog(silent) => format!(
                 "watchdog: no tick for {} ms; holding the safe action",
                 silent.as_millis()
