@@ -65,12 +65,18 @@ struct Board {
 
 impl Board {
     fn boot(dir: &Path, name: &str) -> Self {
+        Self::boot_with(dir, name, &[])
+    }
+
+    /// Boots with `extra` QEMU options (`-icount shift=0` for instruction counts).
+    fn boot_with(dir: &Path, name: &str, extra: &[&str]) -> Self {
         let log = dir.join(format!("{name}.log"));
         let file = std::fs::File::create(&log).unwrap();
         let child = Command::new("qemu-system-arm")
             .args(["-machine", "mps2-an386", "-cpu", "cortex-m4"])
             .args(["-display", "none", "-monitor", "none", "-serial", "pty"])
             .args(["-semihosting-config", "enable=on,target=native"])
+            .args(extra)
             .arg("-kernel")
             .arg(firmware())
             .stdin(Stdio::null())
@@ -471,6 +477,91 @@ fn the_hil_loop_runs_against_the_firmware_over_its_uart() {
         err.contains("blob rejected") && err.contains("width 256"),
         "{err}"
     );
+    drop(board);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// One shipped blob measured on the emulated part.
+#[derive(Debug, serde::Serialize)]
+struct Footprint {
+    policy: String,
+    blob_bytes: usize,
+    quant: String,
+    /// Instructions per `act` (the Tick's compute), mean over the ticks.
+    act_instructions: f64,
+    /// Instructions per encoder push, mean over the teach.
+    push_instructions: f64,
+    /// The stack's high-water mark after teach and ticks, bytes.
+    stack_bytes: usize,
+}
+
+/// The last number before `suffix` in the last line of `log` holding `marker`.
+fn logged(log: &str, marker: &str, suffix: &str) -> f64 {
+    let line = log.lines().rev().find(|l| l.contains(marker)).unwrap();
+    let head = &line[..line.find(suffix).unwrap()];
+    head.split_whitespace().last().unwrap().parse().unwrap()
+}
+
+/// docs/DEVICE.md's "On a Cortex-M4F" table: every shipped blob that fits, on QEMU with
+/// `-icount shift=0` (one instruction is one nanosecond of the board's SysTick time, so the
+/// device's times are instruction counts, the same on every run). Writes
+/// `$SMILE_CORTEX_M4F_OUT` (JSON) when set. Not in `.ci/run` (a few minutes): the command is in
+/// DEVICE.md.
+#[test]
+#[ignore = "needs the firmware ELF and qemu-system-arm; a measurement, run by hand"]
+fn instructions_and_stack_per_shipped_blob_on_the_cortex_m4f() {
+    let dir = tmp("qemu-measure");
+    let mut board = Board::boot_with(&dir, "board", &["-icount", "shift=0"]);
+    let mut rows = Vec::new();
+    let mut policies: Vec<PathBuf> = std::fs::read_dir(repo().join("assets/policies"))
+        .unwrap()
+        .map(|e| e.unwrap().path().join("policy.blob"))
+        .filter(|p| p.exists())
+        .collect();
+    policies.sort();
+    for path in &policies {
+        let blob = std::fs::read(path).unwrap();
+        let model = Model::from_bytes(&blob).unwrap();
+        if Controller::new(&model, DeviceConfig::default()).is_err() {
+            continue;
+        }
+        let h = *model.header();
+        let (o, a) = (h.obs_dim as usize, h.act_dim as usize);
+        let mut rng = Rng(11);
+        let trajectories: Vec<Vec<[Vec<f32>; 3]>> = (0..2)
+            .map(|_| {
+                (0..16)
+                    .map(|_| [rng.vec(o, 1.0), rng.vec(a, 1.0), rng.vec(o, 1.0)])
+                    .collect()
+            })
+            .collect();
+        let link = board.link();
+        upload(link, &blob).unwrap();
+        for m in teach_messages(&trajectories) {
+            link.send(&m).unwrap();
+        }
+        let ticks = 20;
+        let act_us: u32 = (0..ticks).map(|t| act(link, t, &rng.vec(o, 1.0)).1).sum();
+        link.hello().unwrap();
+        let log = board.log();
+        let push_ns = logged(&log, "context taught from 32 transitions", " ns");
+        let row = Footprint {
+            policy: path.parent().unwrap().file_name().unwrap().to_string_lossy().into(),
+            blob_bytes: blob.len(),
+            quant: format!("{:?}", h.quant),
+            act_instructions: f64::from(act_us) * 1000.0 / f64::from(ticks),
+            push_instructions: push_ns / 32.0,
+            stack_bytes: logged(&log, "stack high-water", " B of") as usize,
+        };
+        eprintln!("{row:?}");
+        assert!(row.act_instructions > 1000.0 && row.push_instructions > 1000.0, "{row:?}");
+        assert!(row.stack_bytes < 128 * 1024, "{row:?}");
+        rows.push(row);
+    }
+    assert!(rows.len() >= 16);
+    if let Some(out) = std::env::var_os("SMILE_CORTEX_M4F_OUT") {
+        std::fs::write(out, serde_json::to_string_pretty(&rows).unwrap()).unwrap();
+    }
     drop(board);
     std::fs::remove_dir_all(&dir).ok();
 }
