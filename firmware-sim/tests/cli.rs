@@ -340,6 +340,23 @@ fn a_blob_of_another_family_and_counts_that_cannot_run_are_refused() {
     };
     let e = String::from_utf8_lossy(&run(&["--horizon", "0"]).stderr).into_owned();
     assert!(e.contains("--horizon") && !e.contains("panicked"), "{e}");
+    // Values no run can mean are refused by the parser, naming the flag (issue 72, item 3).
+    for (flag, value) in [
+        ("--rate", "0"),
+        ("--rate", "NaN"),
+        ("--rate", "-10"),
+        ("--budget-us", "NaN"),
+        ("--budget-us", "-1"),
+        ("--horizon", "18446744073709551615"),
+    ] {
+        let out = run(&[&format!("{flag}={value}")]);
+        let e = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}: {e}");
+        assert!(
+            e.contains(flag) && !e.contains("panicked"),
+            "{flag} {value}: {e}"
+        );
+    }
     let e = fails(&run(&["--trajectories", "5"]));
     assert!(
         e.contains("--trajectories 5") && e.contains("holds 1 demo"),

@@ -546,7 +546,13 @@ fn instructions_and_stack_per_shipped_blob_on_the_cortex_m4f() {
         let log = board.log();
         let push_ns = logged(&log, "context taught from 32 transitions", " ns");
         let row = Footprint {
-            policy: path.parent().unwrap().file_name().unwrap().to_string_lossy().into(),
+            policy: path
+                .parent()
+                .unwrap()
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into(),
             blob_bytes: blob.len(),
             quant: format!("{:?}", h.quant),
             act_instructions: f64::from(act_us) * 1000.0 / f64::from(ticks),
@@ -554,7 +560,10 @@ fn instructions_and_stack_per_shipped_blob_on_the_cortex_m4f() {
             stack_bytes: logged(&log, "stack high-water", " B of") as usize,
         };
         eprintln!("{row:?}");
-        assert!(row.act_instructions > 1000.0 && row.push_instructions > 1000.0, "{row:?}");
+        assert!(
+            row.act_instructions > 1000.0 && row.push_instructions > 1000.0,
+            "{row:?}"
+        );
         assert!(row.stack_bytes < 128 * 1024, "{row:?}");
         rows.push(row);
     }

@@ -51,10 +51,15 @@ enum Cmd {
     Host(hil::HostArgs),
 }
 
-/// A count of at least 1 (`--horizon`).
+/// The longest plant episode a run takes, in plant steps: a day of a 1 kHz plant. A run's trace
+/// holds every tick, so a larger horizon could not finish (or allocate) anyway.
+const MAX_HORIZON: usize = 86_400_000;
+
+/// A count of at least 1 and at most [`MAX_HORIZON`] (`--horizon`).
 fn positive_count(text: &str) -> std::result::Result<usize, String> {
     match text.parse::<usize>() {
         Ok(0) => Err("0: expected a count of at least 1".into()),
+        Ok(n) if n > MAX_HORIZON => Err(format!("{n}: at most {MAX_HORIZON} plant steps")),
         Ok(n) => Ok(n),
         Err(e) => Err(format!("`{text}` is not a count: {e}")),
     }
@@ -65,6 +70,15 @@ fn positive_finite(text: &str) -> std::result::Result<f32, String> {
     match text.parse::<f32>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         Ok(v) => Err(format!("{v}: expected a finite number > 0")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
+/// A finite number >= 0 (`--budget-us`).
+fn non_negative_finite(text: &str) -> std::result::Result<f64, String> {
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() && v >= 0.0 => Ok(v),
+        Ok(v) => Err(format!("{v}: expected a finite number >= 0")),
         Err(e) => Err(format!("`{text}` is not a number: {e}")),
     }
 }
@@ -100,8 +114,8 @@ struct PlantArgs {
     /// Context trajectories to teach (taken in file order), at least 1.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
     trajectories: u64,
-    /// Control rate in Hz (default: the plant's own, 1 / control dt).
-    #[arg(long)]
+    /// Control rate in Hz, finite and > 0 (default: the plant's own, 1 / control dt).
+    #[arg(long, value_parser = positive_finite)]
     rate: Option<f32>,
     /// Ticks to run, 1 to one plant episode (default: one plant episode).
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
@@ -139,8 +153,9 @@ struct PlantArgs {
 struct RunArgs {
     #[command(flatten)]
     plant: PlantArgs,
-    /// Compute budget per tick, microseconds; late actions are dropped and the last one held.
-    #[arg(long, default_value_t = 1000.0)]
+    /// Compute budget per tick, microseconds, finite and >= 0; late actions are dropped and
+    /// the last one held.
+    #[arg(long, default_value_t = 1000.0, value_parser = non_negative_finite)]
     budget_us: f64,
     /// What the sensors deliver: `full` (every observation entry) or `positions` (positions
     /// and angles only; the device estimates the velocities with a Kalman filter per axis).
