@@ -35,6 +35,18 @@ pub struct LoopConfig {
     pub sensing: Sensing,
 }
 
+impl LoopConfig {
+    /// The sensors' model: the noise and the ADC every reading goes through (`sim`'s, the one
+    /// the learners train through).
+    pub fn sensor_model(&self) -> sim::SensorModel {
+        sim::SensorModel {
+            noise_std: self.noise_std,
+            adc_bits: self.adc_bits,
+            adc_range: self.adc_range,
+        }
+    }
+}
+
 impl Default for LoopConfig {
     fn default() -> Self {
         Self {
@@ -96,12 +108,6 @@ pub enum LoopError {
         /// The plant's rate.
         plant: f32,
     },
-}
-
-/// The ADC's step: `2 range / (2^bits - 1)`.
-pub(crate) fn adc_lsb(bits: u8, range: f32) -> f32 {
-    let levels = ((1u32 << bits.min(24)) - 1) as f32;
-    2.0 * range / levels
 }
 
 /// What the device's sensors deliver.

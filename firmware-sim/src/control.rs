@@ -4,12 +4,8 @@
 
 use std::time::Instant;
 
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, Normal};
-use sim::{Environment, EpisodeMetric, Task};
+use sim::{Environment, EpisodeMetric, Sensor, SensorModelError, Task};
 
-use crate::config::adc_lsb;
 pub use crate::config::{LoopConfig, LoopError};
 use crate::device::Controller;
 use crate::estimation::SensorPath;
@@ -76,24 +72,6 @@ impl RunReport {
         let at = |q: f64| v[((v.len() - 1) as f64 * q).round() as usize];
         (v[0], at(0.5), at(0.99), v[v.len() - 1])
     }
-}
-
-fn quantise(x: f32, bits: u8, range: f32) -> f32 {
-    let lsb = adc_lsb(bits, range);
-    ((x.clamp(-range, range) + range) / lsb).round() * lsb - range
-}
-
-/// One sensor reading of the true value `x`: Gaussian noise, then the ADC.
-fn sense(x: f32, config: &LoopConfig, noise: &Normal<f32>, rng: &mut ChaCha8Rng) -> f32 {
-    let mut v = x + if config.noise_std > 0.0 {
-        noise.sample(rng)
-    } else {
-        0.0
-    };
-    if let Some(bits) = config.adc_bits {
-        v = quantise(v, bits, config.adc_range);
-    }
-    v
 }
 
 /// What computes each tick's action: the controller in this process, or a device behind a
@@ -177,34 +155,24 @@ impl Timing {
     }
 }
 
-/// The sensors between the plant and the brain: noise and the ADC on every reading, and with
-/// position-only sensing the device's estimator.
+/// The sensors between the plant and the brain: noise and the ADC on every reading (`sim`'s
+/// sensor model, the one training reads through), and with position-only sensing the device's
+/// estimator.
 struct Sensors<'c> {
     config: &'c LoopConfig,
-    noise: Normal<f32>,
-    rng: ChaCha8Rng,
+    sensor: Sensor,
     estimated: Option<SensorPath>,
 }
 
 impl<'c> Sensors<'c> {
     fn new(config: &'c LoopConfig, task: &Task, rate: f32) -> Result<Self, LoopError> {
-        if let Some(bits) = config.adc_bits
-            && !((1..=24).contains(&bits) && config.adc_range.is_finite() && config.adc_range > 0.0)
-        {
-            return Err(LoopError::Adc {
-                bits,
-                range: config.adc_range,
-            });
-        }
-        if !(config.noise_std.is_finite() && config.noise_std >= 0.0) {
-            return Err(LoopError::Noise(config.noise_std));
-        }
-        let noise = Normal::new(0.0f32, config.noise_std)
-            .map_err(|_| LoopError::Noise(config.noise_std))?;
+        let sensor = Sensor::new(config.sensor_model(), config.seed).map_err(|e| match e {
+            SensorModelError::Adc { bits, range } => LoopError::Adc { bits, range },
+            _ => LoopError::Noise(config.noise_std),
+        })?;
         Ok(Self {
             config,
-            noise,
-            rng: ChaCha8Rng::seed_from_u64(config.seed ^ 0x005E_ED0F_5E45),
+            sensor,
             estimated: SensorPath::new(config, task.family(), rate)?,
         })
     }
@@ -212,19 +180,17 @@ impl<'c> Sensors<'c> {
     /// Reads the plant's true observation at `tick`: into `sensed` with full sensing, into
     /// the estimator's readings otherwise (a configured NaN tick corrupts the first reading).
     fn read(&mut self, tick: usize, truth: &[f32], sensed: &mut [f32]) {
-        let (config, noise, rng) = (self.config, &self.noise, &mut self.rng);
-        let nan = config.nan_ticks.contains(&tick);
+        let nan = self.config.nan_ticks.contains(&tick);
+        let sensor = &mut self.sensor;
         match self.estimated.as_mut() {
             Some(path) => {
-                path.read(truth, |x| sense(x, config, noise, rng));
+                path.read(truth, |x| sensor.read(x));
                 if nan {
                     path.readings[0] = f32::NAN;
                 }
             }
             None => {
-                for (s, &x) in sensed.iter_mut().zip(truth) {
-                    *s = sense(x, config, noise, rng);
-                }
+                sensor.read_all(truth, sensed);
                 if nan {
                     sensed[0] = f32::NAN;
                 }

@@ -6,7 +6,7 @@ use infer_core::{Channel, Estimator, EstimatorConfig};
 use sim::{Family, ObsComponent};
 
 pub use crate::config::Sensing;
-use crate::config::{LoopConfig, LoopError, adc_lsb};
+use crate::config::{LoopConfig, LoopError};
 use crate::link::MAX_DIM;
 
 /// The filter's default acceleration std for `family` (units/s^2): its spec's
@@ -39,9 +39,7 @@ pub fn estimator_config(
     else {
         return None;
     };
-    let lsb = config
-        .adc_bits
-        .map_or(0.0, |b| adc_lsb(b, config.adc_range));
+    let lsb = config.sensor_model().lsb().unwrap_or(0.0);
     Some(EstimatorConfig {
         dt: 1.0 / rate_hz,
         accel_std: accel_std.unwrap_or_else(|| default_accel_std(family)),

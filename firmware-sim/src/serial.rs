@@ -21,6 +21,20 @@ pub fn pty(
     baud: u32,
 ) -> Result<(Wire, serialport::TTYPort, std::path::PathBuf), crate::link::LinkError> {
     let fail = |e: &dyn std::fmt::Display| wire::port_error(&link.to_string_lossy(), e);
+    // Never replace what is not a stale link of ours: a regular file's contents would be lost,
+    // and a live link is another device's (issue 72, item 2).
+    if let Ok(meta) = std::fs::symlink_metadata(link) {
+        if !meta.file_type().is_symlink() {
+            return Err(fail(
+                &"exists and is not a pseudo-terminal link: refusing to replace it (pick another --pty path)",
+            ));
+        }
+        if std::fs::metadata(link).is_ok() {
+            return Err(fail(
+                &"links to a live pseudo-terminal: another device serves it (stop it, or pick another --pty path)",
+            ));
+        }
+    }
     let (master, slave) = serialport::TTYPort::pair().map_err(|e| fail(&e))?;
     let path = std::path::PathBuf::from(
         serialport::SerialPort::name(&slave)

@@ -254,3 +254,52 @@ fn a_device_killed_mid_run_is_survived_and_a_blob_it_cannot_run_is_refused_by_na
     assert!(small.log().contains("DoesNotFit"), "{}", small.log());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_pty_path_that_is_a_file_or_a_live_link_is_refused_and_kept() {
+    let dir = tmp("hil-pty-path");
+    // A regular file: refused by name, its contents kept.
+    let file = dir.join("notes.txt");
+    std::fs::write(&file, "keep me").unwrap();
+    let out = Command::new("timeout")
+        .args([
+            "10",
+            env!("CARGO_BIN_EXE_firmware-sim"),
+            "device",
+            "--pty",
+            s(&file),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("notes.txt") && err.contains("refusing to replace"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+    // A link a running device serves: a second device is refused and the first keeps it.
+    let link = dir.join("tty");
+    let first = DeviceProcess::start(&dir, &link, &[], "first");
+    let target = std::fs::read_link(&link).unwrap();
+    let out = Command::new("timeout")
+        .args([
+            "10",
+            env!("CARGO_BIN_EXE_firmware-sim"),
+            "device",
+            "--pty",
+            s(&link),
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("another device serves it"), "{err}");
+    assert_eq!(std::fs::read_link(&link).unwrap(), target);
+    // Once that device is gone its link is stale, and a new device takes the path.
+    drop(first);
+    let second = DeviceProcess::start(&dir, &link, &[], "second");
+    assert_ne!(std::fs::read_link(&link).unwrap(), PathBuf::new());
+    drop(second);
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -52,6 +52,7 @@ pub mod render;
 mod robots;
 pub mod seeds;
 mod sensing;
+mod sensor;
 mod spec;
 mod task;
 mod walker_dyn;
@@ -76,6 +77,7 @@ pub use plant::{Robot, TorsoPose};
 pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;
+pub use sensor::{Sensor, SensorModel, SensorModelError, adc_lsb};
 pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
     GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, WALKER_NOMINAL_SEED,

@@ -263,6 +263,13 @@ impl MetaBc {
                 o.extend_from_slice(&p.obs[i * od..(i + 1) * od]);
                 a.extend_from_slice(&p.act[i * ad..(i + 1) * ad]);
             }
+            // Through the device's senses: the policy learns the demo's action from the state
+            // as the device would read it (noise injection; the context stays as recorded).
+            if let Some(sensor) = &self.cfg.sensing {
+                for x in &mut o {
+                    *x = sensor.read(*x, &mut self.rng);
+                }
+            }
             obs.push(o);
             act.push(a);
         }

@@ -87,6 +87,15 @@ pub struct MetaBcConfig {
     /// that leave it out are written without it).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub pre_tanh_loss: bool,
+    /// Train through the device's senses (issue 73): every state a training batch feeds the
+    /// policy is read through this sensor model (noise, then the ADC; `sim::SensorModel`, the
+    /// one firmware-sim's loop reads its plant through), with the demo's action as its label:
+    /// noise injection on the demos' states. The context encoder reads the demos as recorded
+    /// (the device is taught a demo recorded on the host), and so does the held-out MSE that
+    /// keeps the weights. Default none (the recorded states). Preset:
+    /// `docs/configs/sensing-noise01-adc12.toml`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensing: Option<sim::SensorModel>,
 }
 
 impl Default for MetaBcConfig {
@@ -117,6 +126,7 @@ impl Default for MetaBcConfig {
             seed: 0,
             learner_threads: 1,
             pre_tanh_loss: false,
+            sensing: None,
         }
     }
 }
@@ -174,6 +184,11 @@ impl MetaBcConfig {
             return Err(Error::Config(
                 "meta-bc policy_hidden widths must be positive".into(),
             ));
+        }
+        if let Some(model) = &self.sensing {
+            model
+                .check()
+                .map_err(|e| Error::Config(format!("meta-bc sensing: {e}")))?;
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
             return Err(Error::Config(
