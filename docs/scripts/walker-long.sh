@@ -10,12 +10,13 @@
 #
 # Run directories live outside the work tree (the tree may be laid anew while the machine is
 # kept); docs/scripts/walker-mujoco-train-demos.sh records the demos first. A --features mujoco
-# build of `smile` (target/release/smile). One cell per core, niced.
+# build of `smile` (target/release/smile, or SMILE_BIN: a copy outside target/, so that a
+# workspace build without the feature cannot replace it mid-run). One cell per core, niced.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 cell=${1:?smile or smile-bc}
 runs=${2:-$HOME/runs}/walker-dyn-mujoco-long
-bin=target/release/smile
+bin=${SMILE_BIN:-target/release/smile}
 E=$PWD/assets/experts/walker-dyn-mujoco
 demos=$E/demos-train-32x-sub20.safetensors
 config=$PWD/docs/configs/authors-wd-smile-narrow.toml
@@ -29,14 +30,14 @@ mkdir -p "$runs"
 for m in 100000 250000 500000 1000000; do
   stage=$runs/$cell-s0-at-$m
   if [ -f "$stage/eval-authors/eval.json" ]; then continue; fi
-  if [ -f "$run/checkpoint/meta.json" ] || [ -d "$run/checkpoint" ]; then
+  if [ -f "$run/checkpoint.safetensors" ]; then
     nice "$bin" train -o "$run" --demos "$demos" --resume --updates "$m" --quiet
   else
     nice "$bin" train --algo smile --config "$config" --demos "$demos" -o "$run" --seed 0 \
       --cpu-budget 0 --updates "$m" "${extra[@]}" --quiet
   fi
   mkdir -p "$stage"
-  cp "$run"/*.safetensors "$run"/metrics.jsonl "$stage"/ 2>/dev/null || true
+  cp "$run"/meta_policy.safetensors "$run"/metrics.jsonl "$run"/config.toml "$run"/run.json "$stage"/
   for protocol in falls-end authors; do
     nice "$bin" eval --policy "$run" --env walker-dyn --split test \
       --contexts "$E/demos-test-4x-sub20.safetensors" --base "$E/base" --expert "$E/per-task" \
