@@ -17,7 +17,13 @@ macro_rules! say {
 
 /// The clock's calibration at boot.
 pub fn calibration(per_us: f32) {
-    say!("device: clock: {per_us:.1} instructions per microsecond of SysTick time");
+    // Tenths as an integer: core's float formatting alone takes kilobytes of stack.
+    let tenths = (per_us * 10.0) as u32;
+    say!(
+        "device: clock: {}.{} instructions per microsecond of SysTick time",
+        tenths / 10,
+        tenths % 10
+    );
 }
 
 /// One board event.
