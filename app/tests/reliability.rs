@@ -588,6 +588,38 @@ fn values_a_flag_refuses_are_refused_from_files_and_every_command() {
         s(&dir.join("q")),
     ]));
     assert!(e.contains("--subsample"), "{e}");
+    // A width no machine holds is refused by the parser, not by an allocation abort (issue 72).
+    let wide = dir.join("wide");
+    for (cmd, first) in [
+        ("train", ["--demos", s(&train)]),
+        ("expert", ["--env", "point-goal"]),
+    ] {
+        let out = smile(&[
+            cmd,
+            first[0],
+            first[1],
+            "--hidden",
+            "128,4294967296",
+            "-o",
+            s(&wide),
+        ]);
+        let e = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {e}");
+        assert!(e.contains("--hidden") && e.contains("16384"), "{cmd}: {e}");
+    }
+    // An evaluation of no episode is refused, not written as a metric of 0 (issue 72, item 6).
+    let out = smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--eval-episodes",
+        "0",
+        "-o",
+        s(&wide),
+    ]);
+    let e = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("--eval-episodes") && !wide.exists(), "{e}");
     // The same evaluation twice is one seed, not two with a std of 0.
     let ev = dir.join("eval");
     ok(&smile(&eval_args(&dir.join("bc"), &test, &ev)));

@@ -348,6 +348,8 @@ fn a_blob_of_another_family_and_counts_that_cannot_run_are_refused() {
         ("--budget-us", "NaN"),
         ("--budget-us", "-1"),
         ("--horizon", "18446744073709551615"),
+        ("--flash-kib", "99999999"),
+        ("--ram-kib", "0"),
     ] {
         let out = run(&[&format!("{flag}={value}")]);
         let e = String::from_utf8_lossy(&out.stderr).into_owned();

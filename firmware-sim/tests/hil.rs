@@ -278,6 +278,24 @@ fn a_pty_path_that_is_a_file_or_a_live_link_is_refused_and_kept() {
         "{err}"
     );
     assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep me");
+    // A flash no part has: refused by the parser, not an allocation abort.
+    let out = Command::new("timeout")
+        .args([
+            "10",
+            env!("CARGO_BIN_EXE_firmware-sim"),
+            "device",
+            "--flash-kib",
+            "99999999",
+        ])
+        .args(["--pty", s(&dir.join("tty-big"))])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr).into_owned();
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--flash-kib") && !err.contains("memory allocation"),
+        "{err}"
+    );
     // A link a running device serves: a second device is refused and the first keeps it.
     let link = dir.join("tty");
     let first = DeviceProcess::start(&dir, &link, &[], "first");
@@ -301,5 +319,149 @@ fn a_pty_path_that_is_a_file_or_a_live_link_is_refused_and_kept() {
     let second = DeviceProcess::start(&dir, &link, &[], "second");
     assert_ne!(std::fs::read_link(&link).unwrap(), PathBuf::new());
     drop(second);
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// A device that speaks the protocol but answers every tick with `action` (a broken board, or
+/// one flashed with another model), holding `blob` so that the host skips the upload; stops
+/// when `stop` is set.
+fn rogue_device(
+    link: &Path,
+    blob: Vec<u8>,
+    action: Vec<f32>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+) -> std::thread::JoinHandle<()> {
+    use firmware_sim::link::{
+        DeviceMessage, Floats, HostMessage, MAX_FRAME, PROTOCOL_VERSION, Packet, decode_frame,
+        decode_message, encode_frame,
+    };
+    let (mut wire, keep, _) = firmware_sim::serial::pty(link, 0).unwrap();
+    std::thread::spawn(move || {
+        let _keep = keep;
+        let crc = infer_core::crc32(&blob);
+        while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+            let until = Instant::now() + Duration::from_millis(20);
+            let Ok(Some(frame)) = wire.receive(until) else {
+                continue;
+            };
+            let frame = frame.to_vec();
+            let mut scratch = [0u8; MAX_FRAME];
+            let Ok(payload) = decode_frame(&frame, &mut scratch) else {
+                continue;
+            };
+            let Ok(p) = decode_message::<Packet<HostMessage<'_>>>(payload) else {
+                continue;
+            };
+            let seq = p.seq;
+            let answer = match p.message {
+                HostMessage::Hello { .. } => DeviceMessage::Status {
+                    seq,
+                    version: PROTOCOL_VERSION,
+                    blob_len: blob.len() as u32,
+                    blob_crc: crc,
+                    taught: false,
+                    watchdog_trips: 0,
+                },
+                HostMessage::Tick { tick, .. } => DeviceMessage::Action {
+                    seq,
+                    tick,
+                    action: Floats::from_slice(&action).unwrap(),
+                    fault: false,
+                    compute_us: 1,
+                },
+                _ => DeviceMessage::Ack { seq },
+            };
+            let mut out = [0u8; MAX_FRAME];
+            let n = encode_frame(&answer, &mut out).unwrap();
+            let _ = wire.send(&out[..n]);
+        }
+    })
+}
+
+#[test]
+fn a_device_answering_the_wrong_size_or_nan_never_reaches_the_plant() {
+    let dir = tmp("hil-rogue");
+    let (blob, demos) = blob_and_demos(&dir);
+    let bytes = std::fs::read(&blob).unwrap();
+    // The PD blob acts in 2 dimensions: one value, then a NaN.
+    for (name, action) in [("short", vec![0.5]), ("nan", vec![f32::NAN, 0.0])] {
+        let link = dir.join(format!("tty-{name}"));
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let device = rogue_device(&link, bytes.clone(), action, stop.clone());
+        let out = dir.join(name);
+        let run = drive(
+            Some(&link),
+            &blob,
+            &demos,
+            &out,
+            &["--ticks", "10", "--baud", "0"],
+        );
+        stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        device.join().unwrap();
+        let err = String::from_utf8_lossy(&run.stderr).into_owned();
+        assert!(!err.contains("panicked"), "{name}: {err}");
+        let hil = hil_json(&out);
+        assert_eq!(hil["held_safe"], 10, "{name}: {hil}");
+        assert!(
+            hil.to_string().contains("holding the safe action"),
+            "{name}: {hil}"
+        );
+        // The plant only ever got the safe action: one action, every tick, all finite.
+        let applied = columns(&out, &["action"]);
+        assert!(applied.iter().all(|row| row == &applied[0]), "{applied:?}");
+        assert!(
+            applied[0]
+                .iter()
+                .all(|v| v.parse::<f32>().unwrap().is_finite())
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn a_paused_device_is_reconnected_on_the_same_port() {
+    let dir = tmp("hil-pause");
+    let (blob, demos) = blob_and_demos(&dir);
+    let link = dir.join("tty");
+    let device = DeviceProcess::start(&dir, &link, &["--baud", "0"], "device");
+    let out = dir.join("host");
+    let host = {
+        let (blob, demos, out, link) = (blob.clone(), demos.clone(), out.clone(), link.clone());
+        std::thread::spawn(move || {
+            drive(
+                Some(&link),
+                &blob,
+                &demos,
+                &out,
+                &["--ticks", "80", "--baud", "0"],
+            )
+        })
+    };
+    assert!(
+        device.wait_for("context taught", Duration::from_secs(20)),
+        "{}",
+        device.log()
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    let pid = device.child.id().to_string();
+    let signal = |sig: &str| {
+        let ok = Command::new("kill").args([sig, &pid]).status().unwrap();
+        assert!(ok.success());
+    };
+    // Paused past the host's patience (5 missed ticks), then back: the host holds the safe
+    // action, reopens the same port and carries on (before issue 72 every reopen failed on the
+    // host's own still-open handle: "Unable to acquire exclusive lock").
+    signal("-STOP");
+    std::thread::sleep(Duration::from_millis(1500));
+    signal("-CONT");
+    let err = ok(&host.join().unwrap());
+    let hil = hil_json(&out);
+    assert_eq!(hil["ticks"], 80, "{hil}");
+    assert!(hil["reconnects"].as_u64().unwrap() >= 1, "{err}\n{hil}");
+    assert!(!err.contains("exclusive lock"), "{err}");
+    assert!(err.contains("ticks resume"), "{err}");
+    let held = hil["held_safe"].as_u64().unwrap();
+    assert!(held > 0 && held < 60, "{hil}");
+    drop(device);
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -101,6 +101,9 @@ impl SerialLink {
     /// Closes and opens the port again (the device process was restarted behind it).
     pub fn reopen(&mut self) -> Result<(), LinkError> {
         let stats = self.wire.stats;
+        // Let go first: the port is opened exclusively, so a new handle beside the old one
+        // fails ("Unable to acquire exclusive lock"), and every reconnect with it (issue 72).
+        self.wire.close();
         self.wire = open_wire(&self.config)?;
         self.wire.stats = stats;
         self.wire.clear();
@@ -485,7 +488,25 @@ impl Brain for RemoteDevice<'_> {
                 self.round_trip_ns.push(start.elapsed().as_nanos() as u64);
                 self.device_compute_us.push(compute_us);
                 self.silent = 0;
-                action.copy_from_slice(&answer[..action.len()]);
+                // An answer the plant cannot take (another action size, a non-finite value:
+                // a device of another model, or a broken one) is never applied: the safe
+                // action is held for the tick, counted and said (issue 72, item 3).
+                if answer.len() != action.len() || answer.iter().any(|x| !x.is_finite()) {
+                    self.held_safe += 1;
+                    action.copy_from_slice(&self.safe);
+                    let why = format!(
+                        "the device answered tick {tick} with {:?} ({} values expected, all \
+                         finite): holding the safe action",
+                        answer.as_slice(),
+                        action.len()
+                    );
+                    self.note(tick, why);
+                    return Ok(Outcome {
+                        fault: true,
+                        late: Some(false),
+                    });
+                }
+                action.copy_from_slice(&answer);
                 return Ok(Outcome {
                     fault,
                     late: Some(false),

@@ -54,7 +54,9 @@ pub struct WireStats {
 
 /// One end of a serial line.
 pub struct Wire {
-    port: Box<dyn serialport::SerialPort>,
+    /// `None` once closed (before a reopen: the port is held exclusively, so the old handle
+    /// must go before a new one can open it).
+    port: Option<Box<dyn serialport::SerialPort>>,
     name: String,
     baud: u32,
     faults: Option<(Faults, ChaCha8Rng)>,
@@ -75,6 +77,11 @@ impl std::fmt::Debug for Wire {
             .field("stats", &self.stats)
             .finish()
     }
+}
+
+/// The error of a closed port.
+fn closed(name: &str) -> LinkError {
+    port_error(name, "closed by this end (reopening)")
 }
 
 /// A port error, naming the port.
@@ -103,7 +110,7 @@ impl Wire {
     /// Wraps an open port (e.g. the master side of a pseudo-terminal pair).
     pub fn from_port(port: Box<dyn serialport::SerialPort>, name: &str, baud: u32) -> Self {
         Self {
-            port,
+            port: Some(port),
             name: name.to_string(),
             baud,
             faults: None,
@@ -172,9 +179,9 @@ impl Wire {
             if let Some((i, bit)) = flip {
                 out[i] ^= 1 << bit;
             }
-            self.port
-                .write_all(out)
-                .and_then(|()| self.port.flush())
+            let port = self.port.as_mut().ok_or_else(|| closed(&self.name))?;
+            port.write_all(out)
+                .and_then(|()| port.flush())
                 .map_err(|e| port_error(&self.name, e))?;
         }
         Ok(())
@@ -208,10 +215,10 @@ impl Wire {
                 return Ok(None);
             }
             let wait = (until - now).min(Duration::from_millis(20));
-            self.port
-                .set_timeout(wait.max(Duration::from_millis(1)))
+            let port = self.port.as_mut().ok_or_else(|| closed(&self.name))?;
+            port.set_timeout(wait.max(Duration::from_millis(1)))
                 .map_err(|e| port_error(&self.name, e))?;
-            match self.port.read(&mut self.rx) {
+            match port.read(&mut self.rx) {
                 Ok(0) => return Err(port_error(&self.name, "closed by the other end")),
                 Ok(n) => {
                     self.rx_pos = 0;
@@ -225,9 +232,16 @@ impl Wire {
         }
     }
 
+    /// Closes the port (this end lets go of it; a reopen can then take it).
+    pub fn close(&mut self) {
+        self.port = None;
+    }
+
     /// Discards whatever is waiting to be read (after a reconnect).
     pub fn clear(&mut self) {
-        let _ = self.port.clear(serialport::ClearBuffer::All);
+        if let Some(port) = self.port.as_mut() {
+            let _ = port.clear(serialport::ClearBuffer::All);
+        }
         self.rx_pos = 0;
         self.rx_end = 0;
         self.reader.clear();

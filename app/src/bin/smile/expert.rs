@@ -66,7 +66,7 @@ pub struct ExpertArgs {
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     learner_threads: Option<u16>,
     /// Hidden widths of actor and critics, e.g. 256,256.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = crate::width)]
     hidden: Option<Vec<usize>>,
     /// Minibatch size.
     #[arg(long)]
@@ -104,8 +104,9 @@ pub struct ExpertArgs {
     /// do worse, to policy.safetensors).
     #[arg(long)]
     keep_best: bool,
-    /// Deterministic evaluation episodes per meta-test task at the end.
-    #[arg(long, default_value_t = 2)]
+    /// Deterministic evaluation episodes per meta-test task at the end, at least 1 (0 would
+    /// write a metric no episode measured).
+    #[arg(long, default_value_t = 2, value_parser = crate::positive)]
     eval_episodes: usize,
     /// No progress bar.
     #[arg(long)]

@@ -125,6 +125,19 @@ pub(crate) fn finite_at_least(text: &str, min: f32) -> std::result::Result<f32, 
     }
 }
 
+/// The widest hidden layer a flag may ask for: 16384 units (a 16384 x 16384 layer is already
+/// 1 GiB of weights; a wider one could only end in an allocation abort).
+const MAX_WIDTH: usize = 16_384;
+
+/// One hidden width, 1 to [`MAX_WIDTH`] (`--hidden 128,128`).
+pub(crate) fn width(text: &str) -> std::result::Result<usize, String> {
+    match text.parse::<usize>() {
+        Ok(w) if (1..=MAX_WIDTH).contains(&w) => Ok(w),
+        Ok(w) => Err(format!("{w}: a hidden width is 1 to {MAX_WIDTH}")),
+        Err(e) => Err(format!("`{text}` is not a width: {e}")),
+    }
+}
+
 fn main() -> std::process::ExitCode {
     sim::exit_code(run().map_err(flags::render))
 }

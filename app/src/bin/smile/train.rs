@@ -62,7 +62,7 @@ pub struct TrainArgs {
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     learner_threads: Option<u16>,
     /// SAC / disc / policy hidden widths, e.g. 128,128.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = crate::width)]
     hidden: Option<Vec<usize>>,
     /// Gradient-penalty weight (SMILe), finite and >= 0.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]

@@ -32,11 +32,11 @@ pub(crate) struct DeviceArgs {
     /// process, as a board's does across a reset.
     #[arg(long)]
     flash_file: Option<PathBuf>,
-    /// Flash budget for the blob, KiB.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..))]
+    /// Flash budget for the blob, KiB, 1 to 16384 (16 MiB, more than a microcontroller has).
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..=16384))]
     flash_kib: u64,
-    /// RAM budget for the application, KiB.
-    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..))]
+    /// RAM budget for the application, KiB, 1 to 16384.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=16384))]
     ram_kib: u64,
 }
 

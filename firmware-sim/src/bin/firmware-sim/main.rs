@@ -168,12 +168,12 @@ struct RunArgs {
     /// --noise and --adc-bits).
     #[arg(long)]
     meas_std: Option<f32>,
-    /// Flash budget for the blob, KiB.
-    #[arg(long, default_value_t = 64)]
-    flash_kib: usize,
-    /// RAM budget for the application, KiB.
-    #[arg(long, default_value_t = 16)]
-    ram_kib: usize,
+    /// Flash budget for the blob, KiB, 1 to 16384 (16 MiB, more than a microcontroller has).
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u64).range(1..=16384))]
+    flash_kib: u64,
+    /// RAM budget for the application, KiB, 1 to 16384.
+    #[arg(long, default_value_t = 16, value_parser = clap::value_parser!(u64).range(1..=16384))]
+    ram_kib: u64,
 }
 
 /// How `--task` named the task: a test index or a parameter value.
@@ -218,8 +218,8 @@ fn session_config(args: &RunArgs, physics: sim::Physics) -> SessionConfig {
     let p = &args.plant;
     let mut config = plant_config(p, physics);
     config.device = DeviceConfig {
-        flash_bytes: args.flash_kib * 1024,
-        ram_bytes: args.ram_kib * 1024,
+        flash_bytes: args.flash_kib as usize * 1024,
+        ram_bytes: args.ram_kib as usize * 1024,
     };
     config.control.budget_us = args.budget_us;
     config.control.sensing = match args.sensing {
