@@ -202,10 +202,19 @@ pub fn serve<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
             return Ok(());
         };
         let blob = device.blob().map_err(BoardError::Device)?;
-        let model =
-            Model::from_bytes(blob).map_err(|e| BoardError::Device(DeviceError::Blob(e)))?;
-        let mut app = Controller::new(&model, config.device).map_err(BoardError::Device)?;
-        handover = application(&mut board, device.blob_id(), &mut app, (frame, len), on)?;
+        // The model and the controller are used where their `Result`s were built: moved out
+        // of them, each would be held twice in this frame (the controller's scratch is 2.4 KB).
+        let parsed = Model::from_bytes(blob);
+        let model = match &parsed {
+            Ok(model) => model,
+            Err(e) => return Err(BoardError::Device(DeviceError::Blob(*e))),
+        };
+        let mut built = Controller::new(model, config.device);
+        let app = match &mut built {
+            Ok(app) => app,
+            Err(e) => return Err(BoardError::Device(e.clone())),
+        };
+        handover = application(&mut board, device.blob_id(), app, (frame, len), on)?;
         if handover.is_none() {
             return Ok(());
         }
