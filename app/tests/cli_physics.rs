@@ -25,7 +25,15 @@ fn a_build_without_mujoco_says_how_to_get_it() {
     let dir = tmp("no-feature");
     let e = dir.join("e");
     let mut args = vec!["expert", "--env", "cheetah-vel", "--physics", "mujoco"];
-    args.extend(["--total-steps", "10", "-o", s(&e), "--quiet"]);
+    args.extend([
+        "--total-steps",
+        "10",
+        "--learning-starts",
+        "5",
+        "-o",
+        s(&e),
+        "--quiet",
+    ]);
     let out = smile(&args);
     let err = stderr(&out);
     assert!(

@@ -607,6 +607,42 @@ fn values_a_flag_refuses_are_refused_from_files_and_every_command() {
         assert_eq!(out.status.code(), Some(2), "{cmd}: {e}");
         assert!(e.contains("--hidden") && e.contains("16384"), "{cmd}: {e}");
     }
+    // A budget that trains nothing, and demos that keep no transition, are refused by name
+    // (issue 72, item 4): before, both ran and exited 0.
+    let e = err_of(&smile(&[
+        "expert",
+        "--env",
+        "point-goal",
+        "--total-steps",
+        "100",
+        "--learning-starts",
+        "200",
+        "-o",
+        s(&wide),
+        "--quiet",
+    ]));
+    assert!(e.contains("learning") && e.contains("total"), "{e}");
+    assert!(!wide.join("policy.safetensors").exists(), "{e}");
+    let pd = dir.join("pd");
+    ok(&smile(&["expert", "--kind", "scripted-pd", "-o", s(&pd)]));
+    let e = err_of(&smile(&[
+        "demos",
+        "--env",
+        "point-goal",
+        "--expert",
+        s(&pd),
+        "--split",
+        "test",
+        "--subsample",
+        "100000",
+        "-o",
+        s(&dir.join("empty.safetensors")),
+    ]));
+    assert!(
+        e.contains("subsample") && e.contains("shortest demo"),
+        "{e}"
+    );
+    assert!(!dir.join("empty.safetensors").exists(), "{e}");
     // An evaluation of no episode is refused, not written as a metric of 0 (issue 72, item 6).
     let out = smile(&[
         "expert",

@@ -6,6 +6,7 @@
 //! device's reason. Every process here is bounded in time and killed at the end.
 
 mod common;
+use common::hil::{columns, hil_json, ok};
 use common::{s, tmp};
 
 use std::path::{Path, PathBuf};
@@ -105,37 +106,6 @@ fn drive(port: Option<&Path>, blob: &Path, demos: &Path, out: &Path, extra: &[&s
         .env_remove("RUST_BACKTRACE")
         .output()
         .unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
-}
-
-/// The columns of `trace.csv` in `dir` whose names start with `prefix`, row by row.
-fn columns(dir: &Path, prefixes: &[&str]) -> Vec<Vec<String>> {
-    let text = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| prefixes.iter().any(|p| header[i].starts_with(p)))
-        .collect();
-    assert!(!keep.is_empty());
-    lines
-        .map(|l| {
-            let cells: Vec<&str> = l.split(',').collect();
-            keep.iter().map(|&i| cells[i].to_string()).collect()
-        })
-        .collect()
-}
-
-fn hil_json(dir: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("hil.json")).unwrap()).unwrap()
 }
 
 #[test]

@@ -22,6 +22,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
+use common::hil::{columns, hil_json, ok};
 use common::{s, tmp};
 use device_core::{Controller, DeviceConfig, DeviceMessage, HostMessage, Refusal};
 use firmware_sim::host;
@@ -161,6 +162,17 @@ impl Drop for Board {
     }
 }
 
+/// Every shipped policy blob, in name order.
+fn shipped_blobs() -> Vec<PathBuf> {
+    let mut policies: Vec<PathBuf> = std::fs::read_dir(repo().join("assets/policies"))
+        .unwrap()
+        .map(|e| e.unwrap().path().join("policy.blob"))
+        .filter(|p| p.exists())
+        .collect();
+    policies.sort();
+    policies
+}
+
 fn floats(v: &[f32]) -> Floats {
     Floats::from_slice(v).unwrap()
 }
@@ -272,12 +284,7 @@ fn golden_vectors_and_every_shipped_blob_are_bit_exact_on_the_cortex_m4f() {
 
     // Every shipped blob: the board's latent and actions are the host's, bit for bit.
     let mut fits = 0;
-    let mut policies: Vec<PathBuf> = std::fs::read_dir(repo().join("assets/policies"))
-        .unwrap()
-        .map(|e| e.unwrap().path().join("policy.blob"))
-        .filter(|p| p.exists())
-        .collect();
-    policies.sort();
+    let policies = shipped_blobs();
     assert!(policies.len() >= 16, "{policies:?}");
     for path in &policies {
         let blob = std::fs::read(path).unwrap();
@@ -360,37 +367,6 @@ fn drive(port: Option<&Path>, out: &Path, extra: &[&str]) -> Output {
         .env_remove("RUST_BACKTRACE")
         .output()
         .unwrap()
-}
-
-fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
-}
-
-/// The columns of `trace.csv` in `dir` whose names start with one of `prefixes`.
-fn columns(dir: &Path, prefixes: &[&str]) -> Vec<Vec<String>> {
-    let text = std::fs::read_to_string(dir.join("trace.csv")).unwrap();
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let keep: Vec<usize> = (0..header.len())
-        .filter(|&i| prefixes.iter().any(|p| header[i].starts_with(p)))
-        .collect();
-    assert!(!keep.is_empty());
-    lines
-        .map(|l| {
-            let cells: Vec<&str> = l.split(',').collect();
-            keep.iter().map(|&i| cells[i].to_string()).collect()
-        })
-        .collect()
-}
-
-fn hil_json(dir: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(dir.join("hil.json")).unwrap()).unwrap()
 }
 
 #[test]
@@ -513,12 +489,7 @@ fn instructions_and_stack_per_shipped_blob_on_the_cortex_m4f() {
     let dir = tmp("qemu-measure");
     let mut board = Board::boot_with(&dir, "board", &["-icount", "shift=0"]);
     let mut rows = Vec::new();
-    let mut policies: Vec<PathBuf> = std::fs::read_dir(repo().join("assets/policies"))
-        .unwrap()
-        .map(|e| e.unwrap().path().join("policy.blob"))
-        .filter(|p| p.exists())
-        .collect();
-    policies.sort();
+    let policies = shipped_blobs();
     for path in &policies {
         let blob = std::fs::read(path).unwrap();
         let model = Model::from_bytes(&blob).unwrap();

@@ -5,6 +5,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+pub mod hil;
+
 // The one-line error check is shared with the app's tests (they include output.rs by path).
 mod output;
 #[allow(unused_imports)] // not every test binary checks an error

@@ -128,6 +128,14 @@ impl ExpertConfig {
         ])?;
         crate::io::require_horizon(self.horizon)?;
         crate::threads::check_learner_threads(self.learner_threads)?;
+        if self.learning_starts >= self.total_steps && self.init_from.is_none() {
+            // Every step would act at random and no update would run: a run that trains
+            // nothing and still writes an expert (issue 72, item 4).
+            return Err(Error::Config(format!(
+                "learning_starts ({}) must be below total_steps ({}): no update would run",
+                self.learning_starts, self.total_steps
+            )));
+        }
         self.sac.validate()
     }
 

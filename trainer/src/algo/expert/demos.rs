@@ -62,6 +62,21 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
         });
     }
     if spec.subsample > 1 {
+        // A factor past the shortest demo keeps none of its transitions: a file of empty demos
+        // is refused, not written (issue 72, item 4).
+        let shortest = ds
+            .tasks
+            .iter()
+            .flat_map(|t| t.trajectories.iter().map(|tr| tr.len()))
+            .min()
+            .unwrap_or(0);
+        if spec.subsample > shortest {
+            return Err(Error::Config(format!(
+                "subsample {} is longer than the shortest demo ({shortest} steps): it would keep \
+                 no transition of it",
+                spec.subsample
+            )));
+        }
         ds = ds.subsample(spec.subsample, spec.seed)?;
     }
     Ok(ds)
