@@ -6,7 +6,10 @@
 # the authors' 1000 steps through falls). Resumable: a killed stage resumes from its last
 # checkpoint (every 20k pairs); a finished milestone is skipped.
 #
-#   docs/scripts/walker-long.sh smile|smile-bc [RUNS_DIR]       # RUNS_DIR default ~/runs
+#   docs/scripts/walker-long.sh smile|smile-bc|meta-bc [RUNS_DIR]   # RUNS_DIR default ~/runs
+#
+# meta-bc: Meta-BC without its early stop (docs/configs/wd-bc-long.toml), its milestones in
+# gradient steps.
 #
 # Run directories live outside the work tree (the tree may be laid anew while the machine is
 # kept); docs/scripts/walker-mujoco-train-demos.sh records the demos first. A --features mujoco
@@ -14,16 +17,18 @@
 # workspace build without the feature cannot replace it mid-run). One cell per core, niced.
 set -euo pipefail
 cd "$(dirname "$0")/../.."
-cell=${1:?smile or smile-bc}
+cell=${1:?smile, smile-bc or meta-bc}
 runs=${2:-$HOME/runs}/walker-dyn-mujoco-long
 bin=${SMILE_BIN:-target/release/smile}
 E=$PWD/assets/experts/walker-dyn-mujoco
 demos=$E/demos-train-32x-sub20.safetensors
 config=$PWD/docs/configs/authors-wd-smile-narrow.toml
+algo=smile
 case "$cell" in
-  smile) extra=() ;;
-  smile-bc) extra=(--bc-weight 100) ;;
-  *) echo "walker-long.sh: unknown cell '$cell' (smile or smile-bc)" >&2; exit 2 ;;
+  smile) extra=(--cpu-budget 0) ;;
+  smile-bc) extra=(--cpu-budget 0 --bc-weight 100) ;;
+  meta-bc) algo=meta-bc; config=$PWD/docs/configs/wd-bc-long.toml; extra=() ;;
+  *) echo "walker-long.sh: unknown cell '$cell' (smile, smile-bc or meta-bc)" >&2; exit 2 ;;
 esac
 run=$runs/$cell-s0
 mkdir -p "$runs"
@@ -33,8 +38,8 @@ for m in 100000 250000 500000 1000000; do
   if [ -f "$run/checkpoint.safetensors" ]; then
     nice "$bin" train -o "$run" --demos "$demos" --resume --updates "$m" --quiet
   else
-    nice "$bin" train --algo smile --config "$config" --demos "$demos" -o "$run" --seed 0 \
-      --cpu-budget 0 --updates "$m" "${extra[@]}" --quiet
+    nice "$bin" train --algo "$algo" --config "$config" --demos "$demos" -o "$run" --seed 0 \
+      --updates "$m" "${extra[@]}" --quiet
   fi
   mkdir -p "$stage"
   cp "$run"/meta_policy.safetensors "$run"/metrics.jsonl "$run"/config.toml "$run"/run.json "$stage"/
