@@ -16,6 +16,11 @@
 //! (`firmware-sim host`): the loop is the same ([`control::Brain`] is either the controller in
 //! this process or [`serial::RemoteDevice`]), the wire protocol is `docs/PROTOCOL.md`.
 //!
+//! The device's logic itself (the link's device side, the bootloader, the controller, the
+//! board's state machine and its watchdog) is `device-core`'s, the no_std crate the Cortex-M4F
+//! firmware (`firmware/`) runs too: this crate gives it a flash region on the heap, an OS serial
+//! port and a clock.
+//!
 //! This crate never depends on the trainer: a device holds no trainer.
 #![warn(missing_docs)]
 
