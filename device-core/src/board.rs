@@ -245,7 +245,7 @@ fn bootloader<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
         let Some(p) = packet(&buf[..len], &mut scratch) else {
             continue;
         };
-        let fresh = board.dedup.seen(p.seq).is_none();
+        let fresh = !board.dedup.is_resend(p.seq);
         if fresh && for_application(&p.message) && device.blob().is_ok() {
             return Ok(Some((buf, len)));
         }
@@ -318,7 +318,7 @@ fn application<P: Port>(
         let Some(p) = packet(&buf[..len], &mut scratch) else {
             continue;
         };
-        let fresh = board.dedup.seen(p.seq).is_none();
+        let fresh = !board.dedup.is_resend(p.seq);
         let hello = matches!(p.message, HostMessage::Hello { .. });
         if fresh && !for_application(&p.message) && !hello {
             return Ok(Some((buf, len)));

@@ -306,6 +306,11 @@ impl Dedup {
             .map(|(_, m)| m.clone())
     }
 
+    /// Whether `seq` was the last message handled (a resend), without copying its answer.
+    pub fn is_resend(&self, seq: u16) -> bool {
+        matches!(&self.last, Some((s, _)) if *s == seq)
+    }
+
     /// Records `answer` as the answer to `seq` and returns it.
     pub fn record(&mut self, seq: u16, answer: DeviceMessage) -> DeviceMessage {
         self.last = Some((seq, answer.clone()));
