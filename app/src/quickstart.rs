@@ -13,16 +13,16 @@ use sim::{DemoDataset, EnvConfig, Family, Split};
 
 use crate::progress::bar;
 use indicatif::MultiProgress;
-use trainer::MetaData;
 use trainer::MetaPolicy;
 use trainer::eval::{self, EvalReport, MethodResult, Protocol};
 use trainer::expert::{self, Expert};
 use trainer::expert::{DemoSpec, record};
 use trainer::export::{self, BlobActor};
-use trainer::meta_bc::{MetaBc, MetaBcConfig};
-use trainer::smile::{Smile, SmileConfig};
+use trainer::meta_bc::MetaBcConfig;
+use trainer::run::{ExpertRequest, RunEvent, TrainRequest};
+use trainer::smile::SmileConfig;
+use trainer::{Algo, Progress};
 use trainer::{Error, Result};
-use trainer::{MetaLearner, Progress};
 
 mod device;
 mod recipe;
@@ -274,13 +274,21 @@ fn train_expert(args: &Quickstart<'_>, dir: &Path) -> Result<(Expert, String)> {
         cfg.sac.hidden = vec![256, 256];
         cfg.sac.batch_size = 128;
     }
-    let mut run = expert::ExpertTrainer::new(cfg.clone())?;
     let pb = bar(cfg.total_steps, args.quiet, "env steps");
-    expert::train(&mut run, dir, &mut |e| match e {
-        trainer::Progress::Steps(n) => pb.set_position(n),
-        trainer::Progress::Episode {
-            episodic_return, ..
-        } => pb.set_message(format!("return {episodic_return:.1}")),
+    let req = ExpertRequest {
+        out: dir.to_path_buf(),
+        config: Some(cfg.clone()),
+        total_steps: None,
+    };
+    // The one run driver: the directory's lock, config.toml, checkpoints, as `smile expert`.
+    trainer::run::train_expert(&req, &mut |e| match e {
+        RunEvent::Progress(Progress::Steps(n), _) => pb.set_position(n),
+        RunEvent::Progress(
+            Progress::Episode {
+                episodic_return, ..
+            },
+            _,
+        ) => pb.set_message(format!("return {episodic_return:.1}")),
         _ => {}
     })?;
     pb.finish();
@@ -369,63 +377,61 @@ fn meta_bc_config(args: &Quickstart<'_>) -> Result<MetaBcConfig> {
     Ok(cfg)
 }
 
-fn train_smile(
+/// Trains one learner of the quickstart in `dir` through the one run driver (as `smile train
+/// --config FILE`: the run's lock, `run.json`, `config.toml`, checkpoints), its configuration
+/// first written to `dir.toml` beside it and a progress bar under `label`, and loads the policy
+/// it kept.
+fn train_learner<C: serde::Serialize>(
+    (algo, cfg): (Algo, C),
     args: &Quickstart<'_>,
-    train: &DemoDataset,
     dir: &Path,
     bars: &MultiProgress,
 ) -> Result<MetaPolicy> {
-    train_learner::<Smile>(smile_config(args)?, args, train, dir, bars, "SMILe")
-}
-
-fn train_meta_bc(
-    args: &Quickstart<'_>,
-    train: &DemoDataset,
-    dir: &Path,
-    bars: &MultiProgress,
-) -> Result<MetaPolicy> {
-    train_learner::<MetaBc>(meta_bc_config(args)?, args, train, dir, bars, "Meta-BC")
-}
-
-/// Trains one learner of the quickstart in `dir` (its config written beside it, a progress bar
-/// under `label`) and loads the policy it kept.
-fn train_learner<L: MetaLearner>(
-    cfg: L::Config,
-    args: &Quickstart<'_>,
-    train: &DemoDataset,
-    dir: &Path,
-    bars: &MultiProgress,
-    label: &str,
-) -> Result<MetaPolicy> {
-    let data = MetaData::from_dataset(train, args.env, L::holdout_every(&cfg))?;
-    let mut run = L::start(cfg.clone(), data, None)?;
-    write(
-        &dir.join("config.toml"),
-        toml::to_string(&cfg).map_err(|e| Error::Serialise {
-            what: "config.toml",
-            reason: e.to_string(),
-        })?,
-    )?;
-    let pb = bars.add(bar(
-        run.total(),
-        args.quiet,
-        &format!("{label} {}", L::STEP_NAME),
-    ));
-    run.run(dir, &mut |e| match e {
-        Progress::Steps(s) => pb.set_position(s),
-        Progress::Eval {
-            metric: m,
-            best,
-            val_mse,
-            ..
-        } => pb.set_message(match val_mse {
-            Some(mse) => format!("val mse {mse:.4}, held-out train tasks {m:.3}"),
-            None => format!("held-out train tasks {m:.3} (best {best:.3})"),
-        }),
-        Progress::Checkpoint(_) | Progress::Episode { .. } => {}
-        Progress::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
+    let config_file = dir.with_extension("toml");
+    let text = toml::to_string(&cfg).map_err(|e| Error::Serialise {
+        what: "a quickstart learner's configuration",
+        reason: e.to_string(),
     })?;
-    pb.finish();
+    write(&config_file, text)?;
+    let req = TrainRequest {
+        demos: args.out.join(TRAIN_DEMOS),
+        out: dir.to_path_buf(),
+        family: Some(args.env),
+        algo: Some(algo),
+        config_file: Some(config_file),
+        ..TrainRequest::default()
+    };
+    let label = match algo {
+        Algo::Smile => "SMILe",
+        _ => "Meta-BC",
+    };
+    let mut pb = None;
+    trainer::run::train(&req, &mut |e| match e {
+        RunEvent::Started { total, unit, .. } => {
+            pb = Some(bars.add(bar(total, args.quiet, &format!("{label} {unit}"))));
+        }
+        RunEvent::Progress(p, _) => {
+            let Some(pb) = &pb else { return };
+            match p {
+                Progress::Steps(s) => pb.set_position(s),
+                Progress::Eval {
+                    metric: m,
+                    best,
+                    val_mse,
+                    ..
+                } => pb.set_message(match val_mse {
+                    Some(mse) => format!("val mse {mse:.4}, held-out train tasks {m:.3}"),
+                    None => format!("held-out train tasks {m:.3} (best {best:.3})"),
+                }),
+                Progress::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
+                Progress::Checkpoint(_) | Progress::Episode { .. } => {}
+            }
+        }
+        RunEvent::Note(_) => {}
+    })?;
+    if let Some(pb) = pb {
+        pb.finish();
+    }
     MetaPolicy::load(dir)
 }
 
@@ -480,6 +486,13 @@ fn short_budget_estimate() -> &'static str {
     "2-7 minutes on x86-64 with AVX2 or AVX-512; more without them"
 }
 
+/// The meta-train demos' file in the quickstart's directory.
+const TRAIN_DEMOS: &str = "demos-train.safetensors";
+
+/// The run directories and configurations of the quickstart's training stages: cleared with
+/// the results, so that each quickstart starts its runs afresh.
+const STAGE_FILES: [&str; 5] = ["expert", "smile", "meta-bc", "smile.toml", "meta-bc.toml"];
+
 /// What the quickstart's last stages write: a directory holding any of them looks finished.
 const RESULT_FILES: [&str; 8] = [
     "summary.json",
@@ -495,7 +508,7 @@ const RESULT_FILES: [&str; 8] = [
 /// Removes an earlier quickstart's results from `out` (the caller holds its lock), so that a
 /// run interrupted before its own are written never sits beside them looking complete.
 fn clear_results(out: &Path) -> Result<()> {
-    for name in RESULT_FILES {
+    for name in RESULT_FILES.iter().chain(&STAGE_FILES) {
         let path = out.join(name);
         sim::remove_any(&path).map_err(io(&path))?;
     }
@@ -519,7 +532,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         args,
         Split::Train,
         args.demos_per_task,
-        &out.join("demos-train.safetensors"),
+        &out.join(TRAIN_DEMOS),
     )?;
     // Three single-trajectory contexts per test task, as the evaluation protocol draws.
     let test = demos(
@@ -535,7 +548,7 @@ pub fn run(args: &QuickstartConfig) -> Result<Summary> {
         "SMILe (state-action) and Meta-BC (early-stopped on held-out train tasks) on the \
          meta-train demos, at the same time",
     );
-    let (mut smile_policy, mut bc_policy) = train_both(args, &train)?;
+    let (mut smile_policy, mut bc_policy) = train_both(args)?;
 
     stage(4, "evaluation on the held-out meta-test tasks");
     let smile_result = evaluate(args, &mut smile_policy, "SMILe", &test)?;
@@ -652,19 +665,22 @@ fn announce(args: &Quickstart<'_>) -> Result<()> {
 /// SMILe and Meta-BC on the meta-train demos, at the same time: two learners, candle
 /// single-threaded in each (trainer::threads); SMILe's update pairs on two threads
 /// (`learner_threads = 2`): deterministic either way.
-fn train_both(args: &Quickstart<'_>, train: &DemoDataset) -> Result<(MetaPolicy, MetaPolicy)> {
+fn train_both(args: &Quickstart<'_>) -> Result<(MetaPolicy, MetaPolicy)> {
     let (smile_dir, bc_dir) = (args.out.join("smile"), args.out.join("meta-bc"));
-    for d in [&smile_dir, &bc_dir] {
-        std::fs::create_dir_all(d).map_err(io(d))?;
-    }
     let bars = if args.quiet {
         MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden())
     } else {
         MultiProgress::new()
     };
     let (smile_res, bc_res) = std::thread::scope(|s| {
-        let smile = s.spawn(|| train_smile(args, train, &smile_dir, &bars));
-        let bc = s.spawn(|| train_meta_bc(args, train, &bc_dir, &bars));
+        let smile = s.spawn(|| {
+            let cfg = (Algo::Smile, smile_config(args)?);
+            train_learner(cfg, args, &smile_dir, &bars)
+        });
+        let bc = s.spawn(|| {
+            let cfg = (Algo::MetaBc, meta_bc_config(args)?);
+            train_learner(cfg, args, &bc_dir, &bars)
+        });
         (smile.join(), bc.join())
     });
     let joined = |r: std::thread::Result<Result<MetaPolicy>>| {

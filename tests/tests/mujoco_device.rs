@@ -5,8 +5,8 @@
 
 use firmware_sim::{SessionConfig, run_session, trace};
 use sim::{DemoDataset, EnvConfig, Family, Physics, Split, TaskDemos, make_env};
+use trainer::MetaData;
 use trainer::meta_bc::{MetaBc, MetaBcConfig};
-use trainer::{MetaData, MetaLearner};
 
 const HORIZON: usize = 40;
 
@@ -59,7 +59,7 @@ fn a_blob_trained_on_mujoco_runs_on_the_device_against_the_mujoco_plant() {
     let data = MetaData::from_dataset(&train, fam, 0).unwrap();
     assert_eq!(data.physics, Physics::Mujoco);
     let mut learner = MetaBc::new(cfg, data, None).unwrap();
-    learner.run(dir.path(), &mut |_| {}).unwrap();
+    trainer::fit(&mut learner, dir.path(), &mut |_| {}).unwrap();
     let mp = learner.meta_policy();
     assert_eq!(mp.physics, Physics::Mujoco);
     let blob = trainer::export::export_blob(&mp, infer_core::Quant::W8A32, None).unwrap();

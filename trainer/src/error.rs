@@ -86,15 +86,17 @@ pub enum Error {
     },
     /// Training failed part way; the run directory keeps its last good checkpoint, if any.
     #[error(
-        "training stopped at env step {step}: {source}{}",
+        "training stopped at {unit} {step}: {source}{}",
         checkpoint.as_ref().map_or(String::new(), |c| format!(
             "; last good checkpoint kept at {}",
             c.display()
         ))
     )]
     Stopped {
-        /// The environment step it reached.
+        /// The units of work it reached (an expert's env steps, SMILe's update pairs).
         step: u64,
+        /// One unit, in words ("env step", "update", "step").
+        unit: &'static str,
         /// The checkpoint it can resume from.
         checkpoint: Option<PathBuf>,
         /// Why it stopped.

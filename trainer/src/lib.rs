@@ -12,18 +12,20 @@
 //!   [`MetaPolicy`], each a type with `new` and `forward`, on one fused dense layer.
 //! * `optim`: [`Adam`], one fused in-place pass per parameter.
 //! * `algo`: one file per algorithm, its loss next to its equation: [`sac`], [`expert`],
-//!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger). The meta-learners implement one
-//!   interface, [`MetaLearner`], named by [`Algo`] and reporting [`Progress`]: `smile train`,
-//!   the quickstart and the sweep drive them through it, so a new algorithm is its folder (with its
-//!   `impl MetaLearner`) and its entry in the one list that writes [`Algo`].
+//!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger). Each implements one interface,
+//!   [`Learner`], and trains through one loop, [`fit`], reporting [`Progress`]; the
+//!   meta-learners are named by [`Algo`], their configurations set through [`MetaSettings`].
+//!   A new algorithm is its file(s), one [`Algo`] variant and one arm in
+//!   [`Algo::with_learner`].
 //! * `data`: demos ([`record_demos`]), the meta-train / held-out split ([`MetaData`]),
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
 //! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export.
 //! * [`run`]: a run directory started or resumed ([`run::train`]): configuration (a file
-//!   under typed [`Overrides`]), demos, expert, records and lock around a [`MetaLearner`]; what
-//!   `smile train` and sweep cells call. [`run::train_expert`] does the same for a SAC expert.
+//!   under typed [`Overrides`]), demos, expert, records and lock around a [`Learner`]; what
+//!   `smile train`, sweep cells and the quickstart call. [`run::train_expert`] does the same
+//!   for a SAC expert, through the same tail.
 //! * [`threads`]: the compute thread layout.
 //!
 //! This crate is the library: what learns and what it writes. The application over it (the
@@ -42,9 +44,12 @@ pub mod eval;
 pub mod run;
 pub mod threads;
 
-// Algorithms: each module holds its configuration, its run type and `train`; the
-// meta-learners' common interface is `MetaLearner`.
-pub use algo::{Algo, MetaLearner, Overrides, Progress, WithLearner, expert, meta_bc, sac, smile};
+// Algorithms: each module holds its configuration and its run type, a `Learner` trained by
+// `fit`; the meta-learners' configurations are `MetaSettings`, named by `Algo`.
+pub use algo::{
+    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Overrides, Progress,
+    Unit, WithLearner, expert, fit, meta_bc, sac, smile,
+};
 
 /// Errors and the result alias.
 pub use error::{Error, Input, Result};

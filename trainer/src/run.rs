@@ -4,10 +4,12 @@
 //! [`train`] reads the demos, builds the configuration (a TOML file over the algorithm's
 //! defaults, the caller's keys over both), loads Meta-DAgger's relabelling expert, starts the
 //! learner or resumes it from the directory's checkpoint, records how the run was started
-//! ([`RUN_FILE`], `config.toml`), holds the directory's lock, and trains through
-//! [`MetaLearner`], reporting [`RunEvent`]s. A resumed run keeps the configuration it started
-//! with: only the budget keys ([`MetaLearner::RESUMABLE`]) may change, and other demos than
-//! the run's are refused.
+//! ([`RUN_FILE`], `config.toml`), holds the directory's lock, and trains the [`Learner`]
+//! through the one fit loop, reporting [`RunEvent`]s. A resumed run keeps the configuration it
+//! started with: only its budget ([`MetaSettings::budget`]) may change, and other demos than
+//! the run's are refused. [`train_expert`] is the same driver for a SAC expert: both end in
+//! one tail (`drive`: the recorded configuration, the start event, the loop, a failure named
+//! with its step and last checkpoint).
 
 use std::path::{Path, PathBuf};
 
@@ -15,8 +17,7 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::{Expert, ExpertSet};
-use crate::algo::learner::WithLearner;
-use crate::algo::{Algo, MetaLearner, Overrides, Progress};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, WithLearner, fit};
 use crate::data::MetaData;
 use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
@@ -345,7 +346,11 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     struct Train<'r, 'o>(&'r Run<'r>, &'o mut dyn FnMut(RunEvent));
     impl WithLearner for Train<'_, '_> {
         type Output = Result<()>;
-        fn call<L: MetaLearner>(self, _: Algo) -> Result<()> {
+        fn call<L>(self, _: Algo) -> Result<()>
+        where
+            L: Learner<Inputs = MetaInputs>,
+            L::Config: MetaSettings,
+        {
             self.0.train::<L>(self.1)
         }
     }
@@ -368,7 +373,7 @@ impl Run<'_> {
     /// The configuration: the caller's keys over the run's saved `config.toml` when resuming
     /// (else over the configuration file), over the algorithm's defaults; the plant from
     /// `physics`, else the file's, else the demos'.
-    fn config<L: MetaLearner>(&self) -> Result<L::Config> {
+    fn config<C: MetaSettings>(&self) -> Result<C> {
         let req = self.req;
         let file = if req.resume {
             Some(req.out.join("config.toml"))
@@ -406,10 +411,10 @@ impl Run<'_> {
         if settings.physics.is_none() && !table.contains_key("physics") {
             settings.physics = Some(self.ds.physics);
         }
-        let mut cfg: L::Config = crate::io::from_toml_over_defaults(&text)
+        let mut cfg: C = crate::io::from_toml_over_defaults(&text)
             .map_err(|e| Error::Config(format!("{what}: {e}")))?;
-        L::apply(&mut cfg, self.algo, &settings)?;
-        L::configure(&mut cfg, self.algo, self.family);
+        cfg.apply(self.algo, &settings)?;
+        cfg.configure(self.algo, self.family);
         Ok(cfg)
     }
 
@@ -500,41 +505,74 @@ impl Run<'_> {
         self.req.resume && !self.restart
     }
 
-    fn train<L: MetaLearner>(&self, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
+    fn train<L>(&self, on: &mut dyn FnMut(RunEvent)) -> Result<()>
+    where
+        L: Learner<Inputs = MetaInputs>,
+        L::Config: MetaSettings,
+    {
         let req = self.req;
-        let cfg = self.config::<L>()?;
+        let cfg: L::Config = self.config()?;
         let expert = self.relabelling_expert(on)?;
         let data =
-            MetaData::from_dataset(self.ds, self.family, L::holdout_every(&cfg)).map_err(|e| {
+            MetaData::from_dataset(self.ds, self.family, cfg.holdout_every()).map_err(|e| {
                 Error::input(
                     Input::Demos,
                     format!("the demos {}: {e}", req.demos.display()),
                 )
             })?;
-        let (train_tasks, held_out) = (data.train.len(), data.val.len());
-        let mut run = if self.resumes() {
-            let run = L::resume_from(&req.out, data, expert, &cfg)?;
-            check_resume(&req.out, &cfg, run.settings(), L::RESUMABLE)?;
+        let what = format!(
+            "{}: {} training tasks, {} held-out train tasks",
+            self.algo,
+            data.train.len(),
+            data.val.len()
+        );
+        let inputs = MetaInputs { data, expert };
+        let run = if self.resumes() {
+            let run = L::resume(&req.out, inputs, &cfg)?;
+            check_resume(&req.out, &cfg, run.config())?;
             run
         } else {
-            L::start(cfg, data, expert)?
+            L::start(cfg, inputs)?
         };
-        let cfg = run.settings().clone();
-        let _lock = self.start_dir(self.ds.physics, on)?;
-        write_config(&req.out, &cfg, false)?;
-        on(RunEvent::Started {
-            what: format!(
-                "{}: {train_tasks} training tasks, {held_out} held-out train tasks",
-                self.algo
-            ),
-            total: run.total(),
-            done: run.done(),
-            unit: L::STEP_NAME,
-            word: L::STEP_WORD,
-            resumed: self.resumes(),
-        });
-        run.run(&req.out, &mut |p| on(RunEvent::Progress(p, L::STEP_WORD)))
+        let lock = self.start_dir(self.ds.physics, on)?;
+        drive(run, &req.out, what, self.resumes(), lock, on).map(drop)
     }
+}
+
+/// The tail every run driver ends in, under the run directory's `lock`: records the
+/// configuration in `dir/config.toml`, reports the start, trains `run` through the one fit loop
+/// and returns it; a failure during training says at which step, and where the last good
+/// checkpoint is ([`Error::Stopped`]).
+fn drive<L: Learner>(
+    mut run: L,
+    dir: &Path,
+    what: String,
+    resumed: bool,
+    lock: crate::io::DirLock,
+    on: &mut dyn FnMut(RunEvent),
+) -> Result<L> {
+    write_config(dir, run.config())?;
+    let unit = L::UNIT;
+    on(RunEvent::Started {
+        what,
+        total: run.total(),
+        done: run.done(),
+        unit: unit.plural,
+        word: unit.word,
+        resumed,
+    });
+    let trained = fit(&mut run, dir, &mut |p| on(RunEvent::Progress(p, unit.word)));
+    drop(lock);
+    if let Err(e) = trained {
+        let ck = dir.join(checkpoint::CHECKPOINT_FILE);
+        return Err(Error::Stopped {
+            step: run.done(),
+            unit: unit.word,
+            checkpoint: ck.exists().then_some(ck),
+            source: Box::new(e),
+        });
+    }
+    Ok(run)
 }
 
 /// Holds `out`'s lock for the run; a new run (not `resumes`) first clears what a run killed
@@ -563,15 +601,9 @@ fn open_dir(
     Ok(lock)
 }
 
-/// Records the configuration a run trains with in `out/config.toml`, atomically (`pretty`:
-/// arrays one item a line, as the expert runs have always written it).
-fn write_config<T: Serialize>(out: &Path, cfg: &T, pretty: bool) -> Result<()> {
-    let text = if pretty {
-        toml::to_string_pretty(cfg)
-    } else {
-        toml::to_string(cfg)
-    };
-    let text = text.map_err(|e| Error::Serialise {
+/// Records the configuration a run trains with in `out/config.toml`, atomically.
+fn write_config<T: Serialize>(out: &Path, cfg: &T) -> Result<()> {
+    let text = toml::to_string(cfg).map_err(|e| Error::Serialise {
         what: "config.toml",
         reason: e.to_string(),
     })?;
@@ -579,25 +611,16 @@ fn write_config<T: Serialize>(out: &Path, cfg: &T, pretty: bool) -> Result<()> {
 }
 
 /// On a resume: the configuration asked for must agree with the one the run continues (its
-/// checkpoint's), and so must its `config.toml` (a reader trusts that file to describe the
-/// run), except the `changeable` (budget) keys.
-fn check_resume<T: Serialize>(
-    out: &Path,
-    given: &T,
-    running: &T,
-    changeable: &[&str],
-) -> Result<()> {
+/// checkpoint's, with the budget asked for), and so must its `config.toml` (a reader trusts
+/// that file to describe the run).
+fn check_resume<T: Serialize>(out: &Path, given: &T, running: &T) -> Result<()> {
     let table = |c: &T| -> Result<toml::Table> {
         toml::Table::try_from(c).map_err(|e| Error::Serialise {
             what: "the configuration",
             reason: e.to_string(),
         })
     };
-    let (mut g, mut r) = (table(given)?, table(running)?);
-    for key in changeable {
-        g.remove(*key);
-        r.remove(*key);
-    }
+    let (g, r) = (table(given)?, table(running)?);
     for (key, theirs) in &r {
         let ours = g.get(key);
         if ours != Some(theirs) {

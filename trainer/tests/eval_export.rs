@@ -7,7 +7,7 @@ use sim::{Family, Split};
 use trainer::MetaData;
 use trainer::eval::{self, EvalReport, Protocol};
 use trainer::export::{self, BlobActor};
-use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
+use trainer::meta_bc::{MetaBc, MetaBcConfig};
 
 use common::pd_demos as demos;
 
@@ -39,7 +39,7 @@ fn eval_report_and_blob_parity() {
     cfg.context.z_dim = 4;
     cfg.context.r_dim = 8;
     let mut run = MetaBc::new(cfg, MetaData::from_dataset(&train, fam, 4).unwrap(), None).unwrap();
-    meta_bc::train(&mut run, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut run, &dir, &mut |_| {}).unwrap();
     let mut mp = trainer::MetaPolicy::load(&dir).unwrap();
 
     // Evaluation protocol, report files.

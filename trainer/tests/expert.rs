@@ -35,7 +35,7 @@ fn tiny(total: u64) -> ExpertConfig {
 /// A new expert run of `cfg`, trained to its budget in `dir`.
 fn trained(cfg: ExpertConfig, dir: &Path) -> ExpertTrainer {
     let mut run = ExpertTrainer::new(cfg).unwrap();
-    expert::train(&mut run, dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut run, dir, &mut |_| {}).unwrap();
     run
 }
 
@@ -49,7 +49,7 @@ fn resumed_run_equals_uninterrupted_run() {
     drop(first); // "killed" after its checkpoint at step 60
     let mut resumed = ExpertTrainer::resume(&b, Some(120)).unwrap();
     assert_eq!(resumed.env_steps(), 60);
-    expert::train(&mut resumed, &b, &mut |_| {}).unwrap();
+    trainer::fit(&mut resumed, &b, &mut |_| {}).unwrap();
 
     let (ca, cb) = (checkpoint::load(&a).unwrap(), checkpoint::load(&b).unwrap());
     for key in ["sac_counters", "env_steps", "episodes", "rng"] {
@@ -139,7 +139,7 @@ fn warm_start_begins_from_the_source_run_and_resumes_without_it() {
         actor(&ExpertTrainer::new(tiny(40)).unwrap()),
         actor(&source)
     );
-    expert::train(&mut warm, &dst, &mut |_| {}).unwrap();
+    trainer::fit(&mut warm, &dst, &mut |_| {}).unwrap();
     // The warm start lives in the run's own checkpoint: resuming needs no source.
     std::fs::remove_dir_all(&src).unwrap();
     let resumed = ExpertTrainer::resume(&dst, Some(80)).unwrap();

@@ -10,9 +10,9 @@ mod common;
 
 use sim::{DemoDataset, Family, Split};
 use trainer::eval::{self, Protocol};
-use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
+use trainer::meta_bc::{MetaBc, MetaBcConfig};
 use trainer::sac::SacConfig;
-use trainer::smile::{self, Smile, SmileConfig};
+use trainer::smile::{Smile, SmileConfig};
 use trainer::{MetaData, MetaPolicy, Progress};
 
 const HORIZON: usize = 30;
@@ -114,7 +114,7 @@ fn smile_learns_point_goal_from_demos_and_uses_the_context() {
     let mut run = Smile::new(cfg, data).unwrap();
     let untrained = test_metric(&mut run.meta_policy(), &test);
     let t0 = std::time::Instant::now();
-    smile::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval { step, metric, .. } = e {
             eprintln!("update {step}: held-out train goals {metric:.3}");
         }
@@ -155,7 +155,7 @@ fn meta_bc_learns_point_goal_from_demos_and_uses_the_context() {
     let mut run = MetaBc::new(cfg, data, None).unwrap();
     let untrained = test_metric(&mut run.meta_policy(), &test);
     let t0 = std::time::Instant::now();
-    meta_bc::train(&mut run, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut run, &dir, &mut |_| {}).unwrap();
     eprintln!("meta-bc: {:.1} s", t0.elapsed().as_secs_f64());
     let mut kept = MetaPolicy::load(&dir).unwrap();
     let trained = test_metric(&mut kept, &test);

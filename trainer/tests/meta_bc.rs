@@ -46,7 +46,7 @@ fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
     let mut run = MetaBc::new(tiny(false), data, None).unwrap();
     let v0 = run.val_mse().unwrap();
     let mut vals = Vec::new();
-    meta_bc::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval {
             val_mse: Some(m), ..
         } = e
@@ -84,7 +84,7 @@ fn early_stopping_and_dagger_relabelling() {
     let mut run = MetaBc::new(cfg, run_data(), Some(expert.into())).unwrap();
     let before = run.dataset_size();
     let mut stopped = None;
-    meta_bc::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Stopped(s) = e {
             stopped = Some(s);
         }
@@ -114,7 +114,7 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
     let env_cfg = cfg.env_config();
     let mut run = MetaBc::new(cfg, run_data(), None).unwrap();
     let mut metrics = Vec::new();
-    meta_bc::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval { metric, .. } = e {
             metrics.push(metric);
         }
@@ -198,7 +198,7 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
     let (full, cut) = (root.join("full"), root.join("cut"));
     let mut run = MetaBc::new(cfg.clone(), run_data(), None).unwrap();
     let mut vals = Vec::new();
-    meta_bc::train(&mut run, &full, &mut |e| {
+    trainer::fit(&mut run, &full, &mut |e| {
         if let Progress::Eval {
             step,
             val_mse: Some(m),
@@ -225,7 +225,7 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
         None,
     )
     .unwrap();
-    meta_bc::train(&mut again, &cut, &mut |_| {}).unwrap();
+    trainer::fit(&mut again, &cut, &mut |_| {}).unwrap();
     assert_eq!(again.val_mse().unwrap(), best);
     // The weights are equal; the files' training marks differ (step 200 of 200 against
     // step 160 of 160), so compare tensors, not bytes.

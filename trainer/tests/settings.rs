@@ -1,9 +1,9 @@
 //! Typed settings over a configuration file (`trainer::Overrides`): each learner lays them
 //! over its own configuration, and refuses by name a setting it does not have.
 
-use trainer::meta_bc::{MetaBc, MetaBcConfig};
-use trainer::smile::{Smile, SmileConfig};
-use trainer::{Algo, Error, MetaLearner, Overrides};
+use trainer::meta_bc::MetaBcConfig;
+use trainer::smile::SmileConfig;
+use trainer::{Algo, Error, MetaSettings, Overrides};
 
 #[test]
 fn settings_lie_over_the_file_which_lies_over_the_defaults() {
@@ -14,14 +14,14 @@ fn settings_lie_over_the_file_which_lies_over_the_defaults() {
         hidden: Some(vec![64]),
         ..Overrides::default()
     };
-    Smile::apply(&mut c, Algo::Smile, &o).unwrap();
+    c.apply(Algo::Smile, &o).unwrap();
     let mut want = SmileConfig::default();
     (want.seed, want.sac.reward_scale) = (7, 2.0);
     (want.sac.hidden, want.disc_hidden) = (vec![64], vec![64]);
     assert_eq!(c, want);
     // Nothing given: the file's configuration, untouched.
     let before = c.clone();
-    Smile::apply(&mut c, Algo::Smile, &Overrides::default()).unwrap();
+    c.apply(Algo::Smile, &Overrides::default()).unwrap();
     assert_eq!(c, before);
 }
 
@@ -33,7 +33,7 @@ fn a_setting_the_algorithm_lacks_is_refused_by_name_and_changes_nothing() {
         bc_weight: Some(1.0),
         ..Overrides::default()
     };
-    let e = MetaBc::apply(&mut c, Algo::MetaBc, &o).unwrap_err();
+    let e = c.apply(Algo::MetaBc, &o).unwrap_err();
     assert!(
         matches!(
             e,
@@ -50,6 +50,6 @@ fn a_setting_the_algorithm_lacks_is_refused_by_name_and_changes_nothing() {
         updates: Some(5),
         ..Overrides::default()
     };
-    MetaBc::apply(&mut c, Algo::MetaBc, &o).unwrap();
+    c.apply(Algo::MetaBc, &o).unwrap();
     assert_eq!(c.total_steps, 5);
 }

@@ -9,7 +9,7 @@ use trainer::MetaData;
 use trainer::MetaPolicy;
 use trainer::Progress;
 use trainer::sac::SacConfig;
-use trainer::smile::{self, Smile, SmileConfig};
+use trainer::smile::{Smile, SmileConfig};
 
 fn demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     common::train_demos(tasks, per_task, horizon)
@@ -93,7 +93,7 @@ fn short_run_checkpoints_resumes_and_exports() {
     let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
     let mut run = Smile::new(tiny(false), data.clone()).unwrap();
     let mut evals = 0;
-    smile::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval { .. } = e {
             evals += 1;
         }
@@ -110,7 +110,7 @@ fn short_run_checkpoints_resumes_and_exports() {
     let env_steps = run.env_steps();
     let mut resumed = Smile::resume(&dir, data, Some(30)).unwrap();
     assert_eq!((resumed.updates(), resumed.env_steps()), (20, env_steps));
-    smile::train(&mut resumed, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut resumed, &dir, &mut |_| {}).unwrap();
     assert_eq!(resumed.updates(), 30);
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -138,7 +138,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     );
     let mut run = Smile::new(cfg, data.clone()).unwrap();
     let mut evals = 0;
-    smile::train(&mut run, &dir, &mut |e| {
+    trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval { .. } = e {
             evals += 1;
         }
@@ -158,7 +158,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     MetaPolicy::load(&dir.join("last")).unwrap();
     // The budget counts the whole run: resumed under the same one, it stops again at once.
     let mut again = Smile::resume(&dir, data.clone(), Some(1_000_000)).unwrap();
-    smile::train(&mut again, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut again, &dir, &mut |_| {}).unwrap();
     assert_eq!(
         again.updates(),
         20,
@@ -169,7 +169,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     assert_eq!(resumed.updates(), 20);
     assert!(resumed.set_cpu_budget(-1.0).is_err());
     resumed.set_cpu_budget(0.0).unwrap();
-    smile::train(&mut resumed, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut resumed, &dir, &mut |_| {}).unwrap();
     assert_eq!(resumed.updates(), 30);
     let cpus: Vec<f64> = std::fs::read_to_string(dir.join("metrics.jsonl"))
         .unwrap()
@@ -402,7 +402,7 @@ fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
         data.clone(),
     )
     .unwrap();
-    smile::train(&mut run, &dir, &mut |_| {}).unwrap();
+    trainer::fit(&mut run, &dir, &mut |_| {}).unwrap();
     let log = std::fs::read_to_string(dir.join("metrics.jsonl")).unwrap();
     let rows: Vec<serde_json::Value> = log
         .lines()

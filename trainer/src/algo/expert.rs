@@ -31,7 +31,6 @@ pub use set::{EvalReport, ExpertSet, evaluate, evaluate_under_noise, trained_tas
 
 mod fit;
 mod policy;
-pub use fit::train;
 use policy::write_policy;
 pub use policy::{Expert, export_scripted_linclass, export_scripted_pd};
 
@@ -197,6 +196,8 @@ pub struct ExpertTrainer {
     best: Option<BestEval>,
     /// Where the updates run (`learner_threads`).
     pool: LearnerPool,
+    /// Throughput since this process started training (`charts/sps`).
+    clock: crate::algo::fit::Throughput,
 }
 
 /// The best evaluation of a run with `keep_best`: its metric and when it was taken; the
@@ -292,6 +293,7 @@ impl ExpertTrainer {
             episodes: 0,
             best: None,
             pool,
+            clock: crate::algo::fit::Throughput::since(0),
         })
     }
 

@@ -2,21 +2,12 @@
 //! the way of burn's `Learner::fit` or SB3's `learn`: the metrics log, the cadence of
 //! held-out evaluations and checkpoints, keeping the best policy, progress, and the end of the
 //! run are here once, and so is the compute budget (CPU-seconds across the run's processes). A
-//! learner is its unit of work, its evaluation, its state and its policy files, behind [`Fit`].
-//!
-//! ```text
-//! begin                      (warm start, the untrained policy's evaluation)
-//! while !finished (the learner's budget or stopping rule, or the compute budget):
-//!     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
-//!                             Meta-BC: one step)
-//!     count the compute; log the metrics
-//!     if an evaluation is due: evaluate; keep the policy if best; log; report
-//!     if a checkpoint is due: checkpoint; report
-//! finish                     (the final policy files)
-//! ```
+//! learner is its unit of work, its evaluation, its state and its policy files, behind
+//! [`Learner`] (whose doc shows the loop).
 
 use std::path::Path;
 
+use crate::algo::learner::Learner;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::model::{META_POLICY_FILE, MetaPolicy, TrainingMark};
@@ -56,10 +47,10 @@ pub enum Progress {
 }
 
 /// Metric names and values for one line of the metrics log.
-pub(crate) type Fields = Vec<(&'static str, f64)>;
+pub type Fields = Vec<(&'static str, f64)>;
 
 /// One held-out evaluation, as a learner judged it.
-pub(crate) struct Evaluation {
+pub struct Evaluation {
     /// Whether the current policy is now the one to keep.
     pub keep: bool,
     /// What to log.
@@ -72,7 +63,7 @@ pub(crate) struct Evaluation {
 
 /// When a learner wants its evaluations and checkpoints, in its own units of work.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub(crate) struct Cadence {
+pub struct Cadence {
     /// An evaluation once the work done reaches each multiple of this; 0: never.
     pub eval_every: u64,
     /// Also evaluate when training ends (when `eval_every` > 0).
@@ -82,6 +73,29 @@ pub(crate) struct Cadence {
     /// A compute budget in CPU-seconds of every process of the run (0: none): training ends
     /// at the first unit of work that reaches it.
     pub cpu_budget_s: f64,
+}
+
+/// Units of work per second since this process started training: the `charts/sps` every
+/// learner logs (reset by its [`Learner::begin`]).
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Throughput {
+    t0: std::time::Instant,
+    done0: u64,
+}
+
+impl Throughput {
+    /// Starts the clock at `done` units.
+    pub(crate) fn since(done: u64) -> Self {
+        Self {
+            t0: std::time::Instant::now(),
+            done0: done,
+        }
+    }
+
+    /// Units per second from the start to `done`.
+    pub(crate) fn per_s(&self, done: u64) -> f64 {
+        done.saturating_sub(self.done0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9)
+    }
 }
 
 /// The run's compute: the CPU-seconds its earlier processes used (from its checkpoint) plus
@@ -149,55 +163,11 @@ impl Schedule {
     }
 }
 
-/// A learner inside [`fit`]: its work, its rules and its files. The learner's own clocks
-/// (throughput, compute budget) live in the implementing type, a learner borrowed for one fit.
-pub(crate) trait Fit {
-    /// Units of work done.
-    fn done(&self) -> u64;
-
-    /// When evaluations and checkpoints are due.
-    fn cadence(&self) -> Cadence;
-
-    /// Before the loop: a warm start, the untrained policy's evaluation.
-    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
-        Ok(())
-    }
-
-    /// Whether training is over by the learner's own budget or stopping rule.
-    fn finished(&self) -> bool;
-
-    /// CPU-seconds the run's earlier processes used (its checkpoint's); 0 for a learner that
-    /// keeps no count.
-    fn cpu_before(&self) -> f64 {
-        0.0
-    }
-
-    /// The run's CPU-seconds after a unit of work: a learner that counts them records them
-    /// (for its checkpoint) and returns the metric to log; `None` logs nothing.
-    fn counted(&mut self, _cpu_s: f64) -> Option<(&'static str, f64)> {
-        None
-    }
-
-    /// One unit of work; returns the metrics to log at [`Fit::done`] (none: no line).
-    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields>;
-
-    /// The held-out evaluation; `None` when there is nothing to evaluate on.
-    fn evaluate(&mut self) -> Result<Option<Evaluation>>;
-
-    /// Writes the checkpoint to `dir`.
-    fn save_checkpoint(&self, dir: &Path) -> Result<()>;
-
-    /// Writes the current policy as the one kept so far (an evaluation judged it best).
-    fn save_kept(&self, dir: &Path) -> Result<()>;
-
-    /// After the loop: the final policy files.
-    fn finish(&mut self, dir: &Path, log: &mut MetricsLog) -> Result<()>;
-}
-
 /// Trains `run` in `dir` to its end: the metrics log `dir/metrics.jsonl`, evaluations and
 /// checkpoints at the learner's [`Cadence`], the kept policy at each evaluation that judges it
-/// best, then the learner's final files ([`Fit::finish`]).
-pub(crate) fn fit(run: &mut impl Fit, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
+/// best, then the learner's final files ([`Learner::finish`]). A resumed learner continues its
+/// log, schedules and compute count where its checkpoint left them.
+pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let cadence = run.cadence();
     let compute = Compute::start(run.cpu_before(), cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;

@@ -1,11 +1,16 @@
-//! One interface for the meta-learners: [`Algo`] names them, [`MetaLearner`] is what each one
-//! implements, [`Progress`] is what each reports while it trains.
+//! The one interface of a learner: [`Learner`] is what SMILe, Meta-BC (Meta-DAgger its option)
+//! and the SAC expert implement, [`fit`](crate::fit) the one loop they train through,
+//! [`Algo`] names the meta-learners on the command line and in plans.
 //!
-//! `smile train`, the quickstart and `smile sweep` drive every learner through these. Adding
-//! an algorithm is its folder under `algo/` (its update step and models, its `Fit` hooks for
-//! the shared loop and its `impl MetaLearner`, as `smile/fit.rs`) and its entry in the one
-//! list here ([`with_algorithms`]), which writes [`Algo`] and, in `registry.rs` (which imports
-//! the learner type), [`Algo::with_learner`].
+//! In the way of burn's `Learner`: the loop owns the metrics log, the cadence of evaluations and
+//! checkpoints, keeping the best policy, the compute budget and the end of the run; a learner
+//! supplies its unit of work, its evaluation, its state and its files. A run driver
+//! ([`run::train`](crate::run::train), [`run::train_expert`](crate::run::train_expert)) starts
+//! or resumes one, holds its directory and calls the loop.
+//!
+//! Adding a meta-learner: its file(s) under `algo/` with `impl Learner` for its run type and
+//! `impl MetaSettings` for its configuration, one [`Algo`] variant (with its name in
+//! [`Algo::name`]) and one arm in [`Algo::with_learner`] (ARCHITECTURE.md, "Adding a learner").
 
 use std::fmt;
 use std::path::Path;
@@ -15,80 +20,50 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use sim::Family;
 
-pub use crate::algo::fit::Progress;
+pub use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 
 use crate::algo::expert::ExpertSet;
 use crate::algo::settings::Overrides;
 use crate::data::MetaData;
 use crate::error::{Error, Result};
-use crate::model::MetaPolicy;
+use crate::io::MetricsLog;
 
-/// The one list of meta-learners, in the order help texts list them: per algorithm what it is
-/// (its [`Algo`] variant's doc), its variant, its name on the command line and in plans and
-/// run directories, the learner type that runs it and whether it queries an expert while
-/// training. This module writes [`Algo`] and its registry from it; `registry.rs` writes
-/// [`Algo::with_learner`], the map to the learner types (which it imports). Adding an
-/// algorithm is its folder (its `mod` line in `algo/mod.rs`), its entry here and the import of
-/// its learner type in `registry.rs`.
-macro_rules! with_algorithms {
-    ($then:ident) => {
-        $then! {
-            /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
-            Smile = "smile", learner Smile, expert false;
-            /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
-            SmileStateOnly = "smile-state-only", learner Smile, expert false;
-            /// Meta-BC: encoder and policy regressing the demos' actions.
-            MetaBc = "meta-bc", learner MetaBc, expert false;
-            /// Meta-DAgger: Meta-BC plus online relabelling by an expert.
-            MetaDagger = "meta-dagger", learner MetaBc, expert true;
-        }
-    };
-}
-pub(crate) use with_algorithms;
-
-/// Writes [`Algo`], [`Algo::ALL`], [`Algo::name`] and [`Algo::needs_expert`] from the list.
-macro_rules! declare_algorithms {
-    ($(
-        $(#[$doc:meta])* $variant:ident = $name:literal,
-        learner $learner:ident, expert $expert:literal;
-    )+) => {
-        /// The meta-learners, by the name `smile train --algo` and sweep plans take.
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
-        pub enum Algo {
-            $($(#[$doc])* $variant,)+
-        }
-
-        impl Algo {
-            /// Every algorithm, in the list's order (the order help texts list them).
-            pub const ALL: [Algo; [$(Algo::$variant),+].len()] = [$(Algo::$variant),+];
-
-            /// The name on the command line and in plans and run directories.
-            pub fn name(self) -> &'static str {
-                match self {
-                    $(Algo::$variant => $name,)+
-                }
-            }
-
-            /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
-            pub fn needs_expert(self) -> bool {
-                match self {
-                    $(Algo::$variant => $expert,)+
-                }
-            }
-        }
-    };
+/// The meta-learners, by the name `smile train --algo` and sweep plans take.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Algo {
+    /// SMILe on (s, a, s') contexts and an [s, a, z] discriminator.
+    Smile,
+    /// SMILe on (s, s') contexts and an [s, s', z] discriminator.
+    SmileStateOnly,
+    /// Meta-BC: encoder and policy regressing the demos' actions.
+    MetaBc,
+    /// Meta-DAgger: Meta-BC plus online relabelling by an expert.
+    MetaDagger,
 }
 
-with_algorithms!(declare_algorithms);
+impl Algo {
+    /// Every algorithm, in the order help texts list them.
+    pub const ALL: [Algo; 4] = [
+        Algo::Smile,
+        Algo::SmileStateOnly,
+        Algo::MetaBc,
+        Algo::MetaDagger,
+    ];
 
-/// A computation generic over the learner type, run for an [`Algo`] by
-/// [`Algo::with_learner`]: how code that serves every algorithm (a run directory, a plan
-/// check) reaches the algorithm's [`MetaLearner`] without naming it.
-pub trait WithLearner {
-    /// What it returns.
-    type Output;
-    /// Runs it with `L`, the learner of `algo`.
-    fn call<L: MetaLearner>(self, algo: Algo) -> Self::Output;
+    /// The name on the command line and in plans and run directories.
+    pub fn name(self) -> &'static str {
+        match self {
+            Algo::Smile => "smile",
+            Algo::SmileStateOnly => "smile-state-only",
+            Algo::MetaBc => "meta-bc",
+            Algo::MetaDagger => "meta-dagger",
+        }
+    }
+
+    /// Whether training queries an expert (Meta-DAgger relabels the states it visits).
+    pub fn needs_expert(self) -> bool {
+        self == Algo::MetaDagger
+    }
 }
 
 impl fmt::Display for Algo {
@@ -114,74 +89,140 @@ impl FromStr for Algo {
     }
 }
 
-/// A meta-learner: built from its configuration and the meta-train demos, or resumed from a
-/// run directory; trained there; yielding a [`MetaPolicy`].
-pub trait MetaLearner: Sized {
-    /// Its hyper-parameters (a TOML file's type; `Default` is the documented defaults).
-    type Config: Clone + fmt::Debug + PartialEq + Default + Serialize + DeserializeOwned;
+/// A computation generic over the learner type, run for an [`Algo`] by
+/// [`Algo::with_learner`]: how code that serves every algorithm (a run directory, a plan
+/// check) reaches the algorithm's learner without naming it.
+pub trait WithLearner {
+    /// What it returns.
+    type Output;
+    /// Runs it with `L`, the learner of `algo`.
+    fn call<L>(self, algo: Algo) -> Self::Output
+    where
+        L: Learner<Inputs = MetaInputs>,
+        L::Config: MetaSettings;
+}
 
-    /// What the units of that budget are called in progress bars ("update pairs").
-    const STEP_NAME: &'static str;
-
+/// What a learner's budget counts, for progress bars and messages.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Unit {
+    /// The budget's units ("update pairs").
+    pub plural: &'static str,
     /// One unit, in messages ("resuming from update 2000").
-    const STEP_WORD: &'static str;
+    pub word: &'static str,
+}
 
-    /// The config keys a resumed run may change (the budget among them); every other key must
-    /// stay what the run started with.
-    const RESUMABLE: &'static [&'static str];
+/// What a meta-learner learns from besides its configuration: the meta-train demos (split) and,
+/// for Meta-DAgger, the expert that relabels its rollouts.
+pub struct MetaInputs {
+    /// The meta-train tasks and their held-out part.
+    pub data: MetaData,
+    /// Meta-DAgger's relabelling expert; `None` for the learners of demos alone.
+    pub expert: Option<ExpertSet>,
+}
 
-    /// Sets the parts of `cfg` that the algorithm and family decide (its `env`, SMILe's
-    /// state-only switch, Meta-BC's DAgger switch).
-    fn configure(cfg: &mut Self::Config, algo: Algo, family: Family);
+/// A learner: started from its configuration and inputs, or resumed from a run directory, and
+/// trained there by [`fit`](crate::fit) through the hooks below.
+///
+/// ```text
+/// begin                      (warm start, the untrained policy's evaluation)
+/// while !finished (the learner's budget or stopping rule, or the compute budget):
+///     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
+///                             Meta-BC: one step)
+///     counted; log the metrics
+///     if an evaluation is due: evaluate; save_kept if best; log; report
+///     if a checkpoint is due: save_checkpoint; report
+/// finish                     (the final policy files)
+/// ```
+pub trait Learner: Sized {
+    /// Its hyper-parameters (a TOML file's type; `Default` is the documented defaults).
+    type Config: Clone + fmt::Debug + PartialEq + Serialize + DeserializeOwned;
 
-    /// Lays the settings `o` gives over `cfg`; a setting the algorithm does not have is
-    /// refused by name ([`Error::NoSuchSetting`]).
-    fn apply(cfg: &mut Self::Config, algo: Algo, o: &Overrides) -> Result<()>;
+    /// What it learns from besides its configuration ([`MetaInputs`]; `()` for a SAC expert).
+    type Inputs;
 
-    /// `cfg`'s training budget as settings (its updates, and the CPU-seconds where the
-    /// algorithm has that budget): what a finished run resumes with to train on to a larger
-    /// one. `None` when a larger budget is a new run instead.
-    fn budget(cfg: &Self::Config) -> Option<Overrides>;
+    /// What its budget counts.
+    const UNIT: Unit;
 
-    /// Checks every value of `cfg`.
-    fn validate(cfg: &Self::Config) -> Result<()>;
+    /// A fresh run.
+    fn start(cfg: Self::Config, inputs: Self::Inputs) -> Result<Self>;
+
+    /// The run checkpointed in `dir`, taking its budget from `wanted` (a larger one, say) and
+    /// everything else from the checkpoint.
+    fn resume(dir: &Path, inputs: Self::Inputs, wanted: &Self::Config) -> Result<Self>;
+
+    /// The configuration it runs with.
+    fn config(&self) -> &Self::Config;
+
+    /// The budget, in [`Self::UNIT`]s.
+    fn total(&self) -> u64;
+
+    /// Units of work done.
+    fn done(&self) -> u64;
+
+    /// When evaluations and checkpoints are due.
+    fn cadence(&self) -> Cadence;
+
+    /// Before the loop: a warm start, the untrained policy's evaluation, this process's clocks.
+    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
+        Ok(())
+    }
+
+    /// Whether training is over by the learner's own budget or stopping rule.
+    fn finished(&self) -> bool;
+
+    /// CPU-seconds the run's earlier processes used (its checkpoint's); 0 for a learner that
+    /// keeps no count.
+    fn cpu_before(&self) -> f64 {
+        0.0
+    }
+
+    /// The run's CPU-seconds after a unit of work: a learner that counts them records them
+    /// (for its checkpoint) and returns the metric to log; `None` logs nothing.
+    fn counted(&mut self, _cpu_s: f64) -> Option<(&'static str, f64)> {
+        None
+    }
+
+    /// One unit of work; returns the metrics to log at [`Learner::done`] (none: no line).
+    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields>;
+
+    /// The held-out evaluation; `None` when there is nothing to evaluate on.
+    fn evaluate(&mut self) -> Result<Option<Evaluation>>;
+
+    /// Writes the checkpoint to `dir`.
+    fn save_checkpoint(&self, dir: &Path) -> Result<()>;
+
+    /// Writes the current policy as the one kept so far (an evaluation judged it best).
+    fn save_kept(&self, dir: &Path) -> Result<()>;
+
+    /// After the loop: the final policy files.
+    fn finish(&mut self, dir: &Path, log: &mut MetricsLog) -> Result<()>;
+}
+
+/// A meta-learner's configuration as the run driver and sweeps set it: what the algorithm and
+/// family decide, the caller's typed settings, the budget.
+pub trait MetaSettings: Clone + PartialEq + Default + Serialize + DeserializeOwned {
+    /// Sets what the algorithm and family decide (its `env`, SMILe's state-only switch,
+    /// Meta-BC's DAgger switch).
+    fn configure(&mut self, algo: Algo, family: Family);
+
+    /// Lays the settings `o` gives over this configuration; a setting the algorithm does not
+    /// have is refused by name ([`Error::NoSuchSetting`]) and nothing changes.
+    fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()>;
+
+    /// The training budget as settings (its updates, and the CPU-seconds where the algorithm
+    /// has that budget): what a resume may change, and what a sweep extends a finished cell
+    /// with where [`MetaSettings::EXTENDS`].
+    fn budget(&self) -> Overrides;
+
+    /// Whether a finished run continues to a larger budget (SMILe), or a larger budget is a
+    /// new run (Meta-BC: its policy is the one early stopping picked; more steps are another
+    /// selection).
+    const EXTENDS: bool;
+
+    /// Checks every value.
+    fn validate(&self) -> Result<()>;
 
     /// Every how many meta-train tasks one is held out for validation (the data split the run
     /// needs, [`MetaData::from_dataset`]).
-    fn holdout_every(cfg: &Self::Config) -> usize;
-
-    /// [`Self::Config`] from TOML text over the defaults (not yet validated: the algorithm's
-    /// own settings, [`Self::configure`], come first).
-    fn read_config(text: &str) -> Result<Self::Config> {
-        crate::io::from_toml_over_defaults::<Self::Config>(text)
-            .map_err(|e| Error::Config(e.message().to_string()))
-    }
-
-    /// A fresh run; `expert` only where [`Algo::needs_expert`].
-    fn start(cfg: Self::Config, data: MetaData, expert: Option<ExpertSet>) -> Result<Self>;
-
-    /// The run checkpointed in `dir`, taking the [`Self::RESUMABLE`] keys from `wanted` (a
-    /// larger budget, say) and everything else from the checkpoint.
-    fn resume_from(
-        dir: &Path,
-        data: MetaData,
-        expert: Option<ExpertSet>,
-        wanted: &Self::Config,
-    ) -> Result<Self>;
-
-    /// The configuration it runs with.
-    fn settings(&self) -> &Self::Config;
-
-    /// The budget (update pairs or gradient steps).
-    fn total(&self) -> u64;
-
-    /// Updates done.
-    fn done(&self) -> u64;
-
-    /// Trains in `dir` to the budget or the learner's own stopping rule, keeping the best
-    /// held-out policy in `dir/meta_policy.safetensors` and the last in `dir/last/`.
-    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()>;
-
-    /// The current policy.
-    fn policy(&self) -> MetaPolicy;
+    fn holdout_every(&self) -> usize;
 }

@@ -43,7 +43,6 @@ mod config;
 mod fit;
 
 pub use config::{MetaBcConfig, Selection};
-pub use fit::train;
 
 /// Per-task `(s, a)` pairs: the demos, plus relabelled visits for Meta-DAgger.
 #[derive(Debug, Clone, Default)]
@@ -73,6 +72,8 @@ pub struct MetaBc {
     /// The learner threads of `learner_threads > 1`, started at the first step.
     pool: Option<LearnerPool>,
     stopped: bool,
+    /// Throughput since this process started training (`charts/sps`).
+    clock: crate::algo::fit::Throughput,
 }
 
 impl MetaBc {
@@ -150,6 +151,7 @@ impl MetaBc {
             bad_evals: 0,
             stopped: false,
             pool: None,
+            clock: crate::algo::fit::Throughput::since(0),
         })
     }
 

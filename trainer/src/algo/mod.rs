@@ -4,11 +4,11 @@
 //! * [`expert`]: oracle SAC experts per family (and the scripted PD expert of point-goal).
 //! * [`smile`]: SMILe, state-action and state-only (Algorithm 1 of the paper).
 //! * [`meta_bc`]: the baselines Meta-BC and Meta-DAgger.
-//! * [`learner`]: [`Algo`] and [`MetaLearner`], the one interface SMILe and Meta-BC implement
-//!   and `smile train`, the quickstart and the sweep drive.
+//! * [`learner`]: [`Learner`], the one interface SMILe, Meta-BC and the SAC expert implement,
+//!   [`MetaSettings`] their configurations', and [`Algo`], the meta-learners' names.
 //! * `settings`: [`Overrides`], the typed settings a caller lays over a configuration file.
-//! * `fit`: the one fit loop they train through (metrics, evaluation and keeping the best,
-//!   checkpoints, stopping, the final policies), each learner its `Fit` hooks.
+//! * `fit`: [`fit`], the one loop every learner trains through (metrics, evaluation and
+//!   keeping the best, checkpoints, stopping, the final policies).
 
 pub mod expert;
 mod fit;
@@ -20,5 +20,9 @@ pub(crate) use registry::other_env;
 pub mod sac;
 pub mod smile;
 
-pub use learner::{Algo, MetaLearner, Progress, WithLearner};
+pub use fit::fit;
+pub use learner::{
+    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Unit,
+    WithLearner,
+};
 pub use settings::Overrides;

@@ -1,43 +1,38 @@
-//! The registry's other half: which learner type runs each [`Algo`] (written from the one list,
-//! `learner.rs`), and what is asked of an algorithm through it.
+//! Which learner type runs each [`Algo`], and what is asked of an algorithm's configuration
+//! through it (a plan's check, a sweep's extension of a finished cell).
 
 use sim::Family;
 
-use crate::algo::learner::{Algo, MetaLearner, WithLearner, with_algorithms};
+use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, WithLearner};
 use crate::algo::meta_bc::MetaBc;
 use crate::algo::settings::Overrides;
 use crate::algo::smile::Smile;
 use crate::error::Result;
 
-/// Writes [`Algo::with_learner`] from the list ([`with_algorithms`]).
-macro_rules! map_algorithms {
-    ($(
-        $(#[$doc:meta])* $variant:ident = $name:literal,
-        learner $learner:ident, expert $expert:literal;
-    )+) => {
-        impl Algo {
-            /// Runs `f` with the learner type of this algorithm: the one place mapping an
-            /// algorithm to the type that trains it.
-            pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
-                match self {
-                    $(Algo::$variant => f.call::<$learner>(self),)+
-                }
-            }
+impl Algo {
+    /// Runs `f` with the learner type of this algorithm: the one place mapping an algorithm to
+    /// the type that trains it (adding an algorithm adds its arm here).
+    pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
+        match self {
+            Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
+            Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
         }
-    };
+    }
 }
-
-with_algorithms!(map_algorithms);
 
 impl Algo {
     /// Reads `text` (TOML over the algorithm's defaults) as this algorithm's configuration on
-    /// `family`, with what the algorithm itself sets ([`MetaLearner::configure`]), and
+    /// `family`, with what the algorithm itself sets ([`MetaSettings::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.
     pub fn check_config(self, text: &str, family: Family) -> Result<()> {
         struct Check<'a>(&'a str, Family);
         impl WithLearner for Check<'_> {
             type Output = Result<()>;
-            fn call<L: MetaLearner>(self, algo: Algo) -> Result<()> {
+            fn call<L>(self, algo: Algo) -> Result<()>
+            where
+                L: Learner<Inputs = MetaInputs>,
+                L::Config: MetaSettings,
+            {
                 let table = self.0.parse::<toml::Table>().unwrap_or_default();
                 if let Some(env) = other_env(&table, self.1) {
                     return Err(crate::error::Error::Config(format!(
@@ -45,9 +40,10 @@ impl Algo {
                         self.1
                     )));
                 }
-                let mut cfg = L::read_config(self.0)?;
-                L::configure(&mut cfg, algo, self.1);
-                L::validate(&cfg)
+                let mut cfg: L::Config = crate::io::from_toml_over_defaults(self.0)
+                    .map_err(|e| crate::error::Error::Config(e.message().to_string()))?;
+                cfg.configure(algo, self.1);
+                cfg.validate()
             }
         }
         self.with_learner(Check(text, family))
@@ -63,12 +59,19 @@ impl Algo {
         struct Extension<'a>(&'a str, &'a str);
         impl WithLearner for Extension<'_> {
             type Output = Option<Overrides>;
-            fn call<L: MetaLearner>(self, algo: Algo) -> Option<Overrides> {
+            fn call<L>(self, algo: Algo) -> Option<Overrides>
+            where
+                L: Learner<Inputs = MetaInputs>,
+                L::Config: MetaSettings,
+            {
+                if !<L::Config as MetaSettings>::EXTENDS {
+                    return None;
+                }
                 let old: L::Config = toml::from_str(self.0).ok()?;
                 let new: L::Config = toml::from_str(self.1).ok()?;
-                let (was, now) = (L::budget(&old)?, L::budget(&new)?);
+                let (was, now) = (old.budget(), new.budget());
                 let mut same = old.clone();
-                L::apply(&mut same, algo, &now).ok()?;
+                same.apply(algo, &now).ok()?;
                 let cpu = |o: &Overrides| match o.cpu_budget_s {
                     Some(s) if s > 0.0 => s,
                     _ => f64::INFINITY,
@@ -83,7 +86,7 @@ impl Algo {
 }
 
 /// The `env` a configuration table names when it is not `family`: the family comes from the
-/// demos (or the plan), and [`MetaLearner::configure`] would overwrite another one silently.
+/// demos (or the plan), and [`MetaSettings::configure`] would overwrite another one silently.
 pub(crate) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Value> {
     table
         .get("env")
@@ -94,6 +97,23 @@ pub(crate) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Va
 mod tests {
     use super::*;
     use crate::algo::learner::Algo;
+
+    #[test]
+    fn all_lists_every_algorithm_once() {
+        // Exhaustive: a new variant does not compile until it has a place here (the next
+        // number, and `LAST` moves to it); then this test fails until `Algo::ALL` lists it.
+        let place = |a: Algo| match a {
+            Algo::Smile => 0,
+            Algo::SmileStateOnly => 1,
+            Algo::MetaBc => 2,
+            Algo::MetaDagger => 3,
+        };
+        let mut seen: Vec<usize> = Algo::ALL.iter().map(|&a| place(a)).collect();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..Algo::ALL.len()).collect::<Vec<_>>());
+        const LAST: Algo = Algo::MetaDagger;
+        assert_eq!(Algo::ALL.len(), 1 + place(LAST));
+    }
 
     #[test]
     fn names_round_trip_and_unknown_ones_list_the_choices() {

@@ -64,7 +64,6 @@ mod tests;
 
 pub use batch::DiscBatch;
 pub use config::SmileConfig;
-pub use fit::train;
 
 use crate::algo::sac::{ActorStep, Sac, SacStats};
 use crate::data::{MetaData, TaskReplay, quick_eval, run_episode, sample_context};
@@ -103,6 +102,8 @@ pub struct Smile {
     /// The environment the rollouts beside the pairs step (`learner_threads > 1`; it travels
     /// with each rollout job and comes back with its result).
     rollout_env: Option<Box<dyn Environment>>,
+    /// Throughput since this process started training (`charts/sps`).
+    clock: crate::algo::fit::Throughput,
 }
 
 /// What one [`Smile::iteration`] did.
@@ -167,6 +168,7 @@ impl Smile {
             best: f32::NAN,
             pool: None,
             rollout_env: None,
+            clock: crate::algo::fit::Throughput::since(0),
         })
     }
 

@@ -3,14 +3,14 @@
 //! The same steps as a meta-learner's run ([`train`](super::train)): a new run refuses a
 //! directory that holds one, a resume continues the checkpoint with its saved configuration
 //! (only the step budget may grow), the directory's lock is held for the whole training, the
-//! configuration is recorded in `config.toml`, and the SAC expert trains through the shared
-//! fit loop, reporting [`RunEvent`]s.
+//! configuration is recorded in `config.toml`, and the SAC expert trains through the one fit
+//! loop, reporting [`RunEvent`]s: the driver's tail is the meta-learners' (`drive`).
 
 use std::path::{Path, PathBuf};
 
-use super::{RunEvent, open_dir, write_config};
+use super::{RunEvent, drive, open_dir};
 use crate::algo::Progress;
-use crate::algo::expert::{self, ExpertConfig, ExpertTrainer};
+use crate::algo::expert::{ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
 
@@ -30,41 +30,26 @@ pub struct ExpertRequest {
 /// A failure during training says at which step, and where the last good checkpoint is.
 pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertConfig> {
     let dir = &req.out;
-    let mut run = match &req.config {
+    let run = match &req.config {
         Some(cfg) => start(dir, cfg, on)?,
         None => resume(dir, req.total_steps)?,
     };
-    let _lock = open_dir(dir, req.config.is_none(), true, on)?;
-    write_config(dir, run.config(), true)?;
-    on(RunEvent::Started {
-        what: format!(
-            "a SAC expert on {} ({})",
-            run.config().env,
-            run.config().physics
-        ),
-        total: run.config().total_steps,
-        done: run.env_steps(),
-        unit: "steps",
-        word: "step",
-        resumed: req.config.is_none(),
-    });
-    let result = expert::train(&mut run, dir, &mut |p| match p {
-        // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
-        Progress::Eval {
-            step, metric, best, ..
-        } => on(RunEvent::Note(format!(
+    let lock = open_dir(dir, req.config.is_none(), true, on)?;
+    let cfg = run.config();
+    let what = format!("a SAC expert on {} ({})", cfg.env, cfg.physics);
+    // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
+    let mut on = |e: RunEvent| match e {
+        RunEvent::Progress(
+            Progress::Eval {
+                step, metric, best, ..
+            },
+            _,
+        ) => on(RunEvent::Note(format!(
             "step {step}: deterministic evaluation {metric:.4} (best {best:.4})"
         ))),
-        p => on(RunEvent::Progress(p, "step")),
-    });
-    if let Err(e) = result {
-        let ck = dir.join(checkpoint::CHECKPOINT_FILE);
-        return Err(Error::Stopped {
-            step: run.env_steps(),
-            checkpoint: ck.exists().then_some(ck),
-            source: Box::new(e),
-        });
-    }
+        e => on(e),
+    };
+    let run = drive(run, dir, what, req.config.is_none(), lock, &mut on)?;
     if let Some(b) = run.best_eval() {
         on(RunEvent::Note(format!(
             "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \

@@ -1,94 +1,96 @@
-//! SMILe in the shared fit loop (its [`Fit`] hooks: the iteration, its CPU-second count, the
-//! held-out evaluation schedule) and its [`MetaLearner`] impl.
+//! SMILe as a [`Learner`] (the hooks of the one fit loop: the iteration, its CPU-second
+//! count, the held-out evaluation schedule) and its configuration's [`MetaSettings`].
 
 use std::path::Path;
 
 use sim::Family;
 
 use super::{Smile, SmileConfig};
-use crate::algo::expert::ExpertSet;
-use crate::algo::fit::{Cadence, Evaluation, Fields, Fit, Progress, finish_meta_policy, fit};
-use crate::algo::learner::{Algo, MetaLearner};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Throughput, finish_meta_policy};
+use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::Overrides;
-use crate::data::{MetaData, better};
+use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
-use crate::model::{DiscStats, MetaPolicy};
+use crate::model::DiscStats;
 
-/// Trains until `total_updates` (or the `cpu_budget_s` compute budget) through the shared fit
-/// loop ([`fit`]): metrics in `dir/metrics.jsonl`, an evaluation on held-out train tasks every
-/// `eval_every` updates (the best policy so far in `dir/meta_policy.safetensors`; the final
-/// one in `dir/last/`), a checkpoint every `checkpoint_every` updates and at the end.
-pub fn train(run: &mut Smile, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
-    let u0 = run.updates;
-    let mut f = SmileFit {
-        run,
-        t0: std::time::Instant::now(),
-        u0,
+impl Learner for Smile {
+    type Config = SmileConfig;
+    type Inputs = MetaInputs;
+    const UNIT: Unit = Unit {
+        plural: "update pairs",
+        word: "update",
     };
-    fit(&mut f, dir, on)
-}
 
-/// A SMILe run inside the fit loop, with its throughput clock.
-struct SmileFit<'a> {
-    run: &'a mut Smile,
-    /// Wall clock and update count when this process started training.
-    t0: std::time::Instant,
-    u0: u64,
-}
+    fn start(cfg: SmileConfig, inputs: MetaInputs) -> Result<Self> {
+        refuse_expert(cfg.algo_name(), inputs.expert.is_some())?;
+        Smile::new(cfg, inputs.data)
+    }
 
-impl Fit for SmileFit<'_> {
+    fn resume(dir: &Path, inputs: MetaInputs, wanted: &SmileConfig) -> Result<Self> {
+        refuse_expert("smile", inputs.expert.is_some())?;
+        let mut run = Smile::resume(dir, inputs.data, Some(wanted.total_updates))?;
+        run.set_cpu_budget(wanted.cpu_budget_s)?;
+        Ok(run)
+    }
+
+    fn config(&self) -> &SmileConfig {
+        &self.cfg
+    }
+
+    fn total(&self) -> u64 {
+        self.cfg.total_updates
+    }
+
     fn done(&self) -> u64 {
-        self.run.updates
+        self.updates
     }
 
     fn cadence(&self) -> Cadence {
         Cadence {
-            eval_every: self.run.cfg.eval_every,
+            eval_every: self.cfg.eval_every,
             eval_at_end: true,
-            checkpoint_every: self.run.cfg.checkpoint_every,
-            cpu_budget_s: self.run.cfg.cpu_budget_s,
+            checkpoint_every: self.cfg.checkpoint_every,
+            cpu_budget_s: self.cfg.cpu_budget_s,
         }
     }
 
     fn begin(&mut self, log: &mut MetricsLog) -> Result<()> {
-        let run = &mut *self.run;
-        if run.updates == 0 && run.replay.total_len() == 0 {
-            run.warm_start()?;
+        if self.updates == 0 && self.replay.total_len() == 0 {
+            self.warm_start()?;
         }
-        (self.t0, self.u0) = (std::time::Instant::now(), run.updates);
-        if !run.data.val.is_empty() && run.updates == 0 {
+        self.clock = Throughput::since(self.updates);
+        if !self.data.val.is_empty() && self.updates == 0 {
             // The untrained policy as the first point of the validation curve.
-            let m = run.validate()?;
+            let m = self.validate()?;
             log.log(0, &[("eval/val_metric", m as f64)])?;
         }
         Ok(())
     }
 
     fn finished(&self) -> bool {
-        self.run.updates >= self.run.cfg.total_updates
+        self.updates >= self.cfg.total_updates
     }
 
     fn cpu_before(&self) -> f64 {
-        self.run.cpu_s
+        self.cpu_s
     }
 
     fn counted(&mut self, cpu_s: f64) -> Option<(&'static str, f64)> {
-        self.run.cpu_s = cpu_s;
+        self.cpu_s = cpu_s;
         Some(("charts/cpu_s", cpu_s))
     }
 
     // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
     // times between the discriminator (+ encoder) and the policy.
     fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
-        let run = &mut *self.run;
-        let report = run.iteration(&mut |u| on(Progress::Steps(u)))?;
+        let report = self.iteration(&mut |u| on(Progress::Steps(u)))?;
         let (ds, ss, rm) = match report.last {
             Some((d, s, r)) => (d, Some(s), r),
             None => (DiscStats::default(), None, 0.0),
         };
-        let ups = (run.updates - self.u0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9);
-        let cfg = &run.cfg;
+        let ups = self.clock.per_s(self.updates);
+        let cfg = &self.cfg;
         let mut fields = vec![
             ("losses/disc_bce", ds.bce as f64),
             ("losses/disc_gp", ds.gp as f64),
@@ -96,39 +98,38 @@ impl Fit for SmileFit<'_> {
             ("charts/disc_acc_policy", ds.acc_policy as f64),
             ("charts/reward_mean", rm as f64),
             ("charts/sps", ups),
-            ("charts/env_steps", run.env_steps as f64),
+            ("charts/env_steps", self.env_steps as f64),
         ];
         if let Some(s) = &ss {
             fields.extend(s.fields());
         }
         if cfg.bc_weight > 0.0 {
             // The weight of the pair just done.
-            let w = cfg.bc_weight_at(run.updates.saturating_sub(1));
+            let w = cfg.bc_weight_at(self.updates.saturating_sub(1));
             fields.push(("charts/bc_weight", w as f64));
         }
         Ok(fields)
     }
 
     fn evaluate(&mut self) -> Result<Option<Evaluation>> {
-        let run = &mut *self.run;
-        if run.data.val.is_empty() {
+        if self.data.val.is_empty() {
             return Ok(None);
         }
-        let m = run.validate()?;
-        let keep = better(run.data.family.metric_kind(), m, run.best);
+        let m = self.validate()?;
+        let keep = better(self.data.family.metric_kind(), m, self.best);
         if keep {
-            run.best = m;
+            self.best = m;
         }
         Ok(Some(Evaluation {
             keep,
             fields: vec![
                 ("eval/val_metric", m as f64),
-                ("eval/val_best", run.best as f64),
+                ("eval/val_best", self.best as f64),
             ],
             progress: Progress::Eval {
-                step: run.updates,
+                step: self.updates,
                 metric: m,
-                best: run.best,
+                best: self.best,
                 val_mse: None,
             },
             stopped: false,
@@ -136,98 +137,56 @@ impl Fit for SmileFit<'_> {
     }
 
     fn save_checkpoint(&self, dir: &Path) -> Result<()> {
-        self.run.save_checkpoint(dir)
+        Smile::save_checkpoint(self, dir)
     }
 
     fn save_kept(&self, dir: &Path) -> Result<()> {
-        self.run
-            .meta_policy()
-            .save_marked(dir, Some(self.run.mark(false)))
+        self.meta_policy().save_marked(dir, Some(self.mark(false)))
     }
 
     fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
-        let replaces = self.run.data.val.is_empty();
-        finish_meta_policy(&self.run.meta_policy(), self.run.mark(true), dir, replaces)
+        let replaces = self.data.val.is_empty();
+        finish_meta_policy(&self.meta_policy(), self.mark(true), dir, replaces)
     }
 }
 
-impl MetaLearner for Smile {
-    type Config = SmileConfig;
-    const STEP_NAME: &'static str = "update pairs";
-    const STEP_WORD: &'static str = "update";
-    const RESUMABLE: &'static [&'static str] = &["total_updates", "cpu_budget_s"];
+impl MetaSettings for SmileConfig {
+    const EXTENDS: bool = true;
 
-    fn configure(cfg: &mut SmileConfig, algo: Algo, family: Family) {
-        cfg.env = family;
-        cfg.context.state_only = algo == Algo::SmileStateOnly;
+    fn configure(&mut self, algo: Algo, family: Family) {
+        self.env = family;
+        self.context.state_only = algo == Algo::SmileStateOnly;
     }
 
-    fn apply(cfg: &mut SmileConfig, _: Algo, o: &Overrides) -> Result<()> {
-        Overrides::set(&mut cfg.total_updates, &o.updates);
-        Overrides::set(&mut cfg.cpu_budget_s, &o.cpu_budget_s);
-        Overrides::set(&mut cfg.seed, &o.seed);
-        Overrides::set(&mut cfg.learner_threads, &o.learner_threads);
-        Overrides::set(&mut cfg.eval_every, &o.eval_every);
-        Overrides::set(&mut cfg.sac.hidden, &o.hidden);
-        Overrides::set(&mut cfg.disc_hidden, &o.hidden);
-        Overrides::set(&mut cfg.gp_weight, &o.gp_weight);
-        Overrides::set(&mut cfg.sac.reward_scale, &o.reward_scale);
-        Overrides::set(&mut cfg.bc_weight, &o.bc_weight);
-        Overrides::set(&mut cfg.physics, &o.physics);
+    fn apply(&mut self, _: Algo, o: &Overrides) -> Result<()> {
+        Overrides::set(&mut self.total_updates, &o.updates);
+        Overrides::set(&mut self.cpu_budget_s, &o.cpu_budget_s);
+        Overrides::set(&mut self.seed, &o.seed);
+        Overrides::set(&mut self.learner_threads, &o.learner_threads);
+        Overrides::set(&mut self.eval_every, &o.eval_every);
+        Overrides::set(&mut self.sac.hidden, &o.hidden);
+        Overrides::set(&mut self.disc_hidden, &o.hidden);
+        Overrides::set(&mut self.gp_weight, &o.gp_weight);
+        Overrides::set(&mut self.sac.reward_scale, &o.reward_scale);
+        Overrides::set(&mut self.bc_weight, &o.bc_weight);
+        Overrides::set(&mut self.physics, &o.physics);
         Ok(())
     }
 
-    fn budget(cfg: &SmileConfig) -> Option<Overrides> {
-        Some(Overrides {
-            updates: Some(cfg.total_updates),
-            cpu_budget_s: Some(cfg.cpu_budget_s),
+    fn budget(&self) -> Overrides {
+        Overrides {
+            updates: Some(self.total_updates),
+            cpu_budget_s: Some(self.cpu_budget_s),
             ..Overrides::default()
-        })
+        }
     }
 
-    fn validate(cfg: &SmileConfig) -> Result<()> {
-        cfg.validate()
+    fn validate(&self) -> Result<()> {
+        SmileConfig::validate(self)
     }
 
-    fn holdout_every(cfg: &SmileConfig) -> usize {
-        cfg.holdout_every
-    }
-
-    fn start(cfg: SmileConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
-        refuse_expert(cfg.algo_name(), expert.is_some())?;
-        Smile::new(cfg, data)
-    }
-
-    fn resume_from(
-        dir: &Path,
-        data: MetaData,
-        expert: Option<ExpertSet>,
-        wanted: &SmileConfig,
-    ) -> Result<Self> {
-        refuse_expert("smile", expert.is_some())?;
-        let mut run = Smile::resume(dir, data, Some(wanted.total_updates))?;
-        run.set_cpu_budget(wanted.cpu_budget_s)?;
-        Ok(run)
-    }
-
-    fn settings(&self) -> &SmileConfig {
-        self.config()
-    }
-
-    fn total(&self) -> u64 {
-        self.config().total_updates
-    }
-
-    fn done(&self) -> u64 {
-        self.updates()
-    }
-
-    fn run(&mut self, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
-        crate::algo::smile::train(self, dir, on)
-    }
-
-    fn policy(&self) -> MetaPolicy {
-        self.meta_policy()
+    fn holdout_every(&self) -> usize {
+        self.holdout_every
     }
 }
 
