@@ -701,3 +701,26 @@ fn values_a_flag_refuses_are_refused_from_files_and_every_command() {
     assert!(e.contains("--quant w8a8") && e.contains("float32"), "{e}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 72, item 6: a context size beyond the demos a task has is refused by name, not
+/// measured at the demos' count and recorded as the size asked for.
+#[test]
+fn context_sizes_beyond_the_demos_given_are_refused() {
+    let (dir, test, run) = with_tiny_bc("context-sizes");
+    let ev = dir.join("eval");
+    let mut args = eval_args(&run, &test, &ev);
+    args.extend_from_slice(&["--context-sizes", "1,50"]);
+    let e = err_of(&smile(&args));
+    assert!(
+        e.contains("--context-sizes") && e.contains("context size 50") && e.contains("(1)"),
+        "{e}"
+    );
+    assert!(!ev.join("eval.json").exists());
+    // The sizes the demos hold are measured and recorded as such.
+    let mut args = eval_args(&run, &test, &ev);
+    args.extend_from_slice(&["--context-sizes", "1"]);
+    ok(&smile(&args));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(ev.join("eval.json")).unwrap()).unwrap();
+    assert_eq!(report["protocol"]["context_sizes"], serde_json::json!([1]));
+}

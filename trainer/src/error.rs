@@ -251,6 +251,8 @@ pub enum Input {
     Output,
     /// Continuing a run rather than starting one.
     Resume,
+    /// How many demos each evaluated context holds.
+    ContextSizes,
 }
 
 impl Input {
@@ -269,6 +271,7 @@ impl Input {
             Input::WalkerProtocol => "the walker authors' protocol",
             Input::Output => "the output",
             Input::Resume => "resuming",
+            Input::ContextSizes => "the context sizes",
         }
     }
 }

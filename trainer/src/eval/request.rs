@@ -120,7 +120,19 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
         true => ctx.tasks.iter().map(|t| t.task).collect(),
         false => family.tasks(req.split),
     };
-    super::contexts_for(&ctx, family, &tasks).map_err(|e| in_contexts(&e))?;
+    let demos = super::contexts_for(&ctx, family, &tasks).map_err(|e| in_contexts(&e))?;
+    let fewest = demos
+        .iter()
+        .map(|td| td.trajectories.len())
+        .min()
+        .unwrap_or(0);
+    fit_context_sizes(
+        &mut protocol,
+        fewest,
+        !req.context_sizes.is_empty(),
+        req,
+        on,
+    )?;
     let references = match &req.base {
         Some(base) => Some(References::load(family, base, &req.experts)?),
         None => None,
@@ -185,6 +197,46 @@ fn check_contexts(req: &EvalRequest, ctx: &sim::DemoDataset) -> Result<()> {
             ),
         ));
     }
+    Ok(())
+}
+
+/// The context sizes measured are the ones recorded: a size given (`given`) beyond the
+/// `fewest` demos a task has in the contexts file is refused, naming both; the family's
+/// default sizes beyond it are left out, with a note (a context draws without repeats, so a
+/// size-50 context of 3 demos would be a size-3 one recorded as 50).
+fn fit_context_sizes(
+    protocol: &mut Protocol,
+    fewest: usize,
+    given: bool,
+    req: &EvalRequest,
+    on: &mut dyn FnMut(EvalEvent),
+) -> Result<()> {
+    let beyond: Vec<usize> = (protocol.context_sizes.iter())
+        .copied()
+        .filter(|&k| k > fewest)
+        .collect();
+    if beyond.is_empty() {
+        return Ok(());
+    }
+    let file = req.contexts.display();
+    if given {
+        return Err(Error::input(
+            Input::ContextSizes,
+            format!(
+                "context size {} is more demos than the contexts {file} hold for some task                  ({fewest}); give sizes up to {fewest}, or contexts with more demos per task",
+                beyond[0]
+            ),
+        ));
+    }
+    protocol.context_sizes.retain(|&k| k <= fewest);
+    if protocol.context_sizes.is_empty() {
+        protocol.context_sizes.push(fewest.max(1));
+    }
+    on(EvalEvent::Note(format!(
+        "the contexts {file} hold {fewest} demos for some task: context sizes {beyond:?} of \
+         the family's protocol left out, measuring {:?}",
+        protocol.context_sizes
+    )));
     Ok(())
 }
 
@@ -357,15 +409,45 @@ fn note_normalised(report: &EvalReport, on: &mut dyn FnMut(EvalEvent)) {
     }
 }
 
-/// `eval.md`, `eval.svg`, then `eval.json` (last: a sweep counts a cell done by it, so it
-/// must mean the rest was written), each atomically.
+/// The files of an evaluation, `eval.json` last: a sweep counts a cell done by it, and `smile
+/// report` reads it, so it must mean the rest was written.
+pub(crate) const REPORT_FILES: [&str; 3] = ["eval.md", "eval.svg", "eval.json"];
+
+/// Writes `eval.md`, `eval.svg` and `eval.json` to `out`, replacing an earlier evaluation's
+/// without ever leaving the old `eval.json` beside new files: all three are staged first (a
+/// full disk fails here, the old evaluation untouched and the staged files removed), then the
+/// old `eval.json` goes, then the new files land, `eval.json` last. A kill part way leaves no
+/// `eval.json` (no numbers to report), never the old numbers beside the new pictures.
 pub fn write_report(report: &EvalReport, out: &Path) -> Result<()> {
-    let write = crate::io::checkpoint::write_atomic;
-    write(&out.join("eval.md"), report.markdown().as_bytes())?;
-    report.plot_svg(&out.join("eval.svg"))?;
-    let json = serde_json::to_string_pretty(report).map_err(|e| Error::Serialise {
-        what: "eval.json",
-        reason: e.to_string(),
-    })?;
-    write(&out.join("eval.json"), json.as_bytes())
+    let staged = |name: &str| out.join(format!(".{name}.staged"));
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |e| Error::Io { path, source: e }
+    };
+    let stage = || -> Result<()> {
+        let write = crate::io::checkpoint::write_atomic;
+        write(&staged("eval.md"), report.markdown().as_bytes())?;
+        report.plot_svg(&staged("eval.svg"))?;
+        let json = serde_json::to_string_pretty(report).map_err(|e| Error::Serialise {
+            what: "eval.json",
+            reason: e.to_string(),
+        })?;
+        write(&staged("eval.json"), json.as_bytes())
+    };
+    if let Err(e) = stage() {
+        for name in REPORT_FILES {
+            let _ = std::fs::remove_file(staged(name));
+        }
+        return Err(e);
+    }
+    let json = out.join("eval.json");
+    match std::fs::remove_file(&json) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&json)(e)),
+        _ => {}
+    }
+    for name in REPORT_FILES {
+        let to = out.join(name);
+        std::fs::rename(staged(name), &to).map_err(io(&to))?;
+    }
+    Ok(())
 }

@@ -1,5 +1,6 @@
 //! The normalised metric (pure function and report plumbing).
 
+use super::request::REPORT_FILES;
 use super::*;
 
 #[test]
@@ -274,4 +275,62 @@ fn the_authors_walker_protocol_runs_through_falls() {
         .unwrap_err()
         .to_string();
     assert!(err.contains("no falls to run through"), "{err}");
+}
+
+/// A one-method walker report whose mean is `mean`.
+fn report_with_mean(mean: f32) -> EvalReport {
+    let method = MethodResult {
+        name: "m".into(),
+        tasks: vec![task(0.0, mean)],
+        mean,
+        std_over_tasks: 0.0,
+        episode_mean: mean,
+        episode_std: 0.0,
+        by_context_size: vec![mean],
+        no_op_rate: None,
+        no_op_by_context_size: None,
+        normalised: None,
+    };
+    let family = Family::WalkerDyn;
+    EvalReport::new(
+        family,
+        Split::Test,
+        Protocol::for_family(family),
+        vec![method],
+    )
+}
+
+#[test]
+fn an_evaluation_that_fails_to_write_leaves_the_older_one_whole() {
+    let dir = std::env::temp_dir().join(format!("smile-eval-write-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.as_path();
+    write_report(&report_with_mean(1.0), out).unwrap();
+    let read = |f: &str| std::fs::read(out.join(f)).unwrap();
+    let old: Vec<Vec<u8>> = REPORT_FILES.iter().map(|f| read(f)).collect();
+    // The picture cannot be written (a directory where its staged file goes), as a full disk
+    // would fail it: the new markdown is already written by then.
+    std::fs::create_dir(out.join(".eval.svg.staged")).unwrap();
+    assert!(write_report(&report_with_mean(2.0), out).is_err());
+    let now: Vec<Vec<u8>> = REPORT_FILES.iter().map(|f| read(f)).collect();
+    assert_eq!(now, old, "the older evaluation's files are untouched");
+    assert!(
+        !out.join(".eval.md.staged").exists(),
+        "nothing staged is left"
+    );
+    // Once it can write, the new evaluation replaces all three.
+    std::fs::remove_dir(out.join(".eval.svg.staged")).unwrap();
+    write_report(&report_with_mean(2.0), out).unwrap();
+    let back: EvalReport = serde_json::from_slice(&read("eval.json")).unwrap();
+    assert_eq!(back.methods[0].mean, 2.0);
+    for (f, was) in REPORT_FILES.iter().zip(&old) {
+        assert_ne!(&read(f), was, "{f} is the new evaluation's");
+    }
+    let names: Vec<String> = std::fs::read_dir(out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.ends_with(".staged")), "{names:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -45,6 +45,7 @@ fn flag(input: trainer::Input) -> Option<&'static str> {
         Input::WalkerProtocol => "--walker-protocol",
         Input::Output => "-o",
         Input::Resume => "--resume",
+        Input::ContextSizes => "--context-sizes",
         _ => return None,
     })
 }
