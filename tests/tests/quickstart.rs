@@ -42,6 +42,16 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
             out.join(policy).join("metrics.jsonl").exists(),
             "{policy} has no metrics log"
         );
+        // Trained by the one run driver, as `smile train --config` would: its record names
+        // the algorithm and the demos, so `smile train --resume -o DIR` continues it.
+        let info: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join(policy).join("run.json")).unwrap(),
+        )
+        .unwrap();
+        assert_eq!(info["algo"], policy, "{info}");
+        assert!(info["demos_sha256"].is_string(), "{info}");
+        assert!(out.join(format!("{policy}.toml")).exists());
+        assert!(out.join(policy).join("checkpoint.safetensors").exists());
     }
 
     // The blob loads in infer-core and is the size the summary reports.
