@@ -268,6 +268,7 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
     let manifest = DeployManifest::read(dir)?;
     let mut mp = MetaPolicy::load(dir)?;
     MetaPolicy::ensure_finished(dir, false)?;
+    let shipped = shipped_blob(dir, &mp)?;
     let family = mp.family;
     let train = demos_at(dir, &manifest.demos, trainer::Input::Demos)?;
     let (test, tasks) = tasks_measured(dir, &manifest, config, family)?;
@@ -295,8 +296,8 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
     on(format!("{}: float {float:.4}", dir.display()));
     let tuned = fine_tuned(&mp, &train, &manifest, on)?;
     let blobs = blob_columns(
-        &mp,
-        tuned.as_ref(),
+        (&mp, tuned.as_ref()),
+        &shipped,
         &train,
         &mut |actor| Ok(cell(family, &float_tasks, &host(actor, "blob")?)),
         on,
@@ -344,11 +345,48 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
     })
 }
 
+/// The shipped blob beside a shipped policy (`dir/policy.blob`), the one the table's deployed
+/// column measures: read, checked against the folder's `SHA256SUMS`, loaded, and of the
+/// policy's shape; refused otherwise, naming the file.
+fn shipped_blob(dir: &Path, mp: &MetaPolicy) -> Result<Vec<u8>> {
+    let path = dir.join(BLOB_FILE);
+    let blob = std::fs::read(&path).map_err(|e| {
+        Error::Usage(format!(
+            "{}: {e}; a shipped policy's table measures its shipped blob (make it with `smile \
+             export --policy {} --quant w8a8 --demos <meta-train demos> -o {}`)",
+            path.display(),
+            dir.display(),
+            path.display()
+        ))
+    })?;
+    sim::check_shipped_bytes(&path, &blob)?;
+    let bad = |why: String| Error::Usage(format!("{}: {why}", path.display()));
+    let h = *export::load_blob(&blob)
+        .map_err(|e| bad(e.to_string()))?
+        .header();
+    let family = mp.family;
+    if (h.obs_dim as usize, h.act_dim as usize) != (family.obs_dim(), family.act_dim()) {
+        return Err(bad(format!(
+            "a blob of observation {} and action {} values, not of this {family} policy ({} \
+             and {})",
+            h.obs_dim,
+            h.act_dim,
+            family.obs_dim(),
+            family.act_dim()
+        )));
+    }
+    Ok(blob)
+}
+
+/// The shipped blob's file name in a shipped policy's folder.
+const BLOB_FILE: &str = "policy.blob";
+
 /// The blobs of [`BLOB_COLUMNS`], each with its column as `score` measures it; the int8 ones
-/// from `tuned` when the manifest fine-tunes, the f32 blob always from `mp` as trained.
+/// from `tuned` when the manifest fine-tunes, the f32 blob always from `mp` as trained, and
+/// the deployed one the `shipped` blob (a fresh export that differs from it is said).
 fn blob_columns(
-    mp: &MetaPolicy,
-    tuned: Option<&MetaPolicy>,
+    (mp, tuned): (&MetaPolicy, Option<&MetaPolicy>),
+    shipped: &[u8],
     train: &DemoDataset,
     score: &mut dyn FnMut(&mut dyn eval::ConditionedActor) -> Result<Cell>,
     on: &mut dyn FnMut(String),
@@ -368,7 +406,18 @@ fn blob_columns(
             (W8A32 | W8A8, Some(tuned)) => tuned,
             _ => mp,
         };
-        let blob = export::export_blob_with(source, quant, Some(train), None, &options)?;
+        let mut blob = export::export_blob_with(source, quant, Some(train), None, &options)?;
+        if i == BLOB_COLUMNS.len() - 1 {
+            if blob != shipped {
+                on(format!(
+                    "  note: the shipped {BLOB_FILE} ({} B) is not a fresh export of the policy \
+                     ({} B, this build's exporter); the table measures the shipped one",
+                    shipped.len(),
+                    blob.len()
+                ));
+            }
+            blob = shipped.to_vec();
+        }
         let column = score(&mut BlobActor::new(&export::load_blob(&blob)?)?)?;
         on(format!(
             "  {} blob ({} B): {:.4} ({:+.1}% +- {:.1})",

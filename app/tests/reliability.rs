@@ -724,3 +724,44 @@ fn context_sizes_beyond_the_demos_given_are_refused() {
         serde_json::from_str(&std::fs::read_to_string(ev.join("eval.json")).unwrap()).unwrap();
     assert_eq!(report["protocol"]["context_sizes"], serde_json::json!([1]));
 }
+
+/// Issue 72, item 5: `smile device-table` measures the shipped blob or refuses, naming it: a
+/// missing, changed or foreign `policy.blob` never gives a table.
+#[test]
+fn device_table_refuses_a_shipped_blob_that_is_not_the_one_shipped() {
+    let dir = tmp("shipped-blob");
+    let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/policies/point-goal-rapier-smile");
+    let policy = dir.join("point-goal-rapier-smile");
+    std::fs::create_dir_all(&policy).unwrap();
+    for e in std::fs::read_dir(&src).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, policy.join(p.file_name().unwrap())).unwrap();
+    }
+    let blob = policy.join("policy.blob");
+    let table = |out: &str| smile(&["device-table", s(&policy), "-o", s(&dir.join(out))]);
+    // A changed byte.
+    let mut bytes = std::fs::read(&blob).unwrap();
+    let n = bytes.len() - 1;
+    bytes[n] ^= 0x01;
+    std::fs::write(&blob, &bytes).unwrap();
+    let e = err_of(&table("t1"));
+    assert!(e.contains("policy.blob") && e.contains("SHA256SUMS"), "{e}");
+    // Missing.
+    std::fs::remove_file(&blob).unwrap();
+    let e = err_of(&table("t2"));
+    assert!(
+        e.contains("policy.blob") && e.contains("smile export"),
+        "{e}"
+    );
+    // Another family's blob, its checksum list written again to pass (a foreign blob).
+    let other = src.join("../cheetah-vel-rapier-meta-bc/policy.blob");
+    std::fs::copy(&other, &blob).unwrap();
+    std::fs::remove_file(policy.join("SHA256SUMS")).unwrap();
+    let e = err_of(&table("t3"));
+    assert!(
+        e.contains("policy.blob") && e.contains("not of this point-goal policy"),
+        "{e}"
+    );
+    assert!(!dir.join("t3").join("device-table.json").exists());
+}

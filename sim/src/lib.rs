@@ -53,6 +53,7 @@ mod robots;
 pub mod seeds;
 mod sensing;
 mod sensor;
+mod shipped;
 mod spec;
 mod task;
 mod walker_dyn;
@@ -78,6 +79,7 @@ pub use point_goal::{PointGoalEnv, PointGoalPdExpert};
 pub use render::Frame;
 pub use sensing::ObsComponent;
 pub use sensor::{Sensor, SensorModel, SensorModelError, adc_lsb};
+pub use shipped::{IntegrityError, SUMS_FILE, check_shipped, check_shipped_bytes, shipped_sha256};
 pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
     GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, WALKER_NOMINAL_SEED,

@@ -128,3 +128,91 @@ fn each_shipped_blob_runs_on_the_device_against_its_plant() {
     }
     assert!(ran > 0, "no shipped policy of this build's plants ran");
 }
+
+/// Every folder of shipped files under `assets/` that lists checksums (issue 72, item 5).
+fn checksum_lists() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.file_name() == Some(std::ffi::OsStr::new(sim::SUMS_FILE)) {
+                out.push(p);
+            }
+        }
+    }
+    let mut lists = Vec::new();
+    walk(
+        &Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets"),
+        &mut lists,
+    );
+    lists
+}
+
+#[test]
+fn every_shipped_file_is_the_one_its_folder_lists() {
+    let lists = checksum_lists();
+    // Each expert, each policy, and assets/policies' own demo files.
+    assert!(lists.len() >= 30, "{lists:?}");
+    let mut files = 0;
+    for list in &lists {
+        let dir = list.parent().unwrap();
+        for line in std::fs::read_to_string(list).unwrap().lines() {
+            let name = line.split_once("  ").unwrap().1;
+            assert!(
+                sim::check_shipped(&dir.join(name)).unwrap(),
+                "{}: {name} not checked",
+                list.display()
+            );
+            files += 1;
+        }
+    }
+    assert!(files > 200, "{files} files listed");
+    for dir in shipped() {
+        for f in ["meta_policy.safetensors", "policy.blob", "deploy.toml"] {
+            assert!(
+                sim::shipped_sha256(&dir.join(f)).unwrap().is_some(),
+                "{}: {f} is not in its {}",
+                dir.display(),
+                sim::SUMS_FILE
+            );
+        }
+    }
+}
+
+#[test]
+fn a_changed_byte_in_a_shipped_file_is_refused_on_load_naming_the_file() {
+    let src = &shipped()[0];
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("policy");
+    std::fs::create_dir(&dir).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dir.join(p.file_name().unwrap())).unwrap();
+    }
+    // As shipped, the copy loads.
+    MetaPolicy::load(&dir).unwrap();
+    let file = dir.join("meta_policy.safetensors");
+    let mut bytes = std::fs::read(&file).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x01; // a weight's lowest bit: a valid file, another policy
+    std::fs::write(&file, &bytes).unwrap();
+    let e = MetaPolicy::load(&dir).unwrap_err().to_string();
+    assert!(
+        e.contains("meta_policy.safetensors") && e.contains(sim::SUMS_FILE),
+        "{e}"
+    );
+    // Demo files are checked the same way on read.
+    let demos = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/policies");
+    let name = "point-goal-demos-test.safetensors";
+    let copy = tmp.path().join(name);
+    std::fs::copy(demos.join(name), &copy).unwrap();
+    std::fs::copy(demos.join(sim::SUMS_FILE), tmp.path().join(sim::SUMS_FILE)).unwrap();
+    DemoDataset::read(&copy).unwrap();
+    let mut bytes = std::fs::read(&copy).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0x01;
+    std::fs::write(&copy, &bytes).unwrap();
+    let e = DemoDataset::read(&copy).unwrap_err().to_string();
+    assert!(e.contains(name) && e.contains(sim::SUMS_FILE), "{e}");
+}

@@ -175,6 +175,9 @@ pub enum Error {
     #[error("dataset: {0}")]
     Dataset(#[from] sim::DatasetError),
 
+    /// A shipped file (listed in its folder's `SHA256SUMS`) that is not the one shipped.
+    #[error(transparent)]
+    Integrity(#[from] sim::IntegrityError),
     /// An export report (`<blob>.json`) that cannot be read or written.
     #[error("{0}")]
     Report(#[from] sim::ReportError),

@@ -19,6 +19,9 @@ pub enum DatasetError {
         /// The I/O error.
         source: std::io::Error,
     },
+    /// A shipped file whose bytes are not the ones its folder's checksum list names.
+    #[error(transparent)]
+    Integrity(#[from] crate::shipped::IntegrityError),
     /// The file is shorter than its header says (e.g. an interrupted copy).
     #[error("truncated demo file: {expected} bytes expected, {got} present")]
     Truncated {

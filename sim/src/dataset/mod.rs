@@ -576,6 +576,7 @@ impl DemoDataset {
             path: path.display().to_string(),
             source,
         })?;
+        crate::shipped::check_shipped_bytes(path, &bytes)?;
         Self::from_bytes(&bytes)
     }
 }

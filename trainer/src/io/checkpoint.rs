@@ -258,6 +258,8 @@ pub fn load(dir: &Path) -> Result<Loaded> {
         dir.to_path_buf()
     };
     let bytes = std::fs::read(&path).map_err(|e| ckpt_err(&path, e.to_string()))?;
+    // A shipped policy (its folder lists its SHA-256) must be the file shipped.
+    sim::check_shipped_bytes(&path, &bytes)?;
     let st = SafeTensors::deserialize(&bytes)
         .map_err(|e| ckpt_err(&path, format!("not a valid safetensors file: {e}")))?;
     let (_, header) = SafeTensors::read_metadata(&bytes)

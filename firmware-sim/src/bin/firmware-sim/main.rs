@@ -503,9 +503,12 @@ fn write_trace(out: &std::path::Path, report: &firmware_sim::RunReport, z: &[f32
 }
 
 /// Reads `--blob` and checks it is a whole, valid policy blob before the link sees it (a
-/// truncated file would otherwise be "device refused message N: BadBlob").
+/// truncated file would otherwise be "device refused message N: BadBlob"), and the one shipped
+/// where its folder lists checksums.
 fn read_blob(path: &std::path::Path) -> Result<Vec<u8>> {
     let blob = std::fs::read(path).with_context(|| format!("reading --blob {}", path.display()))?;
+    // A shipped blob (its folder lists its SHA-256) must be the one shipped.
+    sim::check_shipped_bytes(path, &blob).with_context(|| format!("--blob {}", path.display()))?;
     if let Err(e) = infer_core::Model::from_bytes(&blob) {
         bail!(
             "--blob {} is not a valid policy blob ({e}); export it again with `smile export`",
