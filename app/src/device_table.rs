@@ -235,6 +235,17 @@ fn tasks_measured(
             path.display()
         )));
     }
+    // Tasks the policy was meta-trained on are not new: measured there, a row would report
+    // its training fit as generalisation.
+    let trained = family.train_tasks();
+    if let Some(t) = demos.tasks.iter().find(|t| trained.contains(&t.task)) {
+        return Err(Error::Data(format!(
+            "the new tasks' demos {} hold {}, a meta-train task of {family}: new tasks must be \
+             ones the policy never trained on (`smile demos --task-params`)",
+            path.display(),
+            t.task.label()
+        )));
+    }
     let tasks = demos.tasks.iter().map(|t| t.task).collect();
     Ok((demos, tasks))
 }
@@ -271,6 +282,17 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
     let shipped = shipped_blob(dir, &mp)?;
     let family = mp.family;
     let train = demos_at(dir, &manifest.demos, trainer::Input::Demos)?;
+    if train.split != sim::Split::Train {
+        // As `smile export --demos` refuses: int8 scales calibrated on the tasks the table
+        // then measures would fit the test.
+        return Err(Error::Data(format!(
+            "{} names {} as the calibration demos (`demos`), but they hold {} demos: give the \
+             policy's meta-train demos",
+            dir.join(MANIFEST_FILE).display(),
+            manifest.demos.display(),
+            train.split
+        )));
+    }
     let (test, tasks) = tasks_measured(dir, &manifest, config, family)?;
     let mut protocol = Protocol::for_family(family);
     protocol.context_sizes = vec![1];

@@ -765,3 +765,46 @@ fn device_table_refuses_a_shipped_blob_that_is_not_the_one_shipped() {
     );
     assert!(!dir.join("t3").join("device-table.json").exists());
 }
+
+/// Issue 72, item 6: `smile device-table` measures new tasks only on tasks the policy never
+/// trained on, and calibrates only on meta-train demos.
+#[test]
+fn device_table_refuses_train_tasks_as_new_and_test_demos_as_calibration() {
+    let dir = tmp("device-table-inputs");
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/policies");
+    let shipped = assets.join("point-goal-rapier-smile");
+    let train = assets.join("point-goal-demos-train.safetensors");
+    let out = dir.join("t");
+    let e = err_of(&smile(&[
+        "device-table",
+        s(&shipped),
+        "--new-tasks",
+        s(&train),
+        "-o",
+        s(&out),
+    ]));
+    assert!(
+        e.contains("meta-train task") && e.contains("point-goal-demos-train"),
+        "{e}"
+    );
+    // A copy whose deploy.toml calibrates on the test demos.
+    let policy = dir.join("pg");
+    std::fs::create_dir_all(&policy).unwrap();
+    for e in std::fs::read_dir(&shipped).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, policy.join(p.file_name().unwrap())).unwrap();
+    }
+    let test = assets.join("point-goal-demos-test.safetensors");
+    let manifest = format!(
+        "method = \"SMILe\"\ndemos = {:?}\ncontexts = {:?}\n",
+        s(&test),
+        s(&test)
+    );
+    std::fs::write(policy.join("deploy.toml"), manifest).unwrap();
+    let e = err_of(&smile(&["device-table", s(&policy), "-o", s(&out)]));
+    assert!(
+        e.contains("deploy.toml") && e.contains("calibration") && e.contains("test demos"),
+        "{e}"
+    );
+    assert!(!out.join("device-table.json").exists());
+}
