@@ -224,7 +224,8 @@ fn train_eval_export_and_refuse_meta_test_data() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// Makes the trained `policy` a shipped one: its `deploy.toml` naming the demos.
+/// Makes the trained `policy` a shipped one: its `deploy.toml` naming the demos, and its
+/// deployed w8a8 blob exported beside it.
 fn ship(policy: &std::path::Path, train: &std::path::Path, test: &std::path::Path) {
     let manifest = format!(
         "method = \"Meta-BC\"\ndemos = {:?}\ncontexts = {:?}\n",
@@ -232,6 +233,15 @@ fn ship(policy: &std::path::Path, train: &std::path::Path, test: &std::path::Pat
         common::s(test)
     );
     std::fs::write(policy.join("deploy.toml"), manifest).unwrap();
+    // The deployed blob the table measures, as `smile export` ships it.
+    let blob = policy.join("policy.blob");
+    ok(&smile(
+        &[
+            &common::export_args(policy, "w8a8", test)[..],
+            &["--demos", common::s(train), "-o", common::s(&blob)],
+        ]
+        .concat(),
+    ));
 }
 
 /// Demos of the point-goal goals `angles` (comma separated), `per_task` each, by the scripted

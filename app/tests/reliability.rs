@@ -733,11 +733,7 @@ fn device_table_refuses_a_shipped_blob_that_is_not_the_one_shipped() {
     let src = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../assets/policies/point-goal-rapier-smile");
     let policy = dir.join("point-goal-rapier-smile");
-    std::fs::create_dir_all(&policy).unwrap();
-    for e in std::fs::read_dir(&src).unwrap() {
-        let p = e.unwrap().path();
-        std::fs::copy(&p, policy.join(p.file_name().unwrap())).unwrap();
-    }
+    copy_files(&src, &policy);
     let blob = policy.join("policy.blob");
     let table = |out: &str| smile(&["device-table", s(&policy), "-o", s(&dir.join(out))]);
     // A changed byte.
@@ -789,11 +785,7 @@ fn device_table_refuses_train_tasks_as_new_and_test_demos_as_calibration() {
     );
     // A copy whose deploy.toml calibrates on the test demos.
     let policy = dir.join("pg");
-    std::fs::create_dir_all(&policy).unwrap();
-    for e in std::fs::read_dir(&shipped).unwrap() {
-        let p = e.unwrap().path();
-        std::fs::copy(&p, policy.join(p.file_name().unwrap())).unwrap();
-    }
+    copy_files(&shipped, &policy);
     let test = assets.join("point-goal-demos-test.safetensors");
     let manifest = format!(
         "method = \"SMILe\"\ndemos = {:?}\ncontexts = {:?}\n",
@@ -807,4 +799,13 @@ fn device_table_refuses_train_tasks_as_new_and_test_demos_as_calibration() {
         "{e}"
     );
     assert!(!out.join("device-table.json").exists());
+}
+
+/// Copies the files of the folder `src` into a new folder `dst`.
+fn copy_files(src: &Path, dst: &Path) {
+    std::fs::create_dir_all(dst).unwrap();
+    for e in std::fs::read_dir(src).unwrap() {
+        let p = e.unwrap().path();
+        std::fs::copy(&p, dst.join(p.file_name().unwrap())).unwrap();
+    }
 }

@@ -15,6 +15,43 @@ pub fn temp_sibling(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
+/// Removes the temporary siblings of `path` ([`temp_sibling`]) that writers killed part way
+/// left behind: a kill -9 runs no clean-up, so the next write of the same file does it. Only
+/// those whose process is gone (no `/proc/<pid>`; where the OS has no `/proc`, none) go: a
+/// live writer's temporary is never touched. Errors are ignored, the write goes on.
+fn remove_dead_siblings(path: &Path) {
+    let (Some(dir), Some(name)) = (path.parent(), path.file_name()) else {
+        return;
+    };
+    let proc = Path::new("/proc");
+    if !proc.join("self").exists() {
+        return;
+    }
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file = e.file_name();
+        let file = file.to_string_lossy();
+        let Some(pid) = file
+            .strip_prefix(&prefix)
+            .and_then(|rest| rest.strip_suffix(".tmp"))
+            .and_then(|pid| pid.parse::<u32>().ok())
+        else {
+            continue;
+        };
+        if pid != std::process::id() && !proc.join(pid.to_string()).exists() {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
+}
+
 /// Writes `bytes` to `path` through a temporary sibling, `fsync` and a rename. On any failure
 /// the temporary is removed and `path` is untouched.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
@@ -26,6 +63,7 @@ pub fn write_atomic_with(
     path: &Path,
     fill: impl FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
+    remove_dead_siblings(path);
     let tmp = temp_sibling(path);
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
@@ -94,6 +132,36 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[cfg(unix)]
+    #[test]
+    fn a_write_removes_the_temporaries_of_killed_writers_and_keeps_live_ones() {
+        let dir = std::env::temp_dir().join(format!("sim-fsio-dead-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        let target = dir.join("policy.blob");
+        // A pid no process has (above Linux's pid_max of 4194304), and this live process's.
+        let dead = dir.join(".policy.blob.4294967295.tmp");
+        // This process's own temporary is the write's, renamed into place.
+        let own = dir.join(format!(".policy.blob.{}.tmp", std::process::id()));
+        let parent = dir.join(format!(
+            ".policy.blob.{}.tmp",
+            std::os::unix::process::parent_id()
+        ));
+        let other = dir.join(".other.blob.4294967295.tmp");
+        for f in [&dead, &parent, &other] {
+            std::fs::write(f, b"partial").unwrap();
+        }
+        write_atomic(&target, b"new").unwrap();
+        assert_eq!(std::fs::read(&target).unwrap(), b"new");
+        if Path::new("/proc/self").exists() {
+            assert!(!dead.exists(), "a killed writer's temporary is removed");
+        }
+        assert!(parent.exists(), "a live writer's temporary stays");
+        assert!(other.exists(), "another file's temporary stays");
+        assert!(!own.exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 
     #[test]
     fn replaces_and_leaves_no_temporary_on_failure() {
