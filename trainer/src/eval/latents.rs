@@ -100,10 +100,41 @@ pub fn write_csv(rows: &[LatentRow], path: &Path) -> Result<()> {
 /// Leave-one-task-out R^2 of the linear probe, one value per parameter dimension, from the
 /// rows (of one context size, typically). Tasks are told apart by their value.
 pub fn probe_r2(rows: &[LatentRow]) -> Result<Vec<f64>> {
+    let predicted = probe_predictions(rows)?;
+    let pd = predicted.first().map_or(0, Vec::len);
+    let n = rows.len() as f64;
+    Ok((0..pd)
+        .map(|p| {
+            let m = rows.iter().map(|r| r.parameter[p] as f64).sum::<f64>() / n;
+            let (mut sse, mut sst) = (0.0f64, 0.0f64);
+            for (r, guess) in rows.iter().zip(&predicted) {
+                sse += (r.parameter[p] as f64 - guess[p]).powi(2);
+                sst += (r.parameter[p] as f64 - m).powi(2);
+            }
+            if sst > 0.0 { 1.0 - sse / sst } else { f64::NAN }
+        })
+        .collect())
+}
+
+/// The linear probe's out-of-sample prediction of every row's task parameter: row `i`'s comes
+/// from the ridge fitted on the rows of every other task (leave one task out), in row order.
+/// Errors on fewer than 3 tasks.
+pub fn probe_predictions(rows: &[LatentRow]) -> Result<Vec<Vec<f64>>> {
     let Some(first) = rows.first() else {
         return Err(Error::Data("the probe needs rows".into()));
     };
     let (zd, pd) = (first.z.len(), first.parameter.len());
+    if let Some(bad) = rows
+        .iter()
+        .find(|r| r.z.len() != zd || r.parameter.len() != pd)
+    {
+        return Err(Error::Shape(format!(
+            "the probe's rows disagree: z {} and parameter {} against {zd} and {pd} (task {})",
+            bad.z.len(),
+            bad.parameter.len(),
+            bad.task
+        )));
+    }
     let mut values: Vec<f64> = rows.iter().map(|r| r.value).collect();
     values.sort_by(f64::total_cmp);
     values.dedup();
@@ -133,33 +164,21 @@ pub fn probe_r2(rows: &[LatentRow]) -> Result<Vec<f64>> {
         f.push(1.0);
         f
     };
-    let mut sse = vec![0.0f64; pd];
+    let mut predicted = vec![Vec::new(); rows.len()];
     for held in &values {
-        let (train, test): (Vec<&LatentRow>, Vec<&LatentRow>) =
-            rows.iter().partition(|r| r.value != *held);
+        let train: Vec<&LatentRow> = rows.iter().filter(|r| r.value != *held).collect();
         let beta = ridge_fit(&train, &features, pd, zd + 1)?;
-        for r in test {
-            let f = features(r);
-            for (p, b) in beta.iter().enumerate() {
-                let predicted: f64 = f.iter().zip(b).map(|(x, w)| x * w).sum();
-                sse[p] += (r.parameter[p] as f64 - predicted).powi(2);
+        for (r, out) in rows.iter().zip(predicted.iter_mut()) {
+            if r.value == *held {
+                let f = features(r);
+                *out = beta
+                    .iter()
+                    .map(|b| f.iter().zip(b).map(|(x, w)| x * w).sum())
+                    .collect();
             }
         }
     }
-    Ok((0..pd)
-        .map(|p| {
-            let m = rows.iter().map(|r| r.parameter[p] as f64).sum::<f64>() / n;
-            let sst: f64 = rows
-                .iter()
-                .map(|r| (r.parameter[p] as f64 - m).powi(2))
-                .sum();
-            if sst > 0.0 {
-                1.0 - sse[p] / sst
-            } else {
-                f64::NAN
-            }
-        })
-        .collect())
+    Ok(predicted)
 }
 
 /// Per parameter dimension, the weights of `parameter ~ features` by ridge least squares.

@@ -538,6 +538,7 @@ pub fn render_episode(
 
 pub mod blob;
 pub mod latents;
+pub mod linclass;
 pub mod norm;
 mod request;
 mod show;

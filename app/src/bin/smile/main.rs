@@ -16,6 +16,7 @@ mod expert;
 mod export;
 mod flags;
 mod latents;
+mod linclass;
 mod quickstart;
 mod report;
 mod sweep;
@@ -87,6 +88,13 @@ enum Cmd {
         after_help = "Examples:\n  smile latents --policy runs/wd-smile --env walker-dyn --contexts assets/experts/walker-dyn/demos-test-4x-sub20.safetensors -o runs/wd-smile/latents.csv\n  smile latents --policy runs/alc-smile --env ant-linclass --contexts assets/experts/ant-linclass/demos-test-16x-sub5.safetensors --context-sizes 1,2,4,8 -o z.csv"
     )]
     Latents(latents::LatentsArgs),
+    /// ant-linclass diagnosed: what the context demos show and the best accuracy they allow,
+    /// what each policy's z carries about the hyperplane, and when its episodes commit.
+    #[command(
+        name = "linclass-diagnose",
+        after_help = "Examples:\n  smile linclass-diagnose --contexts assets/experts/ant-linclass/demos-test-16x-sub5.safetensors --train-demos assets/experts/ant-linclass/demos-train-16x-sub5.safetensors --policy meta-bc=assets/policies/ant-linclass-rapier-meta-bc -o runs/alc-diagnosis"
+    )]
+    LinclassDiagnose(linclass::LinclassArgs),
     /// Shipped meta-policies from float to int8 to the device loop: the deployment table.
     #[command(
         after_help = "Examples:\n  smile device-table assets/policies/* -o runs/device-table\n  smile device-table assets/policies/cheetah-vel-rapier-smile-bc --draws 3 --rollouts 2\n  smile device-table assets/policies/point-goal-rapier-smile --new-tasks demos/pg-new-goals.safetensors"
@@ -157,6 +165,7 @@ fn run() -> Result<()> {
         Cmd::Sweep(a) => sweep::run(a),
         Cmd::Report(a) => report::run(a),
         Cmd::Latents(a) => latents::run(a),
+        Cmd::LinclassDiagnose(a) => linclass::run(a),
         Cmd::DeviceTable(a) => device_table::run(a),
     }
 }
