@@ -809,3 +809,29 @@ fn copy_files(src: &Path, dst: &Path) {
         std::fs::copy(&p, dst.join(p.file_name().unwrap())).unwrap();
     }
 }
+
+/// Issue 72, item 8: `--resume` of a finished run whose checkpoint is gone is refused,
+/// naming the missing file, and the finished policy is kept (before: "starting it over",
+/// then a refusal saying to resume it).
+#[test]
+fn resuming_a_finished_run_without_its_checkpoint_names_the_missing_file() {
+    let (dir, train, _test) = with_demos("finished-no-checkpoint");
+    let run = dir.join("bc");
+    common::tiny_bc(&train, &run);
+    let ck = run.join("checkpoint.safetensors");
+    std::fs::remove_file(&ck).unwrap();
+    let policy = std::fs::read(run.join("meta_policy.safetensors")).unwrap();
+    let mut args = resume_args(&train, &run);
+    args.extend_from_slice(&["--updates", "40", "--quiet"]);
+    let e = err_of(&smile(&args));
+    assert!(
+        e.contains("checkpoint.safetensors")
+            && e.contains("is gone")
+            && !e.contains("starting it over"),
+        "{e}"
+    );
+    assert_eq!(
+        std::fs::read(run.join("meta_policy.safetensors")).unwrap(),
+        policy
+    );
+}

@@ -87,7 +87,7 @@ pub fn check_shipped_bytes(path: &Path, bytes: &[u8]) -> Result<bool, IntegrityE
     let Some(expected) = shipped_sha256(path)? else {
         return Ok(false);
     };
-    let found = crate::sha256_hex(bytes);
+    let found = crate::fsio::sha256_hex(bytes);
     if found != expected {
         return Err(IntegrityError::Mismatch {
             path: path.to_path_buf(),
@@ -125,7 +125,7 @@ mod tests {
         std::fs::write(&b, b"not listed").unwrap();
         // No list: nothing to check.
         assert!(!check_shipped(&a).unwrap());
-        let sums = format!("{}  a.bin\n", crate::sha256_hex(b"shipped"));
+        let sums = format!("{}  a.bin\n", crate::fsio::sha256_hex(b"shipped"));
         std::fs::write(dir.join(SUMS_FILE), sums).unwrap();
         assert!(check_shipped(&a).unwrap());
         assert!(!check_shipped(&b).unwrap(), "a file the list does not name");
@@ -133,7 +133,7 @@ mod tests {
         let e = check_shipped(&a).unwrap_err().to_string();
         assert!(e.contains("a.bin") && e.contains(SUMS_FILE), "{e}");
         // The binary-mode marker of `sha256sum -b` reads the same.
-        let sums = format!("{} *a.bin\n", crate::sha256_hex(b"shipped!"));
+        let sums = format!("{} *a.bin\n", crate::fsio::sha256_hex(b"shipped!"));
         std::fs::write(dir.join(SUMS_FILE), sums).unwrap();
         assert!(check_shipped(&a).unwrap());
         std::fs::write(dir.join(SUMS_FILE), "xyz  a.bin\n").unwrap();

@@ -285,6 +285,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     // over with its recorded configuration (a sweep's rerun does the same without the flag).
     let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
     if restart {
+        refuse_finished_without_checkpoint(&req.out)?;
         let cfg = req.out.join("config.toml");
         if !cfg.exists() {
             return Err(Error::input(
@@ -355,6 +356,33 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         }
     }
     algo.with_learner(Train(&run, on))
+}
+
+/// A `--resume` of a run whose checkpoint is gone after it finished: there is nothing to
+/// continue from (the replay, the optimisers), and starting it over would replace a finished
+/// policy; refused, naming the missing file.
+fn refuse_finished_without_checkpoint(out: &Path) -> Result<()> {
+    let policy = out.join(crate::model::META_POLICY_FILE);
+    let finished = policy.exists()
+        && crate::model::MetaPolicy::training_mark(&policy)
+            .ok()
+            .flatten()
+            .is_some_and(|m| m.finished);
+    if !finished {
+        return Ok(());
+    }
+    Err(Error::input(
+        Input::Resume,
+        format!(
+            "{} holds a finished run, but its checkpoint {} is gone: a larger budget continues \
+             from the checkpoint (its replay and optimisers), so this run cannot be extended; \
+             restore the checkpoint, or train a new run in another directory (the finished \
+             policy {} is kept)",
+            out.display(),
+            out.join(checkpoint::CHECKPOINT_FILE).display(),
+            policy.display()
+        ),
+    ))
 }
 
 /// A request with its inputs read.

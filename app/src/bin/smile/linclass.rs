@@ -147,72 +147,16 @@ pub fn run(a: LinclassArgs) -> Result<()> {
 
     let (visibility_test, clear_test) = linclass::visibility(&ctx)?;
     let train_vis = train.as_ref().map(linclass::visibility).transpose()?;
-    println!(
-        "what the demos show ({} plant): the torso's x on the correct side per time step, test \
-         demos{}",
+    print_visibility(
         ctx.physics,
-        if train_vis.is_some() {
-            " (train demos)"
-        } else {
-            ""
-        }
-    );
-    // Every step up to 15 (where the side appears), then every fifth; all in the JSON.
-    for v in visibility_test
-        .iter()
-        .filter(|v| v.time_step <= 15 || v.time_step % 5 == 4)
-    {
-        let tr = train_vis
-            .as_ref()
-            .and_then(|(rows, _)| rows.iter().find(|t| t.time_step == v.time_step))
-            .map_or(String::new(), |t| {
-                format!(
-                    " ({:.3}, clearly {:.3})",
-                    t.x_on_correct_side, t.x_clearly_correct
-                )
-            });
-        println!(
-            "  step {:2}: {:4} transitions, x on the correct side {:.3}, clearly (|x| >= \
-             {COMMIT_X}) {:.3}, median signed x {:+.3}; side from the action {:.3} (gap \
-             {:.2}){tr}",
-            v.time_step,
-            v.transitions,
-            v.x_on_correct_side,
-            v.x_clearly_correct,
-            v.median_signed_x,
-            v.action_side_accuracy,
-            v.action_gap
-        );
-    }
-    println!(
-        "  kept transitions showing the side clearly: test {clear_test:.3}{}",
-        train_vis
-            .as_ref()
-            .map_or(String::new(), |(_, c)| format!(", train {c:.3}"))
+        &visibility_test,
+        clear_test,
+        train_vis.as_ref(),
     );
 
-    let prior = PriorSamples::new(a.prior_samples, 0x5052_494f_52); // "PRIOR"
+    let prior = PriorSamples::new(a.prior_samples, 0x0050_5249_4f52); // "PRIOR"
     let bound = linclass::information_bound(&ctx, Split::Test, &setup, &prior)?;
-    println!(
-        "information bound on the test tasks (accuracy on the evaluation's pairs; on fresh pairs):"
-    );
-    for b in &bound {
-        println!(
-            "  {:2} demos: Bayes {:.3} ({:.3}), SVM {:.3} ({:.3}), centroid {:.3} ({:.3}); demos \
-             without a side {}, mislabelled {}; posterior samples min {} median {}",
-            b.context_size,
-            b.eval_pairs.bayes,
-            b.fresh_pairs.bayes,
-            b.eval_pairs.svm,
-            b.fresh_pairs.svm,
-            b.eval_pairs.centroid,
-            b.fresh_pairs.centroid,
-            b.demos_without_side,
-            b.demos_mislabelled,
-            b.min_posterior_samples,
-            b.median_posterior_samples
-        );
-    }
+    print_bound(&bound);
 
     let mut policies = Vec::new();
     for (label, path) in &a.policies {
@@ -245,6 +189,80 @@ pub fn run(a: LinclassArgs) -> Result<()> {
     trainer::checkpoint::write_atomic(&path, text.as_bytes())?;
     println!("wrote {}", path.display());
     Ok(())
+}
+
+/// What the demos show, per time step (every step up to 15, then every fifth; all in the
+/// JSON), test demos beside the train demos' where given.
+fn print_visibility(
+    physics: sim::Physics,
+    visibility_test: &[linclass::StepVisibility],
+    clear_test: f64,
+    train_vis: Option<&(Vec<linclass::StepVisibility>, f64)>,
+) {
+    println!(
+        "what the demos show ({} plant): the torso's x on the correct side per time step, test \
+         demos{}",
+        physics,
+        if train_vis.is_some() {
+            " (train demos)"
+        } else {
+            ""
+        }
+    );
+    // Every step up to 15 (where the side appears), then every fifth; all in the JSON.
+    for v in visibility_test
+        .iter()
+        .filter(|v| v.time_step <= 15 || v.time_step % 5 == 4)
+    {
+        let tr = train_vis
+            .and_then(|(rows, _)| rows.iter().find(|t| t.time_step == v.time_step))
+            .map_or(String::new(), |t| {
+                format!(
+                    " ({:.3}, clearly {:.3})",
+                    t.x_on_correct_side, t.x_clearly_correct
+                )
+            });
+        println!(
+            "  step {:2}: {:4} transitions, x on the correct side {:.3}, clearly (|x| >= \
+             {COMMIT_X}) {:.3}, median signed x {:+.3}; side from the action {:.3} (gap \
+             {:.2}){tr}",
+            v.time_step,
+            v.transitions,
+            v.x_on_correct_side,
+            v.x_clearly_correct,
+            v.median_signed_x,
+            v.action_side_accuracy,
+            v.action_gap
+        );
+    }
+    println!(
+        "  kept transitions showing the side clearly: test {clear_test:.3}{}",
+        train_vis.map_or(String::new(), |(_, c)| format!(", train {c:.3}"))
+    );
+}
+
+/// The information bound, a line per context size.
+fn print_bound(bound: &[linclass::BoundRow]) {
+    println!(
+        "information bound on the test tasks (accuracy on the evaluation's pairs; on fresh pairs):"
+    );
+    for b in bound {
+        println!(
+            "  {:2} demos: Bayes {:.3} ({:.3}), SVM {:.3} ({:.3}), centroid {:.3} ({:.3}); demos \
+             without a side {}, mislabelled {}; posterior samples min {} median {}",
+            b.context_size,
+            b.eval_pairs.bayes,
+            b.fresh_pairs.bayes,
+            b.eval_pairs.svm,
+            b.fresh_pairs.svm,
+            b.eval_pairs.centroid,
+            b.fresh_pairs.centroid,
+            b.demos_without_side,
+            b.demos_mislabelled,
+            b.min_posterior_samples,
+            b.median_posterior_samples
+        );
+    }
 }
 
 fn diagnose_policy(

@@ -139,7 +139,10 @@ fn the_bound_grows_with_the_context_and_counts_what_the_demos_hide() {
         all.fresh_pairs.svm > 0.85 && all.fresh_pairs.centroid > 0.8,
         "{all:?}"
     );
-    assert!(all.min_posterior_samples > 0);
+    // At 16 demos a context's posterior is a small cap of the sphere (the shipped run's
+    // smallest held 37 of 2^20 prior samples): 50k samples leave some contexts none, most not.
+    assert!(all.median_posterior_samples > 0, "{all:?}");
+    assert!(one.min_posterior_samples > 0, "{one:?}");
     // Demos that walk the wrong way are counted (and can empty the posterior: a tie).
     let noisy = information_bound(&contexts(2), Split::Test, &setup, &prior).unwrap();
     assert_eq!(noisy[1].demos_mislabelled, 2 * 32 * 2);
