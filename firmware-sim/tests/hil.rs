@@ -414,3 +414,34 @@ fn a_paused_device_is_reconnected_on_the_same_port() {
     drop(device);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Issue 72, item 4: a line rate or a speed-up no run can finish is refused by the parser,
+/// naming the flag and its bounds (before: `--baud 300` and `--speedup 1e-9` ran on, for hours).
+#[test]
+fn line_rates_and_speedups_no_run_can_finish_are_refused() {
+    let dir = tmp("hil-bounds");
+    let link = dir.join("tty");
+    let err = device_refused(&["--baud", "300", "--pty", s(&link)], 2);
+    assert!(err.contains("--baud") && err.contains("1200"), "{err}");
+    assert!(!link.exists(), "nothing was linked");
+    for (flag, value, bound) in [
+        ("--baud", "300", "1200"),
+        ("--speedup", "1e-9", "0.01"),
+        ("--speedup", "NaN", "0.01"),
+        ("--speedup", "1e9", "1000"),
+    ] {
+        let out = Command::new("timeout")
+            .args(["10", env!("CARGO_BIN_EXE_firmware-sim"), "host"])
+            .args(["--port", s(&link), flag, value])
+            .args(["--blob", "p.blob", "--env", "point-goal", "--task", "0"])
+            .args(["--context", "c.safetensors"])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}: {err}");
+        assert!(
+            err.contains(flag) && err.contains(bound),
+            "{flag} {value}: {err}"
+        );
+    }
+}

@@ -10,7 +10,7 @@ use firmware_sim::DeviceConfig;
 use firmware_sim::serial::{self, BoardConfig, BoardEvent, Faults, RemoteDevice, SerialConfig};
 use serde::Serialize;
 
-use crate::{PlantArgs, plant_config, positive_finite, prepare, write_trace};
+use crate::{PlantArgs, plant_config, prepare, write_trace};
 
 /// Arguments of `firmware-sim device`.
 #[derive(Args, Debug)]
@@ -22,8 +22,9 @@ pub(crate) struct DeviceArgs {
     /// its --port; a restarted device links the same path to its new terminal).
     #[arg(long)]
     pty: Option<PathBuf>,
-    /// Line rate in baud; every frame takes its time on the line (0: unpaced).
-    #[arg(long, default_value_t = 115_200)]
+    /// Line rate in baud, 1200 to 12,000,000; every frame takes its time on the line (0:
+    /// unpaced).
+    #[arg(long, default_value_t = 115_200, value_parser = crate::baud_rate)]
     baud: u32,
     /// Once ticks have started, hold the safe action when the host is silent this long, ms.
     #[arg(long, default_value_t = 500, value_parser = clap::value_parser!(u64).range(1..))]
@@ -98,8 +99,9 @@ pub(crate) struct HostArgs {
     /// The device's serial port (what `firmware-sim device --pty` linked, or a board's).
     #[arg(long)]
     port: PathBuf,
-    /// Line rate in baud (0: unpaced); the device's must match on a real line.
-    #[arg(long, default_value_t = 115_200)]
+    /// Line rate in baud, 1200 to 12,000,000 (0: unpaced); the device's must match on a
+    /// real line.
+    #[arg(long, default_value_t = 115_200, value_parser = crate::baud_rate)]
     baud: u32,
     /// Wait for one upload or teach answer this long before resending, ms [default: two
     /// longest frames on the line plus 100 ms].
@@ -113,8 +115,9 @@ pub(crate) struct HostArgs {
     #[arg(long, default_value_t = 20, value_parser = clap::value_parser!(u64).range(1..))]
     reconnect_s: u64,
     /// Run the plant this many times faster than real time: ticks come every
-    /// 1 / (rate x speedup) s of wall clock, so a loop can be timed past the plant's own rate.
-    #[arg(long, default_value_t = 1.0, value_parser = positive_finite)]
+    /// 1 / (rate x speedup) s of wall clock, so a loop can be timed past the plant's own rate
+    /// (0.01 to 1000).
+    #[arg(long, default_value_t = 1.0, value_parser = crate::speedup_factor)]
     speedup: f32,
     #[command(flatten)]
     plant: PlantArgs,

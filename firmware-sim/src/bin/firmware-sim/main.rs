@@ -74,6 +74,32 @@ fn positive_finite(text: &str) -> std::result::Result<f32, String> {
     }
 }
 
+/// A line rate (`--baud`): 0 (unpaced) or 1200 to 12,000,000 baud. Below 1200 a 64 KiB
+/// blob's upload alone takes over 9 minutes, and one tick's frames outlast any control rate;
+/// above 12 Mbaud no USB-serial adapter goes.
+pub(crate) fn baud_rate(text: &str) -> std::result::Result<u32, String> {
+    const RANGE: std::ops::RangeInclusive<u32> = 1200..=12_000_000;
+    match text.parse::<u32>() {
+        Ok(v) if v == 0 || RANGE.contains(&v) => Ok(v),
+        Ok(v) => Err(format!(
+            "{v}: expected 0 (unpaced) or {} to {} baud",
+            RANGE.start(),
+            RANGE.end()
+        )),
+        Err(e) => Err(format!("`{text}` is not a whole number: {e}")),
+    }
+}
+
+/// How much faster than real time a host runs its plant (`--speedup`): 0.01 to 1000 (a tick
+/// every 1 / (rate x speedup) s; below 0.01 an 80 Hz loop waits over a second a tick).
+pub(crate) fn speedup_factor(text: &str) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if (0.01..=1000.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v}: expected 0.01 to 1000")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
 /// A finite number >= 0 (`--budget-us`).
 fn non_negative_finite(text: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
