@@ -349,6 +349,13 @@ fn a_device_answering_the_wrong_size_or_nan_never_reaches_the_plant() {
         device.join().unwrap();
         let err = String::from_utf8_lossy(&run.stderr).into_owned();
         assert!(!err.contains("panicked"), "{name}: {err}");
+        // Every tick on the safe action: the files are written, and the run is no result
+        // (issue 72, item 1: it exited 0 with a metric before).
+        assert_eq!(run.status.code(), Some(1), "{name}: {err}");
+        assert!(
+            err.contains("10 of 10 ticks") && err.contains("--max-held-safe"),
+            "{name}: {err}"
+        );
         let hil = hil_json(&out);
         assert_eq!(hil["held_safe"], 10, "{name}: {hil}");
         assert!(
@@ -444,4 +451,39 @@ fn line_rates_and_speedups_no_run_can_finish_are_refused() {
             "{flag} {value}: {err}"
         );
     }
+}
+
+/// Issue 72, item 1: a host that gives a run up (its device gone past `--reconnect-s`) still
+/// writes `hil.json`, with why and the events, and exits non-zero (before: no file at all).
+#[test]
+fn a_host_that_gives_up_still_writes_hil_json() {
+    let dir = tmp("hil-give-up");
+    let (blob, demos) = blob_and_demos(&dir);
+    let link = dir.join("tty");
+    let device = DeviceProcess::start(&dir, &link, &[], "device");
+    let out = dir.join("host");
+    let host = {
+        let (blob, demos, out, link) = (blob.clone(), demos.clone(), out.clone(), link.clone());
+        let extra = ["--ticks", "400", "--reconnect-s", "1"];
+        std::thread::spawn(move || drive(Some(&link), &blob, &demos, &out, &extra))
+    };
+    assert!(
+        device.wait_for("context taught", Duration::from_secs(20)),
+        "{}",
+        device.log()
+    );
+    std::thread::sleep(Duration::from_millis(500));
+    drop(device);
+    let run = host.join().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr).into_owned();
+    assert!(!run.status.success(), "{err}");
+    assert!(
+        err.contains("given up") && err.contains("hil.json"),
+        "{err}"
+    );
+    let hil = hil_json(&out);
+    assert!(hil["gave_up"].is_string(), "{hil}");
+    assert!(hil["metric"].is_null() && hil["ticks"].is_null(), "{hil}");
+    assert!(!hil["events"].as_array().unwrap().is_empty(), "{hil}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -119,6 +119,11 @@ pub(crate) struct HostArgs {
     /// (0.01 to 1000).
     #[arg(long, default_value_t = 1.0, value_parser = crate::speedup_factor)]
     speedup: f32,
+    /// The largest share of ticks, 0 to 1, that may hold the safe action for the run to count
+    /// as a result: past it the metric is the safe action's more than the policy's, so the
+    /// run's files are written and the command exits 1, saying so.
+    #[arg(long, default_value_t = 0.25, value_parser = crate::fraction)]
+    max_held_safe: f32,
     #[command(flatten)]
     plant: PlantArgs,
 }
@@ -130,8 +135,12 @@ struct HilReport {
     baud: u32,
     rate_hz: f32,
     speedup: f32,
-    ticks: usize,
-    metric: f32,
+    /// Ticks run; none when the host gave up.
+    ticks: Option<usize>,
+    /// The family's metric; none when the host gave up.
+    metric: Option<f32>,
+    /// Why the host gave the run up (the device not back in time); none for a finished run.
+    gave_up: Option<String>,
     deadline_misses: usize,
     late_starts: usize,
     held_safe: usize,
@@ -191,15 +200,31 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         eprintln!("host: tick {}: {}", e.tick, e.what);
     }
     let shown = remote.events.len();
-    let report = firmware_sim::run(&mut remote, plant.as_mut(), &prep.task, &config.control)?;
+    let run = firmware_sim::run(&mut remote, plant.as_mut(), &prep.task, &config.control);
     for e in &remote.events[shown..] {
         eprintln!("host: tick {}: {}", e.tick, e.what);
     }
+    let report = match run {
+        Ok(report) => report,
+        Err(e) => {
+            // What happened up to the end still goes to hil.json: the events say why.
+            let mut hil = hil_report(&a, rate, None, &remote);
+            hil.gave_up = Some(e.to_string());
+            std::fs::create_dir_all(&p.out)
+                .with_context(|| format!("creating {}", p.out.display()))?;
+            let path = p.out.join("hil.json");
+            firmware_sim::write_atomic(&path, serde_json::to_string_pretty(&hil)?.as_bytes())?;
+            return Err(anyhow::Error::new(e).context(format!(
+                "the run was given up (its events: {})",
+                path.display()
+            )));
+        }
+    };
     if let Some(warning) = &prep.provenance {
         eprintln!("{warning}");
     }
     write_trace(&p.out, &report, &[])?;
-    let hil = hil_report(&a, rate, &report, &remote);
+    let hil = hil_report(&a, rate, Some(&report), &remote);
     firmware_sim::write_atomic(
         &p.out.join("hil.json"),
         serde_json::to_string_pretty(&hil)?.as_bytes(),
@@ -211,6 +236,20 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         "wrote {}/{{trace.csv, plot.svg, summary.txt, hil.json}}",
         p.out.display()
     );
+    let share = hil.held_safe as f32 / report.records.len().max(1) as f32;
+    if share > a.max_held_safe {
+        anyhow::bail!(
+            "{} of {} ticks ({:.0}%) held the safe action, more than --max-held-safe {}: the \
+             metric {:.4} is the safe action's more than the policy's, not a result (the events \
+             are in {})",
+            hil.held_safe,
+            report.records.len(),
+            100.0 * share,
+            a.max_held_safe,
+            report.metric,
+            p.out.join("hil.json").display()
+        );
+    }
     Ok(())
 }
 
@@ -241,7 +280,7 @@ fn open_link(a: &HostArgs) -> Result<serial::SerialLink> {
 fn hil_report(
     a: &HostArgs,
     rate: f32,
-    report: &firmware_sim::RunReport,
+    report: Option<&firmware_sim::RunReport>,
     remote: &RemoteDevice,
 ) -> HilReport {
     let (counters, wire) = remote.counters();
@@ -250,12 +289,13 @@ fn hil_report(
         baud: a.baud,
         rate_hz: rate,
         speedup: a.speedup,
-        ticks: report.records.len(),
-        metric: report.metric,
+        ticks: report.map(|r| r.records.len()),
+        metric: report.map(|r| r.metric),
+        gave_up: None,
         deadline_misses: remote.misses,
         late_starts: remote.late_starts,
         held_safe: remote.held_safe,
-        faults: report.faults,
+        faults: report.map_or(0, |r| r.faults),
         round_trip_us: percentiles(
             remote
                 .round_trip_ns
@@ -299,7 +339,7 @@ fn summary(hil: &HilReport, report: &firmware_sim::RunReport) -> String {
          frames out, {} in; {} resends, {} damaged answers, {} stale; injected {} corrupt, {} \
          dropped\n",
         head,
-        hil.ticks,
+        report.records.len(),
         hil.speedup,
         hil.port,
         hil.baud,

@@ -100,6 +100,15 @@ pub(crate) fn speedup_factor(text: &str) -> std::result::Result<f32, String> {
     }
 }
 
+/// A share from 0 to 1 (`--max-held-safe`).
+pub(crate) fn fraction(text: &str) -> std::result::Result<f32, String> {
+    match text.parse::<f32>() {
+        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
+        Ok(v) => Err(format!("{v}: expected 0 to 1")),
+        Err(e) => Err(format!("`{text}` is not a number: {e}")),
+    }
+}
+
 /// A finite number >= 0 (`--budget-us`).
 fn non_negative_finite(text: &str) -> std::result::Result<f64, String> {
     match text.parse::<f64>() {
