@@ -58,7 +58,7 @@ pub use error::{Error, Input, Result};
 pub use model::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator,
     FrozenMlp, META_POLICY_FILE, MetaPolicy, Mlp, ObsNorm, PolicySample, TanhGaussianPolicy,
-    TrainingMark, bce_with_logits, input_gradient, mlp_to_layers, policy_input,
+    TrainingMark, input_gradient,
 };
 
 /// The optimiser.
@@ -66,10 +66,10 @@ pub use optim::{Adam, AdamConfig};
 
 /// Demos: deterministic expert rollouts in `sim`'s dataset format.
 pub use algo::expert::{DemoSpec, record as record_demos, record_with as record_demos_with};
-/// Demos, the meta-train split, task and context sampling, rollouts and replay.
+/// Demos, the meta-train split, rollouts and replay.
 pub use data::{
-    ActFn, ActionNoise, Batch, BatchVecs, ContextDraw, Episode, MetaData, ReplayBuffer, Step,
-    TaskReplay, better, distinct_tasks, quick_eval, run_episode, sample_context,
+    ActFn, ActionNoise, Batch, BatchVecs, Episode, MetaData, ReplayBuffer, Step, TaskReplay,
+    better, quick_eval, run_episode,
 };
 
 /// Checkpoints, blob export and ONNX export keep their namespaces (`checkpoint::load`,
@@ -91,6 +91,4 @@ pub use io::os_path;
 pub use io::{DirLock, lock};
 
 /// The metrics log (JSON lines + TensorBoard events).
-pub use io::{
-    METRICS_FILE, MetricsLog, TbWriter, from_toml_over_defaults, set_key as set_config_key,
-};
+pub use io::{METRICS_FILE, MetricsLog, from_toml_over_defaults, set_key as set_config_key};

@@ -15,4 +15,4 @@ pub mod qat;
 pub use config::{from_toml_over_defaults, set_key};
 pub(crate) use config::{require_horizon, require_positive};
 pub use lock::DirLock;
-pub use metrics::{METRICS_FILE, MetricsLog, TbWriter};
+pub use metrics::{METRICS_FILE, MetricsLog};

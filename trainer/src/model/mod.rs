@@ -21,9 +21,7 @@ pub use discriminator::{DiscInput, DiscStats, Discriminator, bce_with_logits, in
 pub use fused::SharedCols;
 pub(crate) use fused::TanhGaussian;
 pub(crate) use fused::{f32_slice, f32_slice_mut};
-pub use meta_policy::{
-    ConditionedActor, META_POLICY_FILE, MetaPolicy, TrainingMark, mlp_to_layers,
-};
+pub use meta_policy::{ConditionedActor, META_POLICY_FILE, MetaPolicy, TrainingMark};
 pub(crate) use meta_policy::{mlp_load, mlp_tensors};
 pub(crate) use mlp::check_shapes;
 pub use mlp::{FrozenMlp, Input, Mlp};
