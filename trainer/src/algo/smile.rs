@@ -177,7 +177,7 @@ impl Smile {
         &self.cfg
     }
 
-    /// Sets the compute budget of the next [`train`] call (`cpu_budget_s`, 0: none); the
+    /// Sets the compute budget of the next [`fit`](crate::fit) call (`cpu_budget_s`, 0: none); the
     /// one setting besides `total_updates` that a resumed run may change.
     pub fn set_cpu_budget(&mut self, secs: f64) -> Result<()> {
         let mut cfg = self.cfg.clone();
