@@ -197,7 +197,7 @@ pub struct ExpertTrainer {
     /// Where the updates run (`learner_threads`).
     pool: LearnerPool,
     /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::fit::Throughput,
+    clock: crate::algo::throughput::Throughput,
 }
 
 /// The best evaluation of a run with `keep_best`: its metric and when it was taken; the
@@ -293,7 +293,7 @@ impl ExpertTrainer {
             episodes: 0,
             best: None,
             pool,
-            clock: crate::algo::fit::Throughput::since(0),
+            clock: crate::algo::throughput::Throughput::since(0),
         })
     }
 

@@ -75,29 +75,6 @@ pub struct Cadence {
     pub cpu_budget_s: f64,
 }
 
-/// Units of work per second since this process started training: the `charts/sps` every
-/// learner logs (reset by its [`Learner::begin`]).
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Throughput {
-    t0: std::time::Instant,
-    done0: u64,
-}
-
-impl Throughput {
-    /// Starts the clock at `done` units.
-    pub(crate) fn since(done: u64) -> Self {
-        Self {
-            t0: std::time::Instant::now(),
-            done0: done,
-        }
-    }
-
-    /// Units per second from the start to `done`.
-    pub(crate) fn per_s(&self, done: u64) -> f64 {
-        done.saturating_sub(self.done0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9)
-    }
-}
-
 /// The run's compute: the CPU-seconds its earlier processes used (from its checkpoint) plus
 /// this process's since the fit began, warm start and first evaluation included.
 struct Compute {

@@ -73,7 +73,7 @@ pub struct MetaBc {
     pool: Option<LearnerPool>,
     stopped: bool,
     /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::fit::Throughput,
+    clock: crate::algo::throughput::Throughput,
 }
 
 impl MetaBc {
@@ -151,7 +151,7 @@ impl MetaBc {
             bad_evals: 0,
             stopped: false,
             pool: None,
-            clock: crate::algo::fit::Throughput::since(0),
+            clock: crate::algo::throughput::Throughput::since(0),
         })
     }
 

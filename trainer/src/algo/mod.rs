@@ -16,6 +16,7 @@ pub mod learner;
 pub mod meta_bc;
 mod registry;
 mod settings;
+mod throughput;
 pub(crate) use registry::other_env;
 pub mod sac;
 pub mod smile;

@@ -103,7 +103,7 @@ pub struct Smile {
     /// with each rollout job and comes back with its result).
     rollout_env: Option<Box<dyn Environment>>,
     /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::fit::Throughput,
+    clock: crate::algo::throughput::Throughput,
 }
 
 /// What one [`Smile::iteration`] did.
@@ -168,7 +168,7 @@ impl Smile {
             best: f32::NAN,
             pool: None,
             rollout_env: None,
-            clock: crate::algo::fit::Throughput::since(0),
+            clock: crate::algo::throughput::Throughput::since(0),
         })
     }
 

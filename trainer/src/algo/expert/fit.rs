@@ -6,8 +6,9 @@
 use std::path::Path;
 
 use super::{BEST_POLICY_FILE, ExpertConfig, ExpertTrainer, evaluate};
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Throughput};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Learner, Unit};
+use crate::algo::throughput::Throughput;
 use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;

@@ -6,9 +6,10 @@ use std::path::Path;
 use sim::Family;
 
 use super::{Smile, SmileConfig};
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Throughput, finish_meta_policy};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::Overrides;
+use crate::algo::throughput::Throughput;
 use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
