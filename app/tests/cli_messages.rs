@@ -210,3 +210,50 @@ fn a_piped_run_prints_plain_progress_lines() {
     assert!(!err.contains("[progress]"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `--sensing FILE` (issue 73): the shipped preset trains a run through the device's senses
+/// and lands in its config.toml; a file that is not a `[sensing]` section, or one no sensor
+/// can read, is refused before any training, naming the file.
+#[test]
+fn the_sensing_preset_trains_through_the_sensors_and_a_bad_one_is_refused() {
+    let dir = tmp("sensing");
+    let train = dir.join("train.safetensors");
+    common::train_demos(6, 2, 20).write(&train).unwrap();
+    let preset = format!(
+        "{}/../docs/configs/sensing-noise01-adc12.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let run = dir.join("bc");
+    let mut args = common::meta_bc_args(&train, &run);
+    args.extend(["--updates", "50", "--eval-every", "0", "--hidden", "16,16"]);
+    args.extend(["--quiet", "--sensing", &preset]);
+    common::ok(&smile_env(&args, &[]));
+    let config = std::fs::read_to_string(run.join("config.toml")).unwrap();
+    assert!(
+        config.contains("[sensing]") && config.contains("adc_bits = 12"),
+        "{config}"
+    );
+
+    for (name, text, says) in [
+        (
+            "typo.toml",
+            "[sensing]\nnoise = 0.01\n",
+            "not a [sensing] section",
+        ),
+        (
+            "share.toml",
+            "[sensing]\nnoise_std = 0.01\nfraction = 2.0\n",
+            "fraction = 2",
+        ),
+    ] {
+        let bad = dir.join(name);
+        std::fs::write(&bad, text).unwrap();
+        let out_dir = dir.join(format!("r-{name}"));
+        let mut args = common::meta_bc_args(&train, &out_dir);
+        args.extend(["--sensing", s(&bad)]);
+        let line = one_line_error(&smile_env(&args, &[]));
+        assert!(line.contains(s(&bad)) && line.contains(says), "{line}");
+        assert!(!out_dir.exists());
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

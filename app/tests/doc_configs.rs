@@ -132,3 +132,23 @@ fn the_authors_presets_hold_their_recipe() {
         assert_eq!(sac.q1.widths()[1..4], [256; 3], "{name}");
     }
 }
+
+/// The sensing preset (issue 73) is the device table's sensor column: noise 0.01, a 12-bit ADC
+/// over +-10, and it checks.
+#[test]
+fn the_sensing_preset_is_the_device_tables_sensor_column() {
+    #[derive(serde::Deserialize)]
+    struct Preset {
+        sensing: trainer::Sensing,
+    }
+    let p: Preset = toml::from_str(&read("sensing-noise01-adc12.toml")).unwrap();
+    let s = p.sensing;
+    assert_eq!(
+        (s.noise_std, s.adc_bits, s.adc_range),
+        (0.01, Some(12), 10.0)
+    );
+    s.check().unwrap();
+    // The first robust Meta-BC's config carries the same sensor in its own section.
+    let bc: MetaBcConfig = toml::from_str(&read("cv1000-bc-sensing.toml")).unwrap();
+    assert_eq!(bc.sensing.unwrap().model(), s.model());
+}

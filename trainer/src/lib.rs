@@ -71,6 +71,9 @@ pub use data::{
     ActFn, ActionNoise, Batch, BatchVecs, Episode, MetaData, ReplayBuffer, Step, TaskReplay,
     better, quick_eval, run_episode,
 };
+/// Training through the device's senses: a learner's `[sensing]` section and the rollout that
+/// reads the plant as firmware-sim's loop does.
+pub use data::{Sensing, sensed_episode};
 
 /// Checkpoints, blob export and ONNX export keep their namespaces (`checkpoint::load`,
 /// `export::verify`, `onnx::export`).

@@ -434,3 +434,53 @@ fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
     let e = Smile::new(so, data).err().expect("refused").to_string();
     assert!(e.contains("bc_weight") && e.contains("state-only"), "{e}");
 }
+
+/// Training through the device's senses (issue 73): an ideal sensor (no noise, no ADC) is
+/// SMILe bit for bit (the actor's view path draws nothing and reads the truth), a noisy one
+/// trains another policy, and a sensed run is deterministic for its seed.
+#[test]
+fn sensing_is_deterministic_and_an_ideal_sensor_is_smile() {
+    trainer::threads::set_compute_threads(1);
+    let ds = demos(8, 2, 30);
+    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let train = |sensing: Option<trainer::Sensing>| {
+        let cfg = SmileConfig {
+            bc_weight: 2.0,
+            sensing,
+            ..tiny(false)
+        };
+        let mut run = Smile::new(cfg, data.clone()).unwrap();
+        run.warm_start().unwrap();
+        for _ in 0..40 {
+            run.update_pair().unwrap();
+        }
+        run.rollout(0).unwrap();
+        (clone_error(&run), run.env_steps())
+    };
+    let sensor = |noise_std: f32, adc_bits: Option<u8>| trainer::Sensing {
+        noise_std,
+        adc_bits,
+        adc_range: 4.0,
+        fraction: 1.0,
+    };
+    let plain = train(None);
+    assert_eq!(train(Some(sensor(0.0, None))), plain, "an ideal sensor");
+    let noisy = train(Some(sensor(0.05, Some(8))));
+    assert_eq!(train(Some(sensor(0.05, Some(8)))), noisy, "same seed");
+    assert_ne!(
+        noisy.0, plain.0,
+        "the sensors change what the actor trains on"
+    );
+    let half = train(Some(trainer::Sensing {
+        fraction: 0.5,
+        ..sensor(0.05, Some(8))
+    }));
+    assert_ne!(half.0, noisy.0);
+    // A section no sensor can read is refused before anything runs.
+    let bad = SmileConfig {
+        sensing: Some(sensor(-0.1, None)),
+        ..tiny(false)
+    };
+    let e = Smile::new(bad, data).err().unwrap().to_string();
+    assert!(e.contains("[sensing]"), "{e}");
+}

@@ -28,7 +28,7 @@ use rand_chacha::ChaCha8Rng;
 use sim::{Environment, TaskDemos};
 
 use crate::algo::expert::ExpertSet;
-use crate::data::{MetaData, distinct_tasks, run_episode, sample_context};
+use crate::data::{MetaData, distinct_tasks, sample_context, sensed_episode};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
@@ -267,10 +267,8 @@ impl MetaBc {
             }
             // Through the device's senses: the policy learns the demo's action from the state
             // as the device would read it (noise injection; the context stays as recorded).
-            if let Some(sensor) = &self.cfg.sensing {
-                for x in &mut o {
-                    *x = sensor.read(*x, &mut self.rng);
-                }
+            if let Some(sensing) = &self.cfg.sensing {
+                sensing.read_rows(&mut o, od, &mut self.rng);
             }
             obs.push(o);
             act.push(a);
@@ -316,10 +314,14 @@ impl MetaBc {
             let seed = sim::seeds::DAGGER_SEED + self.episodes;
             let (rng, pairs) = (&mut self.rng, &mut self.pairs[ti]);
             let mut a_exp = vec![0.0f32; self.data.family.act_dim()];
-            run_episode(
+            // Through the device's senses where configured: the learner acts on what the
+            // device would read, the expert labels the true state (DART's noise where the
+            // learner acts).
+            sensed_episode(
                 self.env.as_mut(),
                 &task,
                 seed,
+                self.cfg.sensing.as_ref(),
                 &mut |o, a| {
                     a.copy_from_slice(&mp.act(o, &z, true, rng)?);
                     Ok(())

@@ -357,10 +357,11 @@ impl Sac {
         // (Where the batch is task-major with each task's z on its rows, every network's first
         // layer computes the z block once per task: `Batch::z_cols`.)
         let zc = b.z_cols;
-        // y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s'))
+        // y = c r + gamma (1 - d) (min_j Q'_j(s', a') - alpha log pi(a'|s')), a' ~ pi(.|s')
+        // read as the actor reads s' (through the sensors where it trains so: `actor_view`)
         let next = self
             .actor
-            .sample_const(Input::shared(&b.next_obs, zc), rng)?;
+            .sample_const(Input::shared(b.actor_next_obs(), zc), rng)?;
         let next_sa = Tensor::cat(&[&b.next_obs, &next.action], 1)?;
         let next_sa = Input::shared(&next_sa, zc);
         let (q1_targ, q2_targ) = crate::threads::join(
@@ -408,8 +409,11 @@ impl Sac {
         term: Option<ActorTerm<'_>>,
         rng: &mut impl Rng,
     ) -> Result<ActorStep> {
-        // L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant
-        let cur = self.actor.sample(Input::shared(&b.obs, b.z_cols), rng)?;
+        // L_pi = mean (alpha log pi(a~|s) - min_j Q_j(s, a~)), critic weights constant; the
+        // actor reads s as it acts (through the sensors: `actor_view`), the critics the truth
+        let cur = self
+            .actor
+            .sample(Input::shared(b.actor_obs(), b.z_cols), rng)?;
         let q_pi = self.q_min(&b.obs, &cur.action, b.z_cols, true)?;
         let mut actor_loss = ((&cur.log_prob * alpha as f64)? - q_pi)?.mean_all()?;
         if self.cfg.policy_reg > 0.0 {

@@ -34,6 +34,9 @@ pub struct Overrides {
     pub bc_weight: Option<f32>,
     /// The plant (`physics`).
     pub physics: Option<Physics>,
+    /// Train through the device's senses (`[sensing]`): SMILe's rollouts and actor, Meta-BC's
+    /// batches and Meta-DAgger's rollouts.
+    pub sensing: Option<crate::data::Sensing>,
 }
 
 impl Overrides {

@@ -66,7 +66,7 @@ pub use batch::DiscBatch;
 pub use config::SmileConfig;
 
 use crate::algo::sac::{ActorStep, Sac, SacStats};
-use crate::data::{MetaData, TaskReplay, quick_eval, run_episode, sample_context};
+use crate::data::{MetaData, TaskReplay, quick_eval, sample_context, sensed_episode};
 use crate::error::{Error, Result};
 use crate::model::{
     ContextEncoder, DiscInput, DiscStats, Discriminator, Input, MetaPolicy, SharedCols,
@@ -245,10 +245,11 @@ impl Smile {
         let seed = self.episode_seed();
         let (actor, norm, rng) = (&self.sac.actor, &self.data.norm, &mut self.rng);
         let replay = self.replay.task_mut(ti);
-        let ep = run_episode(
+        let ep = sensed_episode(
             self.env.as_mut(),
             &task,
             seed,
+            self.cfg.sensing.as_ref(),
             &mut |o, a| {
                 let mut x = norm.apply(o);
                 x.extend_from_slice(&z);

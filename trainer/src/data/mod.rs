@@ -3,8 +3,10 @@
 
 mod replay;
 mod rollout;
+mod sensing;
 mod split;
 
 pub use replay::{Batch, BatchVecs, ReplayBuffer, TaskReplay};
 pub use rollout::{ActFn, ActionNoise, Episode, Step, better, quick_eval, run_episode};
+pub use sensing::{Sensing, sensed_episode};
 pub use split::{ContextDraw, MetaData, distinct_tasks, sample_context};

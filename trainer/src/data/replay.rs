@@ -31,6 +31,22 @@ pub struct Batch {
     /// task-major batch: each task's `z` on its rows), for the networks' first layers; `None`
     /// for a plain batch.
     pub z_cols: Option<SharedCols>,
+    /// The states the actor reads in place of `obs` and `next_obs` (same shapes and
+    /// `z_cols`), where it reads them through the device's sensors while the critics read the
+    /// true ones (SMILe's `[sensing]`); `None`: the actor reads `obs` and `next_obs`.
+    pub actor_view: Option<(Tensor, Tensor)>,
+}
+
+impl Batch {
+    /// What the actor reads for the states (`obs`, or the sensed view).
+    pub fn actor_obs(&self) -> &Tensor {
+        self.actor_view.as_ref().map_or(&self.obs, |v| &v.0)
+    }
+
+    /// What the actor reads for the next states (`next_obs`, or the sensed view).
+    pub fn actor_next_obs(&self) -> &Tensor {
+        self.actor_view.as_ref().map_or(&self.next_obs, |v| &v.1)
+    }
 }
 
 /// A minibatch as flat row-major vectors (for callers that edit it before making tensors, e.g.
@@ -61,6 +77,7 @@ impl BatchVecs {
             next_obs: Tensor::from_slice(&self.next_obs, (b, obs_dim), dev)?,
             done: Tensor::from_slice(&self.done, (b, 1), dev)?,
             z_cols: None,
+            actor_view: None,
         })
     }
 }

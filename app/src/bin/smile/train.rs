@@ -74,6 +74,12 @@ pub struct TrainArgs {
     /// SMILe), finite and >= 0; 0 is plain SMILe. `bc_decay_updates` in a config decays it.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     bc_weight: Option<f32>,
+    /// Train through the device's senses: a TOML file whose `[sensing]` section (noise_std,
+    /// adc_bits, adc_range, fraction) the policy reads its training states through, the
+    /// device's sensor model (preset: docs/configs/sensing-noise01-adc12.toml; the config's
+    /// own `[sensing]` otherwise).
+    #[arg(long)]
+    sensing: Option<PathBuf>,
     /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file, or a
     /// folder of per-task experts (point-goal: the scripted PD expert if omitted; `--resume`
     /// reuses the run's expert).
@@ -95,7 +101,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
         family: a.env,
         algo: a.algo,
         config_file: a.config.clone(),
-        settings: overrides(&a),
+        settings: overrides(&a)?,
         expert: a.expert.clone(),
         resume: a.resume,
     };
@@ -149,8 +155,8 @@ pub fn run(a: TrainArgs) -> Result<()> {
 }
 
 /// The flags that set configuration values, typed; the algorithm refuses one it lacks.
-fn overrides(a: &TrainArgs) -> Overrides {
-    Overrides {
+fn overrides(a: &TrainArgs) -> Result<Overrides> {
+    Ok(Overrides {
         updates: a.updates,
         cpu_budget_s: a.cpu_budget.map(f64::from),
         seed: a.seed,
@@ -161,7 +167,32 @@ fn overrides(a: &TrainArgs) -> Overrides {
         reward_scale: a.reward_scale,
         bc_weight: a.bc_weight,
         physics: a.physics,
+        sensing: a.sensing.as_deref().map(sensing_preset).transpose()?,
+    })
+}
+
+/// The `[sensing]` section of the `--sensing` file, checked, or an error naming the file.
+fn sensing_preset(path: &std::path::Path) -> Result<trainer::Sensing> {
+    #[derive(serde::Deserialize)]
+    #[serde(deny_unknown_fields)]
+    struct Preset {
+        sensing: trainer::Sensing,
     }
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("--sensing: cannot read {}", path.display()))?;
+    let preset: Preset = toml::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "--sensing: {} is not a [sensing] section (noise_std, adc_bits, adc_range, \
+             fraction): {}",
+            path.display(),
+            e.message().trim()
+        )
+    })?;
+    preset
+        .sensing
+        .check()
+        .with_context(|| format!("--sensing: {}", path.display()))?;
+    Ok(preset.sensing)
 }
 
 /// The library's error, with the flag that gives the setting it names.
@@ -197,6 +228,7 @@ fn flag_of(key: &str) -> &'static str {
         "cpu_budget_s" => "--cpu-budget",
         "eval_every" => "--eval-every",
         "physics" => "--physics",
+        "sensing" => "--sensing",
         _ => "config.toml",
     }
 }

@@ -95,7 +95,7 @@ pub struct MetaBcConfig {
     /// keeps the weights. Default none (the recorded states). Preset:
     /// `docs/configs/sensing-noise01-adc12.toml`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub sensing: Option<sim::SensorModel>,
+    pub sensing: Option<crate::data::Sensing>,
 }
 
 impl Default for MetaBcConfig {
@@ -185,10 +185,8 @@ impl MetaBcConfig {
                 "meta-bc policy_hidden widths must be positive".into(),
             ));
         }
-        if let Some(model) = &self.sensing {
-            model
-                .check()
-                .map_err(|e| Error::Config(format!("meta-bc sensing: {e}")))?;
+        if let Some(sensing) = &self.sensing {
+            sensing.check()?;
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
             return Err(Error::Config(

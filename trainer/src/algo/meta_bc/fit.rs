@@ -170,6 +170,9 @@ impl MetaSettings for MetaBcConfig {
         Overrides::set(&mut self.eval_every, &o.eval_every);
         Overrides::set(&mut self.policy_hidden, &o.hidden);
         Overrides::set(&mut self.physics, &o.physics);
+        if o.sensing.is_some() {
+            self.sensing = o.sensing;
+        }
         Ok(())
     }
 

@@ -176,6 +176,18 @@ impl BatchSource<'_> {
             }),
         ))?;
         let reward_mean = scalar(&rew.mean_all()?)?;
+        // Through the device's senses: the actor's view of the same rows (no draw without).
+        let actor_view = match &cfg.sensing {
+            Some(sensing) => {
+                let (mut o, mut o2) = (bv.obs.clone(), bv.next_obs.clone());
+                sensing.read_row_pairs(&mut o, &mut o2, od, rng);
+                Some((
+                    policy_input(&self.data.norm, &o, &z_rows, zd)?,
+                    policy_input(&self.data.norm, &o2, &z_rows, zd)?,
+                ))
+            }
+            None => None,
+        };
         let batch = Batch {
             obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
             act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
@@ -187,6 +199,7 @@ impl BatchSource<'_> {
                 len: zd,
                 group_rows: n,
             }),
+            actor_view,
         };
         // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
         // when the weight is 0, so such a run is SMILe's, bit for bit.
@@ -202,6 +215,11 @@ impl BatchSource<'_> {
                     obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
                     act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
                 }
+            }
+            // Through the device's senses: the demo's action from its state as the device
+            // reads it (noise injection, as Meta-BC's `[sensing]`).
+            if let Some(sensing) = &cfg.sensing {
+                sensing.read_rows(&mut obs, od, rng);
             }
             Some(DemoRows {
                 obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,

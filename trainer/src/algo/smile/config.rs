@@ -115,6 +115,17 @@ pub struct SmileConfig {
     pub horizon: Option<usize>,
     /// Seed of everything. Default 0.
     pub seed: u64,
+    /// Train through the device's senses (issue 73; not in the paper or the reference): the
+    /// training rollouts act on the plant as the device's sensors read it (noise, then the
+    /// ADC: `sim::SensorModel`, the one firmware-sim's loop reads through, seeded with each
+    /// episode's reset seed), and SAC's actor, in its own loss and in the critics' targets,
+    /// reads the replay's states through the same model (the `fraction` of rows), as does
+    /// SMILe + BC's cloning term. The discriminator, the critics and the context encoder read
+    /// the true states and the demos as recorded (an asymmetric actor-critic: the device runs
+    /// only the policy, and is taught demos recorded on the host). Default none. Preset:
+    /// `docs/configs/sensing-noise01-adc12.toml`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensing: Option<crate::data::Sensing>,
 }
 
 // Settings that are off are not written, so plain SMILe runs' config.toml and checkpoints
@@ -169,6 +180,7 @@ impl Default for SmileConfig {
             rollout_termination: false,
             horizon: None,
             seed: 0,
+            sensing: None,
         }
     }
 }
@@ -240,6 +252,9 @@ impl SmileConfig {
                 "cpu_budget_s must be a finite number of seconds >= 0 (0: none), not {}",
                 self.cpu_budget_s
             )));
+        }
+        if let Some(sensing) = &self.sensing {
+            sensing.check()?;
         }
         if self.bc_weight > 0.0 && self.context.state_only {
             return Err(Error::Config(

@@ -171,6 +171,9 @@ impl MetaSettings for SmileConfig {
         Overrides::set(&mut self.sac.reward_scale, &o.reward_scale);
         Overrides::set(&mut self.bc_weight, &o.bc_weight);
         Overrides::set(&mut self.physics, &o.physics);
+        if o.sensing.is_some() {
+            self.sensing = o.sensing;
+        }
         Ok(())
     }
 

@@ -38,7 +38,7 @@ use sim::{Environment, Task};
 
 use super::{Smile, disc_loss, sac_update};
 use crate::algo::sac::SacStats;
-use crate::data::{TaskReplay, run_episode};
+use crate::data::{Sensing, TaskReplay, sensed_episode};
 use crate::error::{Error, Result};
 use crate::model::{DiscStats, ObsNorm, TanhGaussianPolicy};
 use crate::threads::LearnerPool;
@@ -104,6 +104,7 @@ impl Smile {
             norm: self.data.norm.clone(),
             env,
             episodes,
+            sensing: self.cfg.sensing,
             rng: ChaCha8Rng::seed_from_u64(self.rng.random()),
         };
         let pool = self.pool()?;
@@ -136,6 +137,7 @@ struct RolloutJob {
     norm: ObsNorm,
     env: Box<dyn Environment>,
     episodes: Vec<PlannedEpisode>,
+    sensing: Option<Sensing>,
     rng: ChaCha8Rng,
 }
 
@@ -183,10 +185,11 @@ impl RolloutJob {
         let (actor, norm, rng) = (&self.actor, &self.norm, &mut self.rng);
         for ep in &self.episodes {
             let mut tr = Transitions::default();
-            let out = run_episode(
+            let out = sensed_episode(
                 self.env.as_mut(),
                 &ep.task,
                 ep.seed,
+                self.sensing.as_ref(),
                 &mut |o, a| {
                     let mut x = norm.apply(o);
                     x.extend_from_slice(&ep.z);
