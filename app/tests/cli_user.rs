@@ -253,12 +253,12 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         (
             "smile",
             "tasks_per_batch = 0\n",
-            "batch sizes and counts must be positive",
+            "tasks_per_batch must be a count from 1 to",
         ),
         (
             "smile",
             "sac_per_task = 0\n",
-            "batch sizes and counts must be positive",
+            "sac_per_task must be a count from 1 to",
         ),
         (
             "smile",
@@ -268,8 +268,16 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         ("smile", "[sac]\nbatch_size = 0\n", "sac.batch_size"),
         ("meta-bc", "total_stepz = 5\n", "total_stepz"),
         ("meta-bc", "[context]\nr_dimm = 3\n", "r_dimm"),
-        ("meta-bc", "per_task = 0\n", "batch sizes"),
-        ("meta-bc", "tasks_per_batch = 0\n", "batch sizes"),
+        (
+            "meta-bc",
+            "per_task = 0\n",
+            "per_task must be a count from 1 to",
+        ),
+        (
+            "meta-bc",
+            "tasks_per_batch = 0\n",
+            "tasks_per_batch must be a count from 1 to",
+        ),
         ("meta-bc", "lr = -0.001\n", "lr must be positive"),
     ];
     for (i, (algo, toml_text, needle)) in cases.into_iter().enumerate() {

@@ -458,6 +458,30 @@ fn numeric_flags_are_validated_by_name() {
         "0",
     ]));
     assert!(e.contains("--rollouts") && e.contains("at least 1"), "{e}");
+    // Counts no run finishes (issue 72, item 4: they ran forever or aborted), from a flag as
+    // from a config: refused with the bound named.
+    for (flag, value, bound) in [
+        ("--rollouts", "4294967296", "at most 16777216"),
+        ("--horizon", "18446744073709551615", "at most 1000000"),
+    ] {
+        let e = err_of(&smile(&[
+            "eval",
+            "--policy",
+            s(&run),
+            "--contexts",
+            s(&test),
+            flag,
+            value,
+        ]));
+        assert!(e.contains(flag) && e.contains(bound), "{e}");
+    }
+    let cfg = dir.join("huge.toml");
+    std::fs::write(&cfg, "replay_per_task = 1099511627776\n").unwrap();
+    let e = err_of(&train_with(&["--config", s(&cfg), "--quiet"]));
+    assert!(
+        e.contains("replay_per_task must be a count from 1 to 16777216"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

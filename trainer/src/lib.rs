@@ -93,5 +93,9 @@ pub use io::os_path;
 /// One writer per output directory.
 pub use io::{DirLock, lock};
 
+/// The bounds every count, budget and episode length is checked against, from a flag, a
+/// configuration or a plan alike.
+pub use io::{MAX_COUNT, MAX_HORIZON, MAX_STEPS};
+
 /// The metrics log (JSON lines + TensorBoard events).
 pub use io::{METRICS_FILE, MetricsLog, from_toml_over_defaults, set_key as set_config_key};

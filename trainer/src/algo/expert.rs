@@ -119,8 +119,8 @@ impl ExpertConfig {
     /// Rejects values that cannot train: a positive step budget, replay, update rate and
     /// evaluation, an episode of at least one step, valid SAC settings and thread count.
     pub fn validate(&self) -> Result<()> {
+        crate::io::require_budget(&[("total_steps", self.total_steps)])?;
         crate::io::require_positive(&[
-            ("total_steps", self.total_steps),
             ("updates_per_step", self.updates_per_step as u64),
             ("buffer_capacity", self.buffer_capacity as u64),
             ("eval_episodes", self.eval_episodes as u64),

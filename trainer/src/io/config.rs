@@ -65,26 +65,45 @@ pub(crate) fn merge_tables(base: &mut toml::Table, over: toml::Table) {
     }
 }
 
-/// The one check of a count that must be positive, naming its key: flags, configuration files
-/// and sweep plans all end in a configuration's `validate`, which calls this, so a `0` that a
-/// flag would refuse cannot pass through a file either (an untrained policy marked finished, a
-/// metric over zero steps).
+/// The most of any count a run or an evaluation is given (episodes, draws, rollouts, demos,
+/// batch rows, buffer capacities): 2^24. Beyond it no run on one machine finishes or fits, and
+/// a value of 2^32 or more is a typo, not a plan.
+pub const MAX_COUNT: u64 = 1 << 24;
+/// The most training steps a budget may name (update pairs, gradient steps, environment
+/// steps): 10^10, about 11 days at 10,000 a second.
+pub const MAX_STEPS: u64 = 10_000_000_000;
+/// The longest episode an override may ask for, in plant steps (the paper's longest is 1000).
+pub const MAX_HORIZON: usize = 1_000_000;
+
+/// The one check of a count, naming its key: at least 1 and at most [`MAX_COUNT`]. Flags,
+/// configuration files and sweep plans all end in a configuration's `validate`, which calls
+/// this, so a `0` or a `2^40` that a flag would refuse cannot pass through a file either (an
+/// untrained policy marked finished, a metric over zero steps, a run that never ends).
 pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::error::Result<()> {
-    match counts.iter().find(|(_, v)| *v == 0) {
-        Some((key, _)) => Err(crate::error::Error::Config(format!(
-            "{key} must be a positive count, not 0"
+    require_within(counts, MAX_COUNT)
+}
+
+/// [`require_positive`] for training budgets, at most [`MAX_STEPS`].
+pub(crate) fn require_budget(counts: &[(&str, u64)]) -> crate::error::Result<()> {
+    require_within(counts, MAX_STEPS)
+}
+
+fn require_within(counts: &[(&str, u64)], max: u64) -> crate::error::Result<()> {
+    match counts.iter().find(|(_, v)| *v == 0 || *v > max) {
+        Some((key, v)) => Err(crate::error::Error::Config(format!(
+            "{key} must be a count from 1 to {max}, not {v}"
         ))),
         None => Ok(()),
     }
 }
 
-/// An episode-length override must be at least one step (`None`: the family's own horizon).
+/// An episode-length override must be 1 to [`MAX_HORIZON`] steps (`None`: the family's own).
 pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::error::Result<()> {
     match horizon {
-        Some(0) => Err(crate::error::Error::Config(
-            "horizon must be at least 1 step (leave it out for the family's own horizon), not 0"
-                .into(),
-        )),
+        Some(h) if h == 0 || h > MAX_HORIZON => Err(crate::error::Error::Config(format!(
+            "horizon must be 1 to {MAX_HORIZON} steps (leave it out for the family's own \
+             horizon), not {h}"
+        ))),
         _ => Ok(()),
     }
 }
@@ -93,6 +112,42 @@ pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::error::Result<()
 mod tests {
     use super::*;
     use crate::algo::smile::SmileConfig;
+
+    /// A count, a budget or a horizon no run could finish is refused from a file as from a
+    /// flag, naming the key and the bound (issue 72, item 4: 2^32-2^64 ran forever or aborted).
+    #[test]
+    fn absurd_counts_budgets_and_horizons_are_refused_naming_the_key() {
+        let meta_bc = |t: &str| {
+            from_toml_over_defaults::<crate::algo::meta_bc::MetaBcConfig>(t)
+                .unwrap()
+                .validate()
+        };
+        let smile = |t: &str| {
+            from_toml_over_defaults::<SmileConfig>(t)
+                .unwrap()
+                .validate()
+        };
+        for (text, says) in [
+            (
+                "total_updates = 9223372036854775807",
+                "total_updates must be a count from 1 to 10000000000",
+            ),
+            (
+                "replay_per_task = 1099511627776",
+                "replay_per_task must be a count from 1 to 16777216",
+            ),
+            ("eval_episodes = 4294967296", "eval_episodes"),
+            ("horizon = 4294967296", "horizon must be 1 to 1000000 steps"),
+        ] {
+            let e = smile(text).unwrap_err().to_string();
+            assert!(e.contains(says), "{text}: {e}");
+        }
+        let e = meta_bc("per_task = 4294967296").unwrap_err().to_string();
+        assert!(e.contains("per_task must be a count"), "{e}");
+        let e = meta_bc("total_steps = 0").unwrap_err().to_string();
+        assert!(e.contains("total_steps"), "{e}");
+        smile("total_updates = 10000000000\nhorizon = 1000000").unwrap();
+    }
 
     #[test]
     fn a_partial_nested_table_keeps_the_algorithms_defaults() {

@@ -12,7 +12,8 @@ pub mod os_path;
 mod policy_file;
 pub mod qat;
 
+pub use config::{MAX_COUNT, MAX_HORIZON, MAX_STEPS};
 pub use config::{from_toml_over_defaults, set_key};
-pub(crate) use config::{require_horizon, require_positive};
+pub(crate) use config::{require_budget, require_horizon, require_positive};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog};

@@ -41,7 +41,7 @@ pub struct DemosArgs {
     #[arg(long)]
     physics: Option<sim::Physics>,
     /// Episode length override (at least 1).
-    #[arg(long, value_parser = crate::positive)]
+    #[arg(long, value_parser = crate::horizon)]
     horizon: Option<usize>,
     /// Output dataset file.
     #[arg(short, long)]

@@ -34,7 +34,7 @@ pub struct EvalArgs {
     #[arg(long, value_delimiter = ',', value_parser = clap::value_parser!(u32).range(1..))]
     context_sizes: Vec<u32>,
     /// Episode length override (at least 1).
-    #[arg(long, value_parser = crate::positive)]
+    #[arg(long, value_parser = crate::horizon)]
     horizon: Option<usize>,
     /// Standard deviation of Gaussian noise added to every action before the plant clips it
     /// (a compounding-error probe; seeded per episode). 0 is the paper's protocol.

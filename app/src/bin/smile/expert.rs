@@ -75,7 +75,7 @@ pub struct ExpertArgs {
     #[arg(long)]
     learning_starts: Option<u64>,
     /// Episode length override (at least 1).
-    #[arg(long, value_parser = crate::positive)]
+    #[arg(long, value_parser = crate::horizon)]
     horizon: Option<usize>,
     /// Train a per-task expert on this meta-train task index.
     #[arg(long, conflicts_with = "task_value")]

@@ -65,7 +65,7 @@ pub struct ExportArgs {
     #[arg(long, value_parser = crate::positive)]
     rollouts: Option<usize>,
     /// Episode length override (at least 1).
-    #[arg(long, value_parser = crate::positive)]
+    #[arg(long, value_parser = crate::horizon)]
     horizon: Option<usize>,
     /// Export a policy whose training did not finish, with a warning, instead of refusing it.
     #[arg(long)]

@@ -117,9 +117,20 @@ fn parse_threads(text: &str) -> std::result::Result<usize, String> {
 
 /// A count that must be at least 1 (`--rollouts`, `--horizon`, `--draws`, ...).
 pub(crate) fn positive(text: &str) -> std::result::Result<usize, String> {
+    count_up_to(text, trainer::MAX_COUNT as usize)
+}
+
+/// An episode length, 1 to `trainer::MAX_HORIZON` plant steps (`--horizon`).
+pub(crate) fn horizon(text: &str) -> std::result::Result<usize, String> {
+    count_up_to(text, trainer::MAX_HORIZON)
+}
+
+/// A whole number from 1 to `max` (0 would do nothing; beyond `max` no run finishes).
+fn count_up_to(text: &str, max: usize) -> std::result::Result<usize, String> {
     match text.parse::<usize>() {
-        Ok(n) if n >= 1 => Ok(n),
-        Ok(_) => Err("expected at least 1 (0 would do nothing)".into()),
+        Ok(n) if (1..=max).contains(&n) => Ok(n),
+        Ok(0) => Err("expected at least 1 (0 would do nothing)".into()),
+        Ok(n) => Err(format!("{n}: at most {max}")),
         Err(e) => Err(format!("`{text}` is not a whole number: {e}")),
     }
 }

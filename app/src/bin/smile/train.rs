@@ -44,7 +44,7 @@ pub struct TrainArgs {
     #[arg(long, conflicts_with = "config")]
     resume: bool,
     /// Total update pairs (SMILe) or gradient steps (Meta-BC / Meta-DAgger), at least 1.
-    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=trainer::MAX_STEPS))]
     updates: Option<u64>,
     /// SMILe: a compute budget in CPU-seconds (user + system, every thread) for the whole run,
     /// resumes included; training stops at the first iteration end past it and finishes as at

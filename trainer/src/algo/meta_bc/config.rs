@@ -156,24 +156,17 @@ impl MetaBcConfig {
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
+        crate::io::require_budget(&[("total_steps", self.total_steps)])?;
         crate::io::require_positive(&[
-            ("total_steps", self.total_steps),
             ("eval_episodes", self.eval_episodes as u64),
+            ("tasks_per_batch", self.tasks_per_batch as u64),
+            ("per_task", self.per_task as u64),
+            ("max_context", self.max_context as u64),
+            ("eval_context_size", self.eval_context_size as u64),
+            ("eval_contexts", self.eval_contexts as u64),
         ])?;
         crate::io::require_horizon(self.horizon)?;
         crate::threads::check_learner_threads(self.learner_threads)?;
-        if self.tasks_per_batch == 0
-            || self.per_task == 0
-            || self.max_context == 0
-            || self.eval_context_size == 0
-            || self.eval_contexts == 0
-        {
-            return Err(Error::Config(
-                "meta-bc batch sizes (tasks_per_batch, per_task, max_context, \
-                 eval_context_size, eval_contexts) must be positive"
-                    .into(),
-            ));
-        }
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::Config(format!(
                 "meta-bc lr must be positive, got {}",

@@ -210,19 +210,15 @@ impl SmileConfig {
     /// Reject values that cannot train.
     pub fn validate(&self) -> Result<()> {
         self.sac.validate()?;
-        if self.tasks_per_batch == 0
-            || self.disc_per_task == 0
-            || self.sac_per_task == 0
-            || self.max_context == 0
-            || self.updates_per_iter == 0
-            || self.eval_context_size == 0
-        {
-            return Err(Error::Config(
-                "smile batch sizes and counts must be positive (eval_context_size too)".into(),
-            ));
-        }
+        crate::io::require_budget(&[("total_updates", self.total_updates)])?;
         crate::io::require_positive(&[
-            ("total_updates", self.total_updates),
+            ("tasks_per_batch", self.tasks_per_batch as u64),
+            ("disc_per_task", self.disc_per_task as u64),
+            ("sac_per_task", self.sac_per_task as u64),
+            ("updates_per_iter", self.updates_per_iter as u64),
+            ("max_context", self.max_context as u64),
+            ("eval_context_size", self.eval_context_size as u64),
+            ("replay_per_task", self.replay_per_task as u64),
             ("rollouts_per_iter", self.rollouts_per_iter as u64),
             ("eval_episodes", self.eval_episodes as u64),
             ("eval_contexts", self.eval_contexts as u64),
