@@ -85,9 +85,13 @@ fn start_long_bc(train: &Path, run: &Path) -> std::process::Child {
 
 /// Overwrites the first f32 of the first tensor of the safetensors `file` with NaN.
 fn nan_first_float(file: &Path) {
+    set_first_float(file, f32::NAN);
+}
+
+fn set_first_float(file: &Path, value: f32) {
     let mut bytes = std::fs::read(file).unwrap();
     let header = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
-    bytes[8 + header..8 + header + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+    bytes[8 + header..8 + header + 4].copy_from_slice(&value.to_le_bytes());
     std::fs::write(file, &bytes).unwrap();
 }
 
@@ -284,6 +288,14 @@ fn nan_weights_are_refused() {
     nan_first_float(&run.join(trainer::META_POLICY_FILE));
     let e = err_of(&smile(&eval_args(&run, &test, &dir.join("ev"))));
     assert!(e.contains("non-finite") && e.contains("diverged"), "{e}");
+    // A finite weight of 3e38 (issue 72, item 8: evaluated, and a resume failed at update 201
+    // without naming the file) is as diverged.
+    set_first_float(&run.join(trainer::META_POLICY_FILE), 3e38);
+    let e = err_of(&smile(&eval_args(&run, &test, &dir.join("ev"))));
+    assert!(
+        e.contains(trainer::META_POLICY_FILE) && e.contains("overflows f32"),
+        "{e}"
+    );
     // The same in the run's checkpoint: a resume names the file and the tensor (issue 57,
     // item 9), not a loss gone NaN some updates later.
     nan_first_float(&run.join(trainer::checkpoint::CHECKPOINT_FILE));

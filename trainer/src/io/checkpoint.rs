@@ -249,6 +249,10 @@ impl Loaded {
     }
 }
 
+/// The largest magnitude a stored float may have: beyond it its square overflows f32, so no
+/// trained network, optimiser moment or replay row holds one.
+const MAX_STORED: f32 = 1.8e19;
+
 /// Load `dir/checkpoint.safetensors` (or `dir` itself if it is a file). Truncated, corrupt or
 /// foreign files give [`Error::Checkpoint`] naming the path and the problem.
 pub fn load(dir: &Path) -> Result<Loaded> {
@@ -293,13 +297,19 @@ pub fn load(dir: &Path) -> Result<Loaded> {
                 // Every reader (resume, warm start, a policy) refuses a diverged file here, by
                 // name, before a NaN surfaces far away as a loss or an action (through a ReLU a
                 // NaN weight comes out 0: a policy would evaluate to a plausible number).
-                if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                // A finite value whose square overflows f32 (3e38) is as diverged: the first
+                // matrix product or Adam moment makes it infinite, far from the file.
+                if let Some(i) = v.iter().position(|x| !(x.abs() <= MAX_STORED)) {
+                    let what = if v[i].is_finite() {
+                        "a value whose square overflows f32"
+                    } else {
+                        "a non-finite value"
+                    };
                     return Err(ckpt_err(
                         &path,
                         format!(
-                            "tensor `{name}` holds a non-finite value ({} at index {i}): the run \
-                             that wrote it diverged; resume from an earlier checkpoint or train \
-                             again",
+                            "tensor `{name}` holds {what} ({} at index {i}): the run that \
+                             wrote it diverged; resume from an earlier checkpoint or train again",
                             v[i]
                         ),
                     ));
