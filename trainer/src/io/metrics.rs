@@ -10,8 +10,9 @@
 //!
 //! A resumed run continues the log from its checkpoint: [`MetricsLog::open_at`] drops the lines
 //! written after the checkpoint by the interrupted process (rewriting the file atomically), and
-//! the new event file starts with a `SessionLog { status: START }` at the checkpoint's step, on
-//! which TensorBoard discards the interrupted process's events past that step.
+//! the earlier event files lose their events past the checkpoint's step the same way (so any
+//! reader of the files, not only TensorBoard, sees each step once), and the new event file
+//! starts with a `SessionLog { status: START }` at that step, TensorBoard's own purge signal.
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -61,6 +62,9 @@ impl MetricsLog {
             .append(true)
             .open(&path)
             .map_err(io)?;
+        if step > 0 {
+            truncate_events(&dir.join("tb"), step)?;
+        }
         let mut tb = TbWriter::create(&dir.join("tb"))?;
         if step > 0 {
             tb.session_start(step)?;
@@ -138,6 +142,80 @@ fn len_field(field: u32, bytes: &[u8], out: &mut Vec<u8>) {
     out.extend_from_slice(bytes);
 }
 
+/// Drops the events with a step past `step` from every event file in `tb` (rewritten
+/// atomically where one changes), and a torn last record; a file that is not a valid TFRecord
+/// file of events is left as it is.
+fn truncate_events(tb: &Path, step: u64) -> Result<()> {
+    let Ok(entries) = std::fs::read_dir(tb) else {
+        return Ok(());
+    };
+    for entry in entries.flatten() {
+        let path = entry.path();
+        let is_events = path
+            .file_name()
+            .and_then(|n| n.to_str())
+            .is_some_and(|n| n.starts_with("events.out.tfevents."));
+        let Ok(bytes) = std::fs::read(&path) else {
+            continue;
+        };
+        if !is_events {
+            continue;
+        }
+        let kept = kept_records(&bytes, step);
+        if kept.len() != bytes.len() {
+            crate::io::checkpoint::write_atomic(&path, &kept)?;
+        }
+    }
+    Ok(())
+}
+
+/// The records of a TFRecord file of events whose step is at most `step`, in order; stops at
+/// the first record that does not check out (a torn write).
+fn kept_records(bytes: &[u8], step: u64) -> Vec<u8> {
+    let (mut at, mut kept) = (0usize, Vec::with_capacity(bytes.len()));
+    while at + 12 <= bytes.len() {
+        let len_bytes = &bytes[at..at + 8];
+        let len = u64::from_le_bytes(len_bytes.try_into().expect("8 bytes")) as usize;
+        let end = at.saturating_add(16).saturating_add(len);
+        if end > bytes.len() || read_u32(bytes, at + 8) != masked_crc(len_bytes) {
+            break;
+        }
+        let data = &bytes[at + 12..at + 12 + len];
+        if read_u32(bytes, at + 12 + len) != masked_crc(data) {
+            break;
+        }
+        if event_step(data).is_none_or(|s| s <= step) {
+            kept.extend_from_slice(&bytes[at..end]);
+        }
+        at = end;
+    }
+    kept
+}
+
+fn read_u32(bytes: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4 bytes"))
+}
+
+/// The `step` (field 2) of an `Event` as [`TbWriter`] writes it: the wall time (field 1,
+/// fixed64) first, then the step as a varint.
+fn event_step(ev: &[u8]) -> Option<u64> {
+    if ev.len() < 10 || ev[0] != 0x09 || ev[9] != 0x10 {
+        return None;
+    }
+    let (mut v, mut shift) = (0u64, 0);
+    for &b in &ev[10..] {
+        v |= u64::from(b & 0x7f) << shift;
+        if b & 0x80 == 0 {
+            return Some(v);
+        }
+        shift += 7;
+        if shift >= 64 {
+            return None;
+        }
+    }
+    None
+}
+
 /// A TensorBoard event-file writer for scalars.
 pub struct TbWriter {
     path: PathBuf,
@@ -150,16 +228,28 @@ impl TbWriter {
         let secs = std::time::SystemTime::now()
             .duration_since(std::time::UNIX_EPOCH)
             .map_or(0, |d| d.as_secs());
-        let path = dir.join(format!(
-            "events.out.tfevents.{secs}.{}.smile",
-            std::process::id()
-        ));
-        let io = |e| Error::Io {
-            path: path.clone(),
-            source: e,
+        // A second writer of one process within the same second (an in-process resume) gets
+        // its own file: `create_new`, never truncating the earlier one.
+        let name = |n: u32| {
+            let pid = std::process::id();
+            match n {
+                0 => format!("events.out.tfevents.{secs}.{pid}.smile"),
+                n => format!("events.out.tfevents.{secs}.{pid}.{n}.smile"),
+            }
         };
-        std::fs::create_dir_all(dir).map_err(io)?;
-        let f = std::fs::File::create(&path).map_err(io)?;
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+            path: dir.to_path_buf(),
+            source: e,
+        })?;
+        let mut n = 0;
+        let (path, f) = loop {
+            let path = dir.join(name(n));
+            match std::fs::File::create_new(&path) {
+                Ok(f) => break (path, f),
+                Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && n < 1000 => n += 1,
+                Err(e) => return Err(Error::Io { path, source: e }),
+            }
+        };
         let mut w = Self {
             path,
             file: std::io::BufWriter::new(f),
@@ -249,6 +339,48 @@ mod tests {
         assert_eq!(n, 2);
         let text = String::from_utf8_lossy(&bytes);
         assert!(text.contains("losses/qf_loss") && !text.contains("charts/sps"));
+        std::fs::remove_dir_all(&dir).ok();
+    }
+
+    /// A resume at a checkpoint's step drops the interrupted process's events past it from
+    /// the earlier event files (issue 72, item 8: they stayed), and a torn last record.
+    #[test]
+    fn a_resume_drops_the_events_past_its_checkpoint() {
+        let dir = std::env::temp_dir().join(format!("smile-tb-resume-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        {
+            let mut log = MetricsLog::open_at(&dir, 0).unwrap();
+            for step in [10, 20, 30, 40] {
+                log.log(step, &[("charts/x", step as f64)]).unwrap();
+            }
+        }
+        let first = std::fs::read_dir(dir.join("tb"))
+            .unwrap()
+            .next()
+            .unwrap()
+            .unwrap()
+            .path();
+        let mut torn = std::fs::read(&first).unwrap();
+        torn.extend_from_slice(&[7, 0, 0]);
+        std::fs::write(&first, &torn).unwrap();
+        let steps = |bytes: &[u8]| {
+            let mut out = Vec::new();
+            let mut at = 0;
+            while at + 12 <= bytes.len() {
+                let len = u64::from_le_bytes(bytes[at..at + 8].try_into().unwrap()) as usize;
+                out.push(event_step(&bytes[at + 12..at + 12 + len]).unwrap());
+                at += 16 + len;
+            }
+            out
+        };
+        assert_eq!(
+            steps(&std::fs::read(&first).unwrap()[..torn.len() - 3]),
+            [0, 10, 20, 30, 40]
+        );
+        let _resumed = MetricsLog::open_at(&dir, 20).unwrap();
+        assert_eq!(steps(&std::fs::read(&first).unwrap()), [0, 10, 20]);
+        let log = std::fs::read_to_string(dir.join(METRICS_FILE)).unwrap();
+        assert_eq!(log.lines().count(), 2);
         std::fs::remove_dir_all(&dir).ok();
     }
 }
