@@ -384,6 +384,19 @@ rollouts = 1
     let err = ok(&smile(&["sweep", p.to_str().unwrap(), "--jobs", "1"]));
     assert!(err.contains("2 of 2 cells done"), "{err}");
     serde_json::from_slice::<serde_json::Value>(&bytes(&dirs[1].join("eval/eval.json"))).unwrap();
+    // A manifest listing a cell twice (hand-edited: issue 72, item 8, counted as two seeds) is
+    // refused naming the file and the cell.
+    let path = out.join("manifest.json");
+    let mut m: serde_json::Value = serde_json::from_slice(&bytes(&path)).unwrap();
+    let cells = m["cells"].as_array_mut().unwrap();
+    cells.push(cells[0].clone());
+    std::fs::write(&path, serde_json::to_vec(&m).unwrap()).unwrap();
+    let o = smile(&["report", out.to_str().unwrap(), "-o", rep.to_str().unwrap()]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && e.contains("manifest.json") && e.contains("twice"),
+        "{e}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 

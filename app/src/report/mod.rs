@@ -206,6 +206,22 @@ impl Gather {
                 manifest.display()
             ))
         })?;
+        // A cell listed twice (a hand-edited or merged manifest) would count as two seeds.
+        let mut seen = std::collections::HashSet::new();
+        for c in &m.cells {
+            // (The name, not method + setting + seed: two demo files of one label are two cells.)
+            if !seen.insert(c.cell.name.as_str()) {
+                return Err(Error::Data(format!(
+                    "{} lists {} (seed {} of {}, {}) twice: one cell is one seed; remove the \
+                     repeated entry, or run `smile sweep` on the plan to write the manifest again",
+                    manifest.display(),
+                    c.cell.name,
+                    c.cell.seed,
+                    c.cell.method,
+                    c.cell.setting()
+                )));
+            }
+        }
         for c in &m.cells {
             let eval = input.join(&c.cell.name).join("eval");
             if !eval.join("eval.json").exists() {
