@@ -40,4 +40,5 @@ method=$(key method)
 } > "$dst/deploy.toml"
 git add "$dst"
 docs/scripts/shipped-sums.sh
+git add "$dst/SHA256SUMS"
 echo "shipped $dst"
