@@ -41,6 +41,12 @@ pub struct DeployManifest {
     /// column and the f32 blob stay the policy as trained.
     #[serde(default)]
     pub qat_steps: Option<usize>,
+    /// The full scale of the sensor column's 12-bit ADC, +-this (firmware-sim's `--adc-range`;
+    /// default 10). A real converter is scaled to its channel's signal: the cheetah's joint
+    /// velocities reach 20-27 rad/s and clipped at +-10 cost its SMILe + BC +23% of the +27%
+    /// the sensor column lost (docs/DEVICE.md, "which entries").
+    #[serde(default)]
+    pub adc_range: Option<f32>,
 }
 
 impl DeployManifest {
@@ -51,8 +57,23 @@ impl DeployManifest {
             path: path.clone(),
             source: e,
         })?;
-        toml::from_str(&text)
-            .map_err(|e| Error::Config(format!("{}: {}", path.display(), e.message())))
+        let manifest: Self = toml::from_str(&text)
+            .map_err(|e| Error::Config(format!("{}: {}", path.display(), e.message())))?;
+        if let Some(range) = manifest.adc_range
+            && !(range.is_finite() && range > 0.0)
+        {
+            return Err(Error::Config(format!(
+                "{}: adc_range = {range}: expected a finite full scale > 0",
+                path.display()
+            )));
+        }
+        Ok(manifest)
+    }
+
+    /// The sensor column's ADC full scale.
+    pub fn adc_range(&self) -> f32 {
+        self.adc_range
+            .unwrap_or(firmware_sim::LoopConfig::default().adc_range)
     }
 }
 
@@ -120,6 +141,8 @@ pub struct Row {
     /// Adam steps of the quantization-aware fine-tune behind the int8 blobs, if any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub qat_steps: Option<usize>,
+    /// The sensor column's ADC full scale (+-, volts-free units of the observation).
+    pub adc_range: f32,
     /// Metric name.
     pub metric: String,
     /// Tasks measured: the test split's, or those of `new_tasks`.
@@ -336,8 +359,15 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
                 .iter()
                 .enumerate()
                 .map(|(c, name)| {
-                    let d =
-                        device_column(w8a8, c, (&tasks, &test), &protocol, family, &float_tasks)?;
+                    let d = device_column(
+                        w8a8,
+                        c,
+                        (&tasks, &test),
+                        &protocol,
+                        family,
+                        &float_tasks,
+                        manifest.adc_range(),
+                    )?;
                     on(format!("  device, {name}: {:.4}", d.cell.metric));
                     Ok(d)
                 })
@@ -350,6 +380,7 @@ pub fn measure(dir: &Path, config: &TableConfig, on: &mut dyn FnMut(String)) -> 
         policy: dir.to_path_buf(),
         family,
         physics: mp.physics,
+        adc_range: manifest.adc_range(),
         method: manifest.method,
         qat_steps: manifest.qat_steps,
         metric: eval::metric_name(family.metric_kind()).into(),
@@ -485,7 +516,7 @@ fn misfit(blob: &[u8]) -> Result<Option<String>> {
 }
 
 /// The session settings of device column `column` for episode seed `seed`.
-fn session(column: usize, seed: u64, plant: EnvConfig) -> SessionConfig {
+fn session(column: usize, seed: u64, plant: EnvConfig, adc_range: f32) -> SessionConfig {
     let mut control = LoopConfig {
         seed,
         // A generous budget: the host is not the device; overruns are not the question here.
@@ -500,6 +531,7 @@ fn session(column: usize, seed: u64, plant: EnvConfig) -> SessionConfig {
         1 => {
             control.noise_std = 0.01;
             control.adc_bits = Some(12);
+            control.adc_range = adc_range;
         }
         2 => control.sensing = Sensing::POSITIONS,
         3 => {
@@ -526,6 +558,7 @@ fn device_column(
     protocol: &Protocol,
     family: Family,
     float_tasks: &[f32],
+    adc_range: f32,
 ) -> Result<DeviceCell> {
     let (tasks, test) = measured;
     let contexts = eval::contexts_for(test, family, tasks)?;
@@ -546,7 +579,7 @@ fn device_column(
             // The host evaluation's draw: the same demo teaches the device.
             let context = eval::context_draw(&trajs, i, 1, d);
             for r in 0..protocol.rollouts {
-                let config = session(column, eval::episode_seed(d, r), plant);
+                let config = session(column, eval::episode_seed(d, r), plant, adc_range);
                 let s = run_session(blob, task, &context, &config)
                     .map_err(|e| Error::Device(e.to_string()))?;
                 metrics.push(s.report.metric);
@@ -565,6 +598,18 @@ fn device_column(
         tick_us: (at(0.5), at(0.99)),
         link_retries: retries,
     })
+}
+
+/// The row's method, with what its deployment changes from the defaults.
+fn method_label(r: &Row) -> String {
+    let mut label = r.method.clone();
+    if let Some(n) = r.qat_steps {
+        label.push_str(&format!(" (int8 fine-tuned {n} steps)"));
+    }
+    if r.adc_range != firmware_sim::LoopConfig::default().adc_range {
+        label.push_str(&format!(" [ADC +-{}]", r.adc_range));
+    }
+    label
 }
 
 /// The table in markdown: one row per policy.
@@ -600,10 +645,7 @@ pub fn markdown(rows: &[Row]) -> String {
             "| {}, {} | {} | {} | {:.4} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} x {} |\n",
             r.family,
             r.physics,
-            match r.qat_steps {
-                Some(n) => format!("{} (int8 fine-tuned {n} steps)", r.method),
-                None => r.method.clone(),
-            },
+            method_label(r),
             metric,
             r.float,
             pct(&r.blobs[0]),

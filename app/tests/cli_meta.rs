@@ -330,6 +330,54 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     assert_eq!(row["fits"], true, "{row}");
     let md = std::fs::read_to_string(out.join("device-table.md")).unwrap();
     assert_eq!(md.lines().count(), 3, "{md}");
+
+    // The sensor column's ADC full scale comes from deploy.toml (issue 73: the cheetah's joint
+    // velocities clipped at the default +-10): a converter of +-0.5 clips point-goal's
+    // positions (up to 2), and the row says so; a scale that is no scale is refused by name.
+    let manifest = std::fs::read_to_string(policy.join("deploy.toml")).unwrap();
+    std::fs::write(
+        policy.join("deploy.toml"),
+        format!("{manifest}adc_range = 0.5\n"),
+    )
+    .unwrap();
+    let clipped = dir.join("clipped");
+    ok(&smile(&[
+        "device-table",
+        common::s(&policy),
+        "--draws",
+        "1",
+        "-o",
+        common::s(&clipped),
+    ]));
+    let narrow = &table_rows(&clipped)[0];
+    assert_eq!(narrow["adc_range"], 0.5, "{narrow}");
+    assert_eq!(row["adc_range"], 10.0, "{row}");
+    let noise = |r: &serde_json::Value| r["device"][1]["cell"]["metric"].as_f64().unwrap();
+    // (This tiny policy barely moves, so the clipped readings change its metric a little, but
+    // change it: the column read through the manifest's converter.)
+    assert_ne!(noise(narrow), noise(row), "{narrow} against {row}");
+    assert_eq!(
+        narrow["device"][0]["cell"], row["device"][0]["cell"],
+        "the ideal column is unchanged"
+    );
+    let md = std::fs::read_to_string(clipped.join("device-table.md")).unwrap();
+    assert!(md.contains("[ADC +-0.5]"), "{md}");
+    std::fs::write(
+        policy.join("deploy.toml"),
+        format!("{manifest}adc_range = -1.0\n"),
+    )
+    .unwrap();
+    let e = smile(&[
+        "device-table",
+        common::s(&policy),
+        "-o",
+        common::s(&dir.join("x")),
+    ]);
+    let stderr = String::from_utf8_lossy(&e.stderr);
+    assert!(
+        !e.status.success() && stderr.contains("deploy.toml") && stderr.contains("adc_range"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }
 
