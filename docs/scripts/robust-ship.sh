@@ -9,19 +9,23 @@
 #   docs/scripts/robust-ship.sh RUN_DIR FROM [SUFFIX]
 #   e.g. docs/scripts/robust-ship.sh ~/runs/robust/cheetah-vel-rapier-smile-bc-robust cheetah-vel-rapier-smile-bc
 #
+# DEST=<folder name> ships under that name instead, and a run without [sensing] is labelled
+# with NOTE (e.g. the ants' narrow actors: DEST=ant-goal-rapier-smile-bc-actor128 NOTE="actor 2 x 128").
+#
 # SMILE_BIN: the `smile` to use (a --features mujoco build for MuJoCo rows).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 run=${1:?RUN_DIR}; from=assets/policies/${2:?FROM}; suffix=${3:+-$3}
-dst=assets/policies/$2-robust$suffix
+dst=assets/policies/${DEST:-$2-robust$suffix}
 bin=${SMILE_BIN:-target/release/smile}
 [ -f "$run/meta_policy.safetensors" ] || { echo "robust-ship.sh: no finished run in $run" >&2; exit 2; }
 [ -f "$from/deploy.toml" ] || { echo "robust-ship.sh: $from has no deploy.toml" >&2; exit 2; }
 key() { sed -n "s/^$1 = \"\{0,1\}\([^\"]*\)\"\{0,1\}$/\1/p" "$from/deploy.toml"; }
-demos=$from/$(key demos); contexts=$from/$(key contexts); qat=$(key qat_steps)
+demos=$from/$(key demos); contexts=$from/$(key contexts); qat=$(key qat_steps); adc=$(key adc_range)
 env=$(sed -n 's/^env = "\(.*\)"$/\1/p' "$run/config.toml")
-sensing=$(python3 -c "import tomllib,sys; s=tomllib.load(open(sys.argv[1],'rb'))['sensing']; \
-print(f\"noise {s.get('noise_std',0)} + {s.get('adc_bits','ideal')}-bit ADC, {s.get('fraction',1.0):g} of the batch rows\")" "$run/config.toml")
+sensing=$(python3 -c "import tomllib,sys; s=tomllib.load(open(sys.argv[1],'rb')).get('sensing'); \
+print(f\"trained through the sensors (noise {s.get('noise_std',0)} + {s.get('adc_bits','ideal')}-bit ADC, {s.get('fraction',1.0):g} of the batch rows)\" if s else '')" "$run/config.toml")
+label=${sensing:-${NOTE:?a run without [sensing] needs NOTE, its label}}
 mkdir -p "$dst"
 cp "$run"/{meta_policy.safetensors,config.toml,run.json} "$dst"/
 "$bin" eval --policy "$dst" --env "$env" --split test --contexts "$contexts" -o "$dst/eval" --quiet
@@ -30,13 +34,13 @@ mv "$dst/eval/eval.json" "$dst/eval.json"; rm -rf "$dst/eval"
   ${qat:+--qat-steps "$qat"}
 method=$(key method)
 {
-  echo "# What \`smile device-table\` reads (docs/DEVICE.md): $2 retrained through the sensors"
-  echo "# (docs/scripts/robust-ship.sh; its config.toml's [sensing])."
-  echo "method = \"$method, trained through the sensors ($sensing)\""
+  echo "# What \`smile device-table\` reads (docs/DEVICE.md): $2 retrained (docs/scripts/robust-ship.sh)."
+  echo "method = \"$method, $label\""
   echo "demos = \"$(key demos)\""
   echo "contexts = \"$(key contexts)\""
-  echo "horizon = $(key horizon)"
+  [ -z "$(key horizon)" ] || echo "horizon = $(key horizon)"
   [ -z "$qat" ] || echo "qat_steps = $qat"
+  [ -z "$adc" ] || echo "adc_range = $adc"
 } > "$dst/deploy.toml"
 git add "$dst"
 docs/scripts/shipped-sums.sh
