@@ -299,7 +299,7 @@ pub fn load(dir: &Path) -> Result<Loaded> {
                 // NaN weight comes out 0: a policy would evaluate to a plausible number).
                 // A finite value whose square overflows f32 (3e38) is as diverged: the first
                 // matrix product or Adam moment makes it infinite, far from the file.
-                if let Some(i) = v.iter().position(|x| !(x.abs() <= MAX_STORED)) {
+                if let Some(i) = v.iter().position(|x| x.is_nan() || x.abs() > MAX_STORED) {
                     let what = if v[i].is_finite() {
                         "a value whose square overflows f32"
                     } else {
