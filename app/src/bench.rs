@@ -428,7 +428,7 @@ pub fn bench_smile_pairs(
     let pairs = cfg.updates_per_iter.max(1);
     // Every timed iteration runs all its pairs, whatever the config's training length.
     let cfg = trainer::smile::SmileConfig {
-        total_updates: u64::MAX,
+        total_updates: trainer::MAX_STEPS,
         ..cfg
     };
     let mut run = trainer::smile::Smile::new(cfg, data)?;

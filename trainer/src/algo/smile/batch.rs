@@ -176,18 +176,7 @@ impl BatchSource<'_> {
             }),
         ))?;
         let reward_mean = scalar(&rew.mean_all()?)?;
-        // Through the device's senses: the actor's view of the same rows (no draw without).
-        let actor_view = match &cfg.sensing {
-            Some(sensing) => {
-                let (mut o, mut o2) = (bv.obs.clone(), bv.next_obs.clone());
-                sensing.read_row_pairs(&mut o, &mut o2, od, rng);
-                Some((
-                    policy_input(&self.data.norm, &o, &z_rows, zd)?,
-                    policy_input(&self.data.norm, &o2, &z_rows, zd)?,
-                ))
-            }
-            None => None,
-        };
+        let actor_view = self.actor_view(&bv, &z_rows, zd, rng)?;
         let batch = Batch {
             obs: policy_input(&self.data.norm, &bv.obs, &z_rows, zd)?,
             act: Tensor::from_slice(&bv.act, (rows, ad), &Device::Cpu)?,
@@ -201,35 +190,69 @@ impl BatchSource<'_> {
             }),
             actor_view,
         };
-        // SMILe + BC: the batch's tasks' demos, each row with its task's z. Nothing is drawn
-        // when the weight is 0, so such a run is SMILe's, bit for bit.
-        let w = self.cfg.bc_weight_at(self.updates);
-        let bc = if w > 0.0 {
-            let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
-            for &ti in &tasks {
-                let demos = &self.data.train[ti];
-                let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-                for _ in 0..n {
-                    let (j, k) = draw_transition(&lens, rng);
-                    let tr = &demos.trajectories[j];
-                    obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
-                    act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
-                }
-            }
-            // Through the device's senses: the demo's action from its state as the device
-            // reads it (noise injection, as Meta-BC's `[sensing]`).
-            if let Some(sensing) = &cfg.sensing {
-                sensing.read_rows(&mut obs, od, rng);
-            }
-            Some(DemoRows {
-                obs: policy_input(&self.data.norm, &obs, &z_rows, zd)?,
-                act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
-                weight: w,
-            })
-        } else {
-            None
-        };
+        let bc = self.demo_rows(&tasks, &z_rows, zd, rng)?;
         Ok((batch, reward_mean, bc))
+    }
+
+    /// Through the device's senses (`[sensing]`): the actor's view of the SAC batch's rows,
+    /// states and next states read through the sensor model; `None` (and nothing drawn)
+    /// without it.
+    fn actor_view(
+        &self,
+        bv: &BatchVecs,
+        z_rows: &[f32],
+        zd: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Option<(Tensor, Tensor)>> {
+        let Some(sensing) = &self.cfg.sensing else {
+            return Ok(None);
+        };
+        let od = self.data.family.obs_dim();
+        let (mut o, mut o2) = (bv.obs.clone(), bv.next_obs.clone());
+        sensing.read_row_pairs(&mut o, &mut o2, od, rng);
+        Ok(Some((
+            policy_input(&self.data.norm, &o, z_rows, zd)?,
+            policy_input(&self.data.norm, &o2, z_rows, zd)?,
+        )))
+    }
+
+    /// SMILe + BC: the demos of the SAC batch's `tasks`, `sac_per_task` each, each row with
+    /// its task's z. Nothing is drawn when the weight is 0, so such a run is SMILe's, bit for
+    /// bit.
+    fn demo_rows(
+        &self,
+        tasks: &[usize],
+        z_rows: &[f32],
+        zd: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Option<DemoRows>> {
+        let w = self.cfg.bc_weight_at(self.updates);
+        if w <= 0.0 {
+            return Ok(None);
+        }
+        let (od, ad) = (self.data.family.obs_dim(), self.data.family.act_dim());
+        let rows = tasks.len() * self.cfg.sac_per_task;
+        let (mut obs, mut act) = (Vec::with_capacity(rows * od), Vec::with_capacity(rows * ad));
+        for &ti in tasks {
+            let demos = &self.data.train[ti];
+            let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+            for _ in 0..self.cfg.sac_per_task {
+                let (j, k) = draw_transition(&lens, rng);
+                let tr = &demos.trajectories[j];
+                obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
+                act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
+            }
+        }
+        // Through the device's senses: the demo's action from its state as the device reads
+        // it (noise injection, as Meta-BC's `[sensing]`).
+        if let Some(sensing) = &self.cfg.sensing {
+            sensing.read_rows(&mut obs, od, rng);
+        }
+        Ok(Some(DemoRows {
+            obs: policy_input(&self.data.norm, &obs, z_rows, zd)?,
+            act: Tensor::from_vec(act, (rows, ad), &Device::Cpu)?,
+            weight: w,
+        }))
     }
 }
 
