@@ -397,6 +397,20 @@ rollouts = 1
         !o.status.success() && e.contains("manifest.json") && e.contains("twice"),
         "{e}"
     );
+    // A cell another process holds (an orphan of an earlier sweep) is left to it, and the
+    // sweep says so by its exit status instead of 0 with a report that lacks the cell
+    // (issue 72, item 8).
+    std::fs::remove_file(dirs[1].join("eval/eval.json")).unwrap();
+    let lock = std::fs::File::create(dirs[1].join("lock")).unwrap();
+    lock.try_lock().unwrap();
+    let o = smile(&["sweep", p.to_str().unwrap(), "--jobs", "1", "--quiet"]);
+    let e = String::from_utf8_lossy(&o.stderr);
+    let name = dirs[1].file_name().unwrap().to_str().unwrap();
+    assert_eq!(o.status.code(), Some(smile_app::sweep::BUSY_EXIT), "{e}");
+    assert!(e.contains("another process") && e.contains(name), "{e}");
+    drop(lock);
+    let err = ok(&smile(&["sweep", p.to_str().unwrap(), "--jobs", "1"]));
+    assert!(err.contains("2 of 2 cells done"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
 

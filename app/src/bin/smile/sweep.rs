@@ -210,5 +210,16 @@ fn local(sweep: &Sweep, plan: &Path, a: &SweepArgs) -> Result<()> {
     if !summary.failed.is_empty() {
         bail!("{} cells failed", summary.failed.len());
     }
+    if !summary.busy.is_empty() {
+        // The report above lacks them: not a finished sweep, so not exit 0 (EX_TEMPFAIL: run
+        // it again when the other process is done).
+        eprintln!(
+            "error: {} cells are being run by another process ({}); the report leaves them \
+             out: run `smile sweep` again when that process is done",
+            summary.busy.len(),
+            summary.busy.join(", ")
+        );
+        std::process::exit(BUSY_EXIT);
+    }
     Ok(())
 }
