@@ -43,8 +43,8 @@ pub struct DeployManifest {
     pub qat_steps: Option<usize>,
     /// The full scale of the sensor column's 12-bit ADC, +-this (firmware-sim's `--adc-range`;
     /// default 10). A real converter is scaled to its channel's signal: the cheetah's joint
-    /// velocities reach 20-27 rad/s and clipped at +-10 cost its SMILe + BC +23% of the +27%
-    /// the sensor column lost (docs/DEVICE.md, "which entries").
+    /// velocities reach 20-27 rad/s on Rapier, and clipped at +-10 cost its SMILe + BC +23% of
+    /// the +27% the sensor column lost (docs/DEVICE.md, "which entries").
     #[serde(default)]
     pub adc_range: Option<f32>,
 }
