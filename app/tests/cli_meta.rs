@@ -294,15 +294,19 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     .into_owned();
     assert!(e.contains("deploy.toml"), "{e}");
     ship(&policy, &train, &test);
+    // The table of `policy`, one draw per task, written to `out`.
+    let one_draw = |out: &std::path::Path| {
+        ok(&smile(&[
+            "device-table",
+            common::s(&policy),
+            "--draws",
+            "1",
+            "-o",
+            common::s(out),
+        ]))
+    };
     let out = dir.join("table");
-    ok(&smile(&[
-        "device-table",
-        common::s(&policy),
-        "--draws",
-        "1",
-        "-o",
-        common::s(&out),
-    ]));
+    one_draw(&out);
     let rows = table_rows(&out);
     let row = &rows[0];
     let float = row["float"].as_f64().unwrap();
@@ -341,14 +345,7 @@ fn device_table_measures_float_to_int8_to_the_device_loop() {
     )
     .unwrap();
     let clipped = dir.join("clipped");
-    ok(&smile(&[
-        "device-table",
-        common::s(&policy),
-        "--draws",
-        "1",
-        "-o",
-        common::s(&clipped),
-    ]));
+    one_draw(&clipped);
     let narrow = &table_rows(&clipped)[0];
     assert_eq!(narrow["adc_range"], 0.5, "{narrow}");
     assert_eq!(row["adc_range"], 10.0, "{row}");

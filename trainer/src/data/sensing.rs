@@ -74,13 +74,18 @@ impl Sensing {
     pub fn read_rows(&self, rows: &mut [f32], dim: usize, rng: &mut impl Rng) {
         let model = self.model();
         for row in rows.chunks_exact_mut(dim) {
-            if self.fraction < 1.0 && rng.random::<f32>() >= self.fraction {
-                continue;
-            }
-            for x in row {
-                *x = model.read(*x, rng);
+            if self.picks(rng) {
+                for x in row {
+                    *x = model.read(*x, rng);
+                }
             }
         }
+    }
+
+    /// Whether the next row is read through the sensors: with probability `fraction`, and
+    /// no draw when it is 1.
+    fn picks(&self, rng: &mut impl Rng) -> bool {
+        self.fraction >= 1.0 || rng.random::<f32>() < self.fraction
     }
 
     /// [`Self::read_rows`] on two row sets of one batch (states and next states), where a row
@@ -88,11 +93,10 @@ impl Sensing {
     pub fn read_row_pairs(&self, a: &mut [f32], b: &mut [f32], dim: usize, rng: &mut impl Rng) {
         let model = self.model();
         for (ra, rb) in a.chunks_exact_mut(dim).zip(b.chunks_exact_mut(dim)) {
-            if self.fraction < 1.0 && rng.random::<f32>() >= self.fraction {
-                continue;
-            }
-            for x in ra.iter_mut().chain(rb.iter_mut()) {
-                *x = model.read(*x, rng);
+            if self.picks(rng) {
+                for x in ra.iter_mut().chain(rb.iter_mut()) {
+                    *x = model.read(*x, rng);
+                }
             }
         }
     }

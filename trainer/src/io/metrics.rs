@@ -155,12 +155,12 @@ fn truncate_events(tb: &Path, step: u64) -> Result<()> {
             .file_name()
             .and_then(|n| n.to_str())
             .is_some_and(|n| n.starts_with("events.out.tfevents."));
-        let Ok(bytes) = std::fs::read(&path) else {
-            continue;
-        };
         if !is_events {
             continue;
         }
+        let Ok(bytes) = std::fs::read(&path) else {
+            continue;
+        };
         let kept = kept_records(&bytes, step);
         if kept.len() != bytes.len() {
             crate::io::checkpoint::write_atomic(&path, &kept)?;

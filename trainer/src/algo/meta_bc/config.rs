@@ -87,13 +87,14 @@ pub struct MetaBcConfig {
     /// that leave it out are written without it).
     #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub pre_tanh_loss: bool,
-    /// Train through the device's senses (issue 73): every state a training batch feeds the
-    /// policy is read through this sensor model (noise, then the ADC; `sim::SensorModel`, the
-    /// one firmware-sim's loop reads its plant through), with the demo's action as its label:
-    /// noise injection on the demos' states. The context encoder reads the demos as recorded
-    /// (the device is taught a demo recorded on the host), and so does the held-out MSE that
-    /// keeps the weights. Default none (the recorded states). Preset:
-    /// `docs/configs/sensing-noise01-adc12.toml`.
+    /// Train through the device's senses (issue 73): the `fraction` of the states a training
+    /// batch feeds the policy are read through this sensor model (noise, then the ADC;
+    /// `sim::SensorModel`, the one firmware-sim's loop reads its plant through), with the
+    /// demo's action as their label: noise injection on the demos' states. Meta-DAgger's
+    /// rollouts act through it too (the expert labels the true state). The context encoder
+    /// reads the demos as recorded (the device is taught a demo recorded on the host), and so
+    /// does the held-out MSE that keeps the weights. Default none (the recorded states).
+    /// Preset: `docs/configs/sensing-noise01-adc12.toml`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sensing: Option<crate::data::Sensing>,
 }
