@@ -11,8 +11,9 @@
 //!
 //! One-demo contexts (draw d teaches demo d), one deterministic episode per task and draw, the
 //! same reset seeds and sensor seeds in every column, so the columns differ by the sensed entries
-//! alone. Prints a markdown table: each entry's metric, its change against clean readings, and
-//! the entry's std over the demos' states (the scale the noise meets).
+//! alone. Prints a markdown table: each entry's metric, its change against clean readings, the
+//! entry's std over the demos' states (the scale the noise meets) and the share of those states
+//! beyond the ADC's full scale (what the converter clips).
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -132,6 +133,13 @@ fn main() -> ExitCode {
         .flat_map(|t| &t.trajectories)
         .flat_map(|tr| tr.obs.chunks_exact(od))
         .collect();
+    let clipped = |i: usize| {
+        let range = a
+            .model
+            .adc_bits
+            .map_or(f32::INFINITY, |_| a.model.adc_range);
+        states.iter().filter(|s| s[i].abs() > range).count() as f64 / states.len() as f64
+    };
     let std = |i: usize| {
         let m = states.iter().map(|s| s[i] as f64).sum::<f64>() / states.len() as f64;
         let v = states
@@ -150,14 +158,19 @@ fn main() -> ExitCode {
         a.draws,
         a.model
     );
-    println!("| sensed | metric | change against clean | entry's demo std |");
-    println!("|---|---|---|---|");
-    println!("| none | {clean:.4} | | |");
+    println!("| sensed | metric | change against clean | entry's demo std | demo states clipped |");
+    println!("|---|---|---|---|---|");
+    println!("| none | {clean:.4} | | | |");
     let pct = |m: f32| 100.0 * (m - clean) / clean;
-    println!("| every entry | {all:.4} | {:+.1}% | |", pct(all));
+    println!("| every entry | {all:.4} | {:+.1}% | | |", pct(all));
     for i in 0..od {
         let m = metric(&mp, &demos, &a, &|j| j == i);
-        println!("| entry {i} | {m:.4} | {:+.1}% | {:.4} |", pct(m), std(i));
+        let share = 100.0 * clipped(i);
+        println!(
+            "| entry {i} | {m:.4} | {:+.1}% | {:.4} | {share:.1}% |",
+            pct(m),
+            std(i)
+        );
     }
     ExitCode::SUCCESS
 }
