@@ -182,6 +182,7 @@ pub fn sac_fixture(shape: SacBenchShape, seed: u64) -> Result<(Sac, trainer::Bat
         rew: normal(&mut rng, b),
         next_obs: normal(&mut rng, b * d_in),
         done: vec![0.0; b],
+        ..BatchVecs::default()
     };
     let batch = v.to_batch(d_in, shape.act_dim)?;
     Ok((sac, batch, rng))

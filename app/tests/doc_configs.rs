@@ -152,3 +152,18 @@ fn the_sensing_preset_is_the_device_tables_sensor_column() {
     let bc: MetaBcConfig = toml::from_str(&read("cv1000-bc-sensing.toml")).unwrap();
     assert_eq!(bc.sensing.unwrap().model(), s.model());
 }
+
+/// The position-sensing preset is the device table's "positions + estimator" column: ideal
+/// readings of the measured entries, the estimator's range +-10, the family's tuning.
+#[test]
+fn the_position_sensing_preset_is_the_device_tables_position_column() {
+    #[derive(serde::Deserialize)]
+    struct Preset {
+        sensing: trainer::Sensing,
+    }
+    let p: Preset = toml::from_str(&read("sensing-positions.toml")).unwrap();
+    let s = p.sensing;
+    s.check().unwrap();
+    assert!(s.positions && s.model().is_ideal());
+    assert_eq!((s.adc_range, s.accel_std, s.meas_std), (10.0, None, None));
+}

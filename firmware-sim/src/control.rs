@@ -4,11 +4,11 @@
 
 use std::time::Instant;
 
-use sim::{Environment, EpisodeMetric, Sensor, SensorModelError, Task};
+use sim::{Environment, EpisodeMetric, PositionSensing, Sensor, SensorModelError, Task};
 
 pub use crate::config::{LoopConfig, LoopError};
 use crate::device::Controller;
-use crate::estimation::SensorPath;
+use crate::estimation::sensor_path;
 
 /// What the loop saw and did at one tick. Deterministic: no wall-clock values in here.
 #[derive(Debug, Clone, PartialEq)]
@@ -161,7 +161,7 @@ impl Timing {
 struct Sensors<'c> {
     config: &'c LoopConfig,
     sensor: Sensor,
-    estimated: Option<SensorPath>,
+    estimated: Option<PositionSensing>,
 }
 
 impl<'c> Sensors<'c> {
@@ -173,7 +173,7 @@ impl<'c> Sensors<'c> {
         Ok(Self {
             config,
             sensor,
-            estimated: SensorPath::new(config, task.family(), rate)?,
+            estimated: sensor_path(config, task.family(), rate)?,
         })
     }
 

@@ -461,7 +461,7 @@ fn sensing_is_deterministic_and_an_ideal_sensor_is_smile() {
         noise_std,
         adc_bits,
         adc_range: 4.0,
-        fraction: 1.0,
+        ..trainer::Sensing::default()
     };
     let plain = train(None);
     assert_eq!(train(Some(sensor(0.0, None))), plain, "an ideal sensor");
@@ -483,4 +483,79 @@ fn sensing_is_deterministic_and_an_ideal_sensor_is_smile() {
     };
     let e = Smile::new(bad, data).err().unwrap().to_string();
     assert!(e.contains("[sensing]"), "{e}");
+}
+
+/// Position-only sensing (issue 73): the rollouts act on the device's estimator, the replay
+/// keeps what the policy read beside the truth (in its checkpoint too: the run resumes), the
+/// actor trains on those views (another policy than full sensing's), the run is deterministic
+/// on one and on two learner threads, and Meta-BC, whose demos are subsampled, refuses it.
+#[test]
+fn position_sensing_trains_on_the_estimators_views_and_resumes() {
+    trainer::threads::set_compute_threads(1);
+    let ds = demos(8, 2, 30);
+    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let positions = trainer::Sensing {
+        noise_std: 0.01,
+        adc_bits: Some(12),
+        adc_range: 4.0,
+        fraction: 0.5,
+        positions: true,
+        ..trainer::Sensing::default()
+    };
+    let run_in = |name: &str, cfg: SmileConfig| {
+        let dir = std::env::temp_dir().join(format!("smile-pos-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut run = Smile::new(cfg, data.clone()).unwrap();
+        trainer::fit(&mut run, &dir, &mut |_| {}).unwrap();
+        (dir, clone_error(&run))
+    };
+    let cfg = SmileConfig {
+        bc_weight: 2.0,
+        sensing: Some(positions),
+        ..tiny(false)
+    };
+    let (dir, first) = run_in("a", cfg.clone());
+    let (again, second) = run_in("b", cfg.clone());
+    assert_eq!(first, second, "same seed, same policy");
+    let full = SmileConfig {
+        sensing: Some(trainer::Sensing {
+            positions: false,
+            ..positions
+        }),
+        ..cfg.clone()
+    };
+    let (full_dir, full_error) = run_in("c", full);
+    assert_ne!(
+        first, full_error,
+        "the estimator's views are what the actor trains on"
+    );
+    let mut resumed = Smile::resume(&dir, data.clone(), Some(30)).unwrap();
+    trainer::fit(&mut resumed, &dir, &mut |_| {}).unwrap();
+    assert_eq!(resumed.updates(), 30);
+    let two = SmileConfig {
+        learner_threads: 2,
+        ..cfg.clone()
+    };
+    let (two_a, e_a) = run_in("d", two.clone());
+    let (two_b, e_b) = run_in("e", two);
+    assert_eq!(e_a, e_b, "two learner threads, same seed");
+    for d in [dir, again, full_dir, two_a, two_b] {
+        std::fs::remove_dir_all(d).unwrap();
+    }
+    let bc = trainer::meta_bc::MetaBcConfig {
+        sensing: Some(positions),
+        ..trainer::meta_bc::MetaBcConfig::default()
+    };
+    let e = bc.validate().unwrap_err().to_string();
+    assert!(e.contains("positions") && e.contains("subsampled"), "{e}");
+    // The estimator's tuning without position-only sensing is refused, naming the key.
+    let stray = trainer::Sensing {
+        accel_std: Some(2.0),
+        ..trainer::Sensing::default()
+    };
+    let e = stray.check().unwrap_err().to_string();
+    assert!(
+        e.contains("accel_std") && e.contains("positions = true"),
+        "{e}"
+    );
 }

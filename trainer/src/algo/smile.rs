@@ -149,7 +149,12 @@ impl Smile {
             },
         );
         let enc_opt = Adam::new(encoder.vars(), AdamConfig::with_lr(cfg.enc_lr));
-        let replay = TaskReplay::new(data.train.len(), od, ad, cfg.replay_per_task)?;
+        // Position-only sensing keeps the states as the policy read them beside the true ones.
+        let replay = if cfg.sensing.is_some_and(|s| s.positions) {
+            TaskReplay::with_views(data.train.len(), od, ad, cfg.replay_per_task)?
+        } else {
+            TaskReplay::new(data.train.len(), od, ad, cfg.replay_per_task)?
+        };
         Ok(Self {
             cfg,
             data,
@@ -256,7 +261,12 @@ impl Smile {
                 a.copy_from_slice(&actor.act(&x, false, rng)?);
                 Ok(())
             },
-            &mut |st| replay.push(st.obs, st.action, 0.0, st.next_obs, st.terminated),
+            &mut |st| match st.sensed {
+                Some(view) => {
+                    replay.push_viewed(st.obs, st.action, 0.0, st.next_obs, st.terminated, view)
+                }
+                None => replay.push(st.obs, st.action, 0.0, st.next_obs, st.terminated),
+            },
         )?;
         self.env_steps += ep.steps as u64;
         self.episodes += 1;

@@ -63,6 +63,11 @@ pub struct BatchVecs {
     pub next_obs: Vec<f32>,
     /// Terminal flags (0 or 1), `B`.
     pub done: Vec<f32>,
+    /// The states as the policy read them (`B * obs_dim`), from a buffer that keeps them
+    /// ([`ReplayBuffer::with_views`]); empty otherwise.
+    pub view_obs: Vec<f32>,
+    /// The next states as the policy read them, as `view_obs`.
+    pub view_next_obs: Vec<f32>,
 }
 
 impl BatchVecs {
@@ -95,6 +100,10 @@ pub struct ReplayBuffer {
     rew: Vec<f32>,
     next_obs: Vec<f32>,
     done: Vec<f32>,
+    /// The states and next states as the policy read them (position-only sensing: the
+    /// estimator's output, which depends on the episode's history and cannot be redrawn at
+    /// batch time); `None` in a buffer without views.
+    views: Option<(Vec<f32>, Vec<f32>)>,
 }
 
 impl ReplayBuffer {
@@ -116,7 +125,21 @@ impl ReplayBuffer {
             rew: vec![0.0; capacity],
             next_obs: vec![0.0; capacity * obs_dim],
             done: vec![0.0; capacity],
+            views: None,
         })
+    }
+
+    /// An empty buffer that also keeps each transition's states as the policy read them
+    /// ([`Self::push_viewed`]; batches carry them in `view_obs` and `view_next_obs`).
+    pub fn with_views(obs_dim: usize, act_dim: usize, capacity: usize) -> Result<Self> {
+        let mut b = Self::new(obs_dim, act_dim, capacity)?;
+        b.views = Some((vec![0.0; capacity * obs_dim], vec![0.0; capacity * obs_dim]));
+        Ok(b)
+    }
+
+    /// Whether the buffer keeps the policy's views.
+    pub fn has_views(&self) -> bool {
+        self.views.is_some()
     }
 
     /// Number of stored transitions.
@@ -175,6 +198,40 @@ impl ReplayBuffer {
         Ok(())
     }
 
+    /// [`Self::push`] with the states as the policy read them, `view = (s, s')`, into a
+    /// buffer [`with views`](Self::with_views).
+    #[allow(clippy::too_many_arguments)]
+    pub fn push_viewed(
+        &mut self,
+        obs: &[f32],
+        act: &[f32],
+        rew: f32,
+        next_obs: &[f32],
+        terminated: bool,
+        view: (&[f32], &[f32]),
+    ) -> Result<()> {
+        let od = self.obs_dim;
+        if view.0.len() != od || view.1.len() != od {
+            return Err(Error::Shape(format!(
+                "push: views {}/{} into buffer of obs {od}",
+                view.0.len(),
+                view.1.len()
+            )));
+        }
+        if self.views.is_none() {
+            return Err(Error::Replay(
+                "push_viewed into a buffer without views".into(),
+            ));
+        }
+        let i = self.pos;
+        self.push(obs, act, rew, next_obs, terminated)?;
+        if let Some((vo, vn)) = self.views.as_mut() {
+            vo[i * od..(i + 1) * od].copy_from_slice(view.0);
+            vn[i * od..(i + 1) * od].copy_from_slice(view.1);
+        }
+        Ok(())
+    }
+
     /// Append the transitions at `idx` (uniform indices in `0..len`) to `out`.
     pub fn gather_into(&self, idx: &[usize], out: &mut BatchVecs) {
         let (od, ad) = (self.obs_dim, self.act_dim);
@@ -185,6 +242,11 @@ impl ReplayBuffer {
             out.act.extend_from_slice(&self.act[i * ad..(i + 1) * ad]);
             out.rew.push(self.rew[i]);
             out.done.push(self.done[i]);
+            if let Some((vo, vn)) = &self.views {
+                out.view_obs.extend_from_slice(&vo[i * od..(i + 1) * od]);
+                out.view_next_obs
+                    .extend_from_slice(&vn[i * od..(i + 1) * od]);
+            }
         }
     }
 
@@ -215,7 +277,7 @@ impl ReplayBuffer {
             ))
         };
         let counters = [self.len as u32, self.pos as u32, self.capacity as u32];
-        Ok(vec![
+        let mut out = vec![
             t("obs", &self.obs, self.obs_dim)?,
             t("act", &self.act, self.act_dim)?,
             t("rew", &self.rew, 1)?,
@@ -225,7 +287,12 @@ impl ReplayBuffer {
                 format!("{prefix}.counters"),
                 Tensor::from_slice(&counters, 3, dev)?,
             ),
-        ])
+        ];
+        if let Some((vo, vn)) = &self.views {
+            out.push(t("view_obs", vo, self.obs_dim)?);
+            out.push(t("view_next_obs", vn, self.obs_dim)?);
+        }
+        Ok(out)
     }
 
     /// Restore the contents written by [`ReplayBuffer::to_tensors`]; `get` looks a tensor up by
@@ -266,6 +333,10 @@ impl ReplayBuffer {
         load("rew", &mut self.rew, 1)?;
         load("next_obs", &mut self.next_obs, self.obs_dim)?;
         load("done", &mut self.done, 1)?;
+        if let Some((vo, vn)) = self.views.as_mut() {
+            load("view_obs", vo, self.obs_dim)?;
+            load("view_next_obs", vn, self.obs_dim)?;
+        }
         self.len = len;
         self.pos = pos;
         Ok(())
@@ -288,6 +359,19 @@ impl TaskReplay {
     ) -> Result<Self> {
         let buffers = (0..n_tasks)
             .map(|_| ReplayBuffer::new(obs_dim, act_dim, capacity_per_task))
+            .collect::<Result<_>>()?;
+        Ok(Self { buffers })
+    }
+
+    /// As [`Self::new`], each buffer [`with views`](ReplayBuffer::with_views).
+    pub fn with_views(
+        n_tasks: usize,
+        obs_dim: usize,
+        act_dim: usize,
+        capacity_per_task: usize,
+    ) -> Result<Self> {
+        let buffers = (0..n_tasks)
+            .map(|_| ReplayBuffer::with_views(obs_dim, act_dim, capacity_per_task))
             .collect::<Result<_>>()?;
         Ok(Self { buffers })
     }
@@ -370,5 +454,55 @@ mod tests {
                 .sample(1, &mut rng)
                 .is_err()
         );
+    }
+
+    #[test]
+    fn views_ride_with_their_transitions_and_round_trip() {
+        let mut b = ReplayBuffer::with_views(2, 1, 3).unwrap();
+        for i in 0..4 {
+            let x = i as f32;
+            let view = ([x + 0.5, x + 0.5], [x + 1.5, x + 1.5]);
+            b.push_viewed(
+                &[x, x],
+                &[x],
+                x,
+                &[x + 1.0, x + 1.0],
+                false,
+                (&view.0, &view.1),
+            )
+            .unwrap();
+        }
+        let mut v = BatchVecs::default();
+        b.gather_into(&[0, 2], &mut v);
+        // slot 0 holds transition 3, slot 2 transition 2
+        assert_eq!(v.rew, vec![3.0, 2.0]);
+        assert_eq!(v.view_obs, vec![3.5, 3.5, 2.5, 2.5]);
+        assert_eq!(v.view_next_obs, vec![4.5, 4.5, 3.5, 3.5]);
+        let map: HashMap<String, Tensor> = b.to_tensors("rb").unwrap().into_iter().collect();
+        let mut c = ReplayBuffer::with_views(2, 1, 3).unwrap();
+        c.load_tensors("rb", &|n| Ok(map[n].clone())).unwrap();
+        assert_eq!(b, c);
+        // A buffer without views refuses a viewed push; a views buffer needs the views saved.
+        let mut plain = ReplayBuffer::new(2, 1, 3).unwrap();
+        assert!(
+            plain
+                .push_viewed(
+                    &[0.0; 2],
+                    &[0.0],
+                    0.0,
+                    &[0.0; 2],
+                    false,
+                    (&[0.0; 2], &[0.0; 2])
+                )
+                .is_err()
+        );
+        let saved: HashMap<String, Tensor> = plain.to_tensors("rb").unwrap().into_iter().collect();
+        let e = c.load_tensors("rb", &|n| {
+            saved
+                .get(n)
+                .cloned()
+                .ok_or_else(|| Error::Replay(format!("no {n}")))
+        });
+        assert!(e.is_err());
     }
 }

@@ -34,6 +34,9 @@ pub struct Step<'a> {
     pub next_obs: &'a [f32],
     /// True terminal (not a time-limit truncation).
     pub terminated: bool,
+    /// The state and next state as the policy read them, where it reads the plant through
+    /// position-only sensing ([`crate::data::sensed_episode`]); `None` otherwise.
+    pub sensed: Option<(&'a [f32], &'a [f32])>,
 }
 
 /// Outcome of one episode.
@@ -83,6 +86,7 @@ pub fn run_episode(
             action: &action,
             next_obs: tr.obs,
             terminated: tr.info.terminated,
+            sensed: None,
         })?;
         obs.copy_from_slice(tr.obs);
         if done {

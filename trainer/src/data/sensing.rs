@@ -4,9 +4,11 @@
 //! and the context encoder read the states as recorded: the device is taught demos recorded on
 //! the host, and only the policy runs on it.
 
+use std::cell::RefCell;
+
 use rand::Rng;
 use serde::{Deserialize, Serialize};
-use sim::{Environment, SensorModel, Task};
+use sim::{Environment, PositionSensing, SensorModel, Task};
 
 use super::rollout::{ActFn, Episode, Step, run_episode};
 use crate::error::{Error, Result};
@@ -34,6 +36,38 @@ pub struct Sensing {
     /// only, was much worse on clean ones: docs/DEVICE.md). Rollouts always read through it.
     #[serde(default = "default_fraction")]
     pub fraction: f32,
+    /// Position-only sensing (firmware-sim's `--sensing positions`; default false): the
+    /// sensors deliver the measured entries (positions, angles, direct values) through the
+    /// model above and the device's estimator rebuilds the velocities (`sim::PositionSensing`,
+    /// the loop's own). The estimate depends on the episode's history, so it cannot be
+    /// redrawn for a batch row: the replay keeps the states as the policy read them and the
+    /// actor's sensed rows are those. SMILe only; its cloning rows read the demos as recorded
+    /// (a subsampled demo keeps one tick in k; the filter needs every tick).
+    #[serde(default)]
+    pub positions: bool,
+    /// With `positions`: the filter's acceleration std (units/s^2); absent: the family's, as
+    /// firmware-sim's `--accel-std`.
+    #[serde(default)]
+    pub accel_std: Option<f32>,
+    /// With `positions`: the reading noise std the filter assumes; absent: the model's noise
+    /// and ADC step, as firmware-sim's `--meas-std`.
+    #[serde(default)]
+    pub meas_std: Option<f32>,
+}
+
+impl Default for Sensing {
+    /// An ideal sensor delivering every entry, all rows through it.
+    fn default() -> Self {
+        Self {
+            noise_std: 0.0,
+            adc_bits: None,
+            adc_range: default_range(),
+            fraction: default_fraction(),
+            positions: false,
+            accel_std: None,
+            meas_std: None,
+        }
+    }
 }
 
 fn default_range() -> f32 {
@@ -65,7 +99,34 @@ impl Sensing {
                 self.fraction
             )));
         }
+        // The filter needs accel_std > 0; meas_std may be 0 (it floors the variance).
+        for (key, value, zero_ok) in [
+            ("accel_std", self.accel_std, false),
+            ("meas_std", self.meas_std, true),
+        ] {
+            let Some(v) = value else { continue };
+            if !self.positions {
+                return Err(Error::Config(format!(
+                    "[sensing] {key} tunes the estimator of position-only sensing: it needs \
+                     positions = true"
+                )));
+            }
+            if !(v.is_finite() && (v > 0.0 || zero_ok && v == 0.0)) {
+                let bound = if zero_ok { ">= 0" } else { "> 0" };
+                return Err(Error::Config(format!(
+                    "[sensing] {key} = {v}: expected a finite std {bound}"
+                )));
+            }
+        }
         Ok(())
+    }
+
+    /// The estimator's tuning (position-only sensing).
+    pub fn tuning(&self) -> sim::EstimatorTuning {
+        sim::EstimatorTuning {
+            accel_std: self.accel_std,
+            meas_std: self.meas_std,
+        }
     }
 
     /// Reads the `dim`-wide rows of `rows` through the sensor model in place, each row with
@@ -86,6 +147,28 @@ impl Sensing {
     /// no draw when it is 1.
     fn picks(&self, rng: &mut impl Rng) -> bool {
         self.fraction >= 1.0 || rng.random::<f32>() < self.fraction
+    }
+
+    /// Position-only sensing's [`Self::read_row_pairs`]: each row pair of `a` and `b` is
+    /// replaced with probability `fraction` by the policy's views of it, `va` and `vb` (kept by
+    /// the replay when the episode ran).
+    pub fn take_views(
+        &self,
+        a: &mut [f32],
+        b: &mut [f32],
+        va: &[f32],
+        vb: &[f32],
+        dim: usize,
+        rng: &mut impl Rng,
+    ) {
+        let rows = a.chunks_exact_mut(dim).zip(b.chunks_exact_mut(dim));
+        let views = va.chunks_exact(dim).zip(vb.chunks_exact(dim));
+        for ((ra, rb), (wa, wb)) in rows.zip(views) {
+            if self.picks(rng) {
+                ra.copy_from_slice(wa);
+                rb.copy_from_slice(wb);
+            }
+        }
     }
 
     /// [`Self::read_rows`] on two row sets of one batch (states and next states), where a row
@@ -117,6 +200,9 @@ pub fn sensed_episode(
     let Some(sensing) = sensing else {
         return run_episode(env, task, seed, act, on_step);
     };
+    if sensing.positions {
+        return estimated_episode(env, task, seed, sensing, act, on_step);
+    }
     let mut sensor = sim::Sensor::new(sensing.model(), seed)
         .map_err(|e| Error::Config(format!("[sensing]: {e}")))?;
     let mut sensed = vec![0.0f32; env.obs_dim()];
@@ -132,6 +218,94 @@ pub fn sensed_episode(
     )
 }
 
+/// What [`estimated_episode`] keeps between the policy's calls and the steps.
+struct Readings {
+    sensor: sim::Sensor,
+    path: PositionSensing,
+    /// The state as the policy reads it this tick, and whether the estimator had one.
+    now: (Vec<f32>, bool),
+    /// The next state's reading, made when the step landed; taken by the next tick.
+    next: Option<(Vec<f32>, bool)>,
+}
+
+impl Readings {
+    /// One tick of the device's senses on the true state `truth`: the measured entries
+    /// through the sensor, the estimator into a view. Without an estimate yet (a channel had
+    /// no valid reading) the view is the truth and `false`: the device holds its safe action.
+    fn read(&mut self, truth: &[f32]) -> Result<(Vec<f32>, bool)> {
+        let sensor = &mut self.sensor;
+        self.path.read(truth, |x| sensor.read(x));
+        let mut view = truth.to_vec();
+        let ready = self
+            .path
+            .estimate(&mut view)
+            .map_err(|e| Error::Config(format!("[sensing] positions: {e}")))?;
+        if ready.is_none() {
+            view.copy_from_slice(truth);
+        }
+        Ok((view, ready.is_some()))
+    }
+}
+
+/// [`sensed_episode`] with position-only sensing: each tick the sensor reads the measured
+/// entries and the device's estimator (`sim::PositionSensing`, firmware-sim's loop's own)
+/// rebuilds the state the policy acts on; without an estimate the action is the safe one
+/// (zeros, the action range's centre), as the device's. The next state is read as soon as
+/// the step lands (the device's next tick, in the same draw order), so `on_step` gets both
+/// views in [`Step::sensed`].
+fn estimated_episode(
+    env: &mut dyn Environment,
+    task: &Task,
+    seed: u64,
+    sensing: &Sensing,
+    act: &mut ActFn<'_>,
+    on_step: &mut dyn FnMut(&Step<'_>) -> Result<()>,
+) -> Result<Episode> {
+    let family = task.family();
+    let filter = sim::estimator_config(
+        family,
+        &sensing.model(),
+        1.0 / env.control_dt(),
+        sensing.tuning(),
+    );
+    let readings = RefCell::new(Readings {
+        sensor: sim::Sensor::new(sensing.model(), seed)
+            .map_err(|e| Error::Config(format!("[sensing]: {e}")))?,
+        path: PositionSensing::new(family, filter)
+            .map_err(|e| Error::Config(format!("[sensing] positions: {e}")))?,
+        now: (Vec::new(), false),
+        next: None,
+    });
+    run_episode(
+        env,
+        task,
+        seed,
+        &mut |o, a| {
+            let mut r = readings.borrow_mut();
+            r.now = match r.next.take() {
+                Some(next) => next,
+                None => r.read(o)?,
+            };
+            if r.now.1 {
+                act(&r.now.0, a)
+            } else {
+                a.fill(0.0);
+                Ok(())
+            }
+        },
+        &mut |st| {
+            let mut r = readings.borrow_mut();
+            let next = r.read(st.next_obs)?;
+            let out = on_step(&Step {
+                sensed: Some((&r.now.0, &next.0)),
+                ..*st
+            });
+            r.next = Some(next);
+            out
+        },
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -144,6 +318,7 @@ mod tests {
             adc_bits: Some(12),
             adc_range: 10.0,
             fraction,
+            ..Sensing::default()
         }
     }
 

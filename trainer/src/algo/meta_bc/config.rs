@@ -181,6 +181,13 @@ impl MetaBcConfig {
         }
         if let Some(sensing) = &self.sensing {
             sensing.check()?;
+            if sensing.positions {
+                return Err(Error::Config(
+                    "[sensing] positions = true is SMILe's: Meta-BC trains on subsampled demo \
+                     states, one tick in k, and the estimator needs every tick"
+                        .into(),
+                ));
+            }
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
             return Err(Error::Config(

@@ -9,7 +9,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::SmileConfig;
 use crate::data::{Batch, BatchVecs, MetaData, TaskReplay, distinct_tasks, sample_context};
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::model::{
     ContextBatch, ContextEncoder, ContextSpec, Discriminator, Input, SharedCols, policy_input,
     scalar,
@@ -209,7 +209,17 @@ impl BatchSource<'_> {
         };
         let od = self.data.family.obs_dim();
         let (mut o, mut o2) = (bv.obs.clone(), bv.next_obs.clone());
-        sensing.read_row_pairs(&mut o, &mut o2, od, rng);
+        if sensing.positions {
+            // The estimator's readings depend on the episode: the replay kept them.
+            if bv.view_obs.len() != o.len() {
+                return Err(Error::Replay(
+                    "[sensing] positions: the replay kept no views of its states".into(),
+                ));
+            }
+            sensing.take_views(&mut o, &mut o2, &bv.view_obs, &bv.view_next_obs, od, rng);
+        } else {
+            sensing.read_row_pairs(&mut o, &mut o2, od, rng);
+        }
         Ok(Some((
             policy_input(&self.data.norm, &o, z_rows, zd)?,
             policy_input(&self.data.norm, &o2, z_rows, zd)?,
@@ -245,7 +255,9 @@ impl BatchSource<'_> {
         }
         // Through the device's senses: the demo's action from its state as the device reads
         // it (noise injection, as Meta-BC's `[sensing]`).
-        if let Some(sensing) = &self.cfg.sensing {
+        // With position-only sensing they stay as recorded: a subsampled demo has no history
+        // for the estimator.
+        if let Some(sensing) = self.cfg.sensing.as_ref().filter(|s| !s.positions) {
             sensing.read_rows(&mut obs, od, rng);
         }
         Ok(Some(DemoRows {

@@ -148,6 +148,9 @@ struct Transitions {
     act: Vec<f32>,
     next_obs: Vec<f32>,
     terminated: Vec<bool>,
+    /// The states and next states as the policy read them (position-only sensing), else empty.
+    view_obs: Vec<f32>,
+    view_next_obs: Vec<f32>,
 }
 
 /// What a finished job brings back: its environment (for the next job) and the episodes.
@@ -165,13 +168,18 @@ impl RolloutsDone {
             let buf = replay.task_mut(*ti);
             let (od, ad) = (self.env.obs_dim(), self.env.act_dim());
             for (r, &term) in tr.terminated.iter().enumerate() {
-                buf.push(
-                    &tr.obs[r * od..(r + 1) * od],
+                let row = r * od..(r + 1) * od;
+                let (o, a, o2) = (
+                    &tr.obs[row.clone()],
                     &tr.act[r * ad..(r + 1) * ad],
-                    0.0,
-                    &tr.next_obs[r * od..(r + 1) * od],
-                    term,
-                )?;
+                    &tr.next_obs[row.clone()],
+                );
+                if tr.view_obs.is_empty() {
+                    buf.push(o, a, 0.0, o2, term)?;
+                } else {
+                    let view = (&tr.view_obs[row.clone()], &tr.view_next_obs[row]);
+                    buf.push_viewed(o, a, 0.0, o2, term, view)?;
+                }
             }
         }
         Ok(())
@@ -201,6 +209,10 @@ impl RolloutJob {
                     tr.act.extend_from_slice(st.action);
                     tr.next_obs.extend_from_slice(st.next_obs);
                     tr.terminated.push(st.terminated);
+                    if let Some((v, v2)) = st.sensed {
+                        tr.view_obs.extend_from_slice(v);
+                        tr.view_next_obs.extend_from_slice(v2);
+                    }
                     Ok(())
                 },
             )?;
