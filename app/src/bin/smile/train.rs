@@ -75,9 +75,10 @@ pub struct TrainArgs {
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     bc_weight: Option<f32>,
     /// Train through the device's senses: a TOML file whose `[sensing]` section (noise_std,
-    /// adc_bits, adc_range, fraction) the policy reads its training states through, the
-    /// device's sensor model (preset: docs/configs/sensing-noise01-adc12.toml; the config's
-    /// own `[sensing]` otherwise).
+    /// adc_bits, adc_range, fraction; positions = true for position-only sensing through the
+    /// device's estimator, SMILe only) the policy reads its training states through, the
+    /// device's sensor model (presets: docs/configs/sensing-noise01-adc12.toml,
+    /// sensing-positions.toml; the config's own `[sensing]` otherwise).
     #[arg(long)]
     sensing: Option<PathBuf>,
     /// Expert for Meta-DAgger relabelling: a `smile expert` run directory or policy file, or a
