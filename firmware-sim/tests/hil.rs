@@ -21,6 +21,7 @@ use sim::{DemoDataset, Family, Split, TaskDemos};
 struct DeviceProcess {
     child: Child,
     log: PathBuf,
+    link: PathBuf,
 }
 
 impl DeviceProcess {
@@ -45,7 +46,11 @@ impl DeviceProcess {
             );
             std::thread::sleep(Duration::from_millis(20));
         }
-        Self { child, log }
+        Self {
+            child,
+            log,
+            link: link.to_path_buf(),
+        }
     }
 
     fn log(&self) -> String {
@@ -69,6 +74,10 @@ impl Drop for DeviceProcess {
     fn drop(&mut self) {
         let _ = self.child.kill();
         let _ = self.child.wait();
+        // A killed device leaves its link naming a pty number the system hands to the next
+        // pty opened, in this process another test's device: a host reconnecting through the
+        // stale link would reach that one. Its supervisor would remove the link; so does this.
+        let _ = std::fs::remove_file(&self.link);
     }
 }
 
@@ -485,5 +494,108 @@ fn a_host_that_gives_up_still_writes_hil_json() {
     assert!(hil["gave_up"].is_string(), "{hil}");
     assert!(hil["metric"].is_null() && hil["ticks"].is_null(), "{hil}");
     assert!(!hil["events"].as_array().unwrap().is_empty(), "{hil}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+/// `firmware-sim host` of the blob on test goal 2 as a child process, its stderr to `log`
+/// (read while it runs), bounded by a 60 s timeout.
+fn spawn_host(
+    link: &Path,
+    blob: &Path,
+    demos: &Path,
+    out: &Path,
+    log: &Path,
+    extra: &[&str],
+) -> Child {
+    Command::new("timeout")
+        .args([
+            "60",
+            env!("CARGO_BIN_EXE_firmware-sim"),
+            "host",
+            "--port",
+            s(link),
+        ])
+        .args(["--blob", s(blob), "--env", "point-goal", "--task", "2"])
+        .args(["--context", s(demos), "--seed", "7", "-o", s(out)])
+        .args(extra)
+        .env_remove("RUST_BACKTRACE")
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .unwrap()
+}
+
+/// Kills `device` as soon as it has greeted the host: the host's next message is the first of
+/// its upload, which takes about 3.3 s (a shipped 37,836 B blob at 115,200 baud), so the kill
+/// lands in it and the device has committed nothing.
+fn kill_during_the_upload(device: DeviceProcess) {
+    assert!(
+        device.wait_for("greeted a host", Duration::from_secs(20)),
+        "{}",
+        device.log()
+    );
+    assert!(!device.log().contains("blob committed"), "{}", device.log());
+    drop(device);
+}
+
+/// Issue 72, item 1: a device killed during the blob's upload and restarted is brought up
+/// again (the host reopens the port, greets it and uploads from the start); one that never
+/// comes back is given up after `--reconnect-s` with its events in `hil.json`. Before: "Broken
+/// pipe", and the host ended at once whatever `--reconnect-s` said, writing nothing.
+#[test]
+fn a_device_killed_during_the_upload_is_brought_up_again_or_given_up_with_its_events() {
+    let dir = tmp("hil-upload-kill");
+    let (_, demos) = blob_and_demos(&dir);
+    let blob = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../assets/policies/point-goal-rapier-smile/policy.blob");
+    let link = dir.join("tty");
+    let first = DeviceProcess::start(&dir, &link, &[], "first");
+    let (out, log) = (dir.join("host"), dir.join("host.log"));
+    let mut host = spawn_host(&link, &blob, &demos, &out, &log, &["--ticks", "20"]);
+    kill_during_the_upload(first);
+    std::thread::sleep(Duration::from_millis(300));
+    let second = DeviceProcess::start(&dir, &link, &[], "second");
+    let status = host.wait().unwrap();
+    let err = std::fs::read_to_string(&log).unwrap();
+    assert!(status.success(), "{err}");
+    let hil = hil_json(&out);
+    assert_eq!(hil["ticks"], 20, "{hil}");
+    assert_eq!(
+        (hil["uploads"].as_u64(), hil["reconnects"].as_u64()),
+        (Some(1), Some(1)),
+        "{err}\n{hil}"
+    );
+    assert!(
+        err.contains("starting over") && err.contains("brought up"),
+        "{err}"
+    );
+    assert!(second.log().contains("blob committed"), "{}", second.log());
+    drop(second);
+
+    // Killed during the upload and never restarted: given up after 1 s, hil.json says why.
+    let third = DeviceProcess::start(&dir, &link, &[], "third");
+    let (out, log) = (dir.join("gave-up"), dir.join("gave-up.log"));
+    let mut host = spawn_host(&link, &blob, &demos, &out, &log, &["--reconnect-s", "1"]);
+    kill_during_the_upload(third);
+    let status = host.wait().unwrap();
+    let err = std::fs::read_to_string(&log).unwrap();
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("did not come back within 1 s") && err.contains("hil.json"),
+        "{err}"
+    );
+    let hil = hil_json(&out);
+    let events = hil["events"].to_string();
+    assert!(
+        events.contains("starting over") && events.contains("did not come back"),
+        "{hil}"
+    );
+    assert!(
+        hil["gave_up"]
+            .as_str()
+            .unwrap()
+            .contains("did not come back"),
+        "{hil}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -58,6 +58,8 @@ pub enum BoardEvent {
     Watchdog(Duration),
     /// Ticks came back after a watchdog trip.
     Resumed(u32),
+    /// A host's `Hello` was answered (a bring-up begins: the upload, if any, comes next).
+    Greeted,
 }
 
 /// Why the board stopped.
@@ -158,6 +160,7 @@ pub fn serve(
         device_core::BoardEvent::Taught { transitions, .. } => on(BoardEvent::Taught(transitions)),
         device_core::BoardEvent::Watchdog(silent) => on(BoardEvent::Watchdog(silent)),
         device_core::BoardEvent::Resumed(tick) => on(BoardEvent::Resumed(tick)),
+        device_core::BoardEvent::Greeted => on(BoardEvent::Greeted),
         _ => {}
     })?;
     Ok(())

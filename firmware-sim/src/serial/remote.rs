@@ -316,9 +316,23 @@ impl std::fmt::Debug for RemoteDevice<'_> {
 }
 
 impl<'a> RemoteDevice<'a> {
-    /// Greets the device, uploads `blob` unless it already holds it, and teaches `context`;
-    /// ticks then run at `rate_hz`. A refused blob is an error with the device's reason.
+    /// [`Self::new`] then [`Self::start`]: greets the device, uploads `blob` unless it already
+    /// holds it, and teaches `context`; ticks then run at `rate_hz`. A refused blob is an
+    /// error with the device's reason.
     pub fn connect(
+        link: SerialLink,
+        blob: &'a [u8],
+        context: Vec<&'a Trajectory>,
+        rate_hz: f32,
+    ) -> Result<Self, LoopError> {
+        let mut remote = Self::new(link, blob, context, rate_hz)?;
+        remote.start()?;
+        Ok(remote)
+    }
+
+    /// The host's side of a device reached over `link`, nothing sent yet: checks that `blob`
+    /// is a model and takes its dimensions and safe action.
+    pub fn new(
         link: SerialLink,
         blob: &'a [u8],
         context: Vec<&'a Trajectory>,
@@ -333,7 +347,7 @@ impl<'a> RemoteDevice<'a> {
         let mut safe = vec![0.0; dims.1];
         policy.safe_action(&mut safe);
         let now = Instant::now();
-        let mut remote = Self {
+        let remote = Self {
             link,
             blob,
             blob_id: (blob.len() as u32, infer_core::crc32(blob)),
@@ -355,8 +369,42 @@ impl<'a> RemoteDevice<'a> {
             uploads: 0,
             reconnects: 0,
         };
-        remote.bring_up(0).map_err(LoopError::Link)?;
         Ok(remote)
+    }
+
+    /// Brings the device up: hello, the blob if it lacks it, the context. A line that fails
+    /// on the way (a device killed or restarted during the upload, a port that went away) is
+    /// reopened and the bring-up started over, every 200 ms for at most the link's
+    /// `reconnect_for`; a refusal ends it at once. The events say what happened (written to
+    /// `hil.json` by a host that gives up).
+    pub fn start(&mut self) -> Result<(), LoopError> {
+        let first = match self.bring_up(0) {
+            Ok(()) => return Ok(()),
+            Err(e @ LinkError::Refused { .. }) => return Err(LoopError::Link(e)),
+            Err(e) => e,
+        };
+        self.note(0, format!("{first}: reopening the port and starting over"));
+        let since = Instant::now();
+        loop {
+            std::thread::sleep(Duration::from_millis(200));
+            match self.link.reopen().and_then(|()| self.bring_up(0)) {
+                Ok(()) => {
+                    self.reconnects += 1;
+                    let took = since.elapsed().as_secs_f64();
+                    self.note(0, format!("device back after {took:.1} s; brought up"));
+                    return Ok(());
+                }
+                Err(e @ LinkError::Refused { .. }) => return Err(LoopError::Link(e)),
+                Err(e) if since.elapsed() > self.link.config.reconnect_for => {
+                    let port = self.link.config.port.to_string_lossy().into_owned();
+                    let limit = self.link.config.reconnect_for.as_secs_f64();
+                    let why = format!("the device did not come back within {limit:.0} s ({e})");
+                    self.note(0, why.clone());
+                    return Err(LoopError::Link(port_error(&port, why)));
+                }
+                Err(_) => {}
+            }
+        }
     }
 
     /// The link's counters.

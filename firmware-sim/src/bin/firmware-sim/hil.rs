@@ -87,6 +87,7 @@ pub(crate) fn device_cmd(a: DeviceArgs) -> Result<()> {
                 silent.as_millis()
             ),
             BoardEvent::Resumed(tick) => format!("ticks resumed at tick {tick}"),
+            BoardEvent::Greeted => "greeted a host".into(),
         };
         eprintln!("device: {line}");
     })
@@ -194,10 +195,18 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         a.baud,
         serial::line_time(prep.blob.len() * 103 / 100, a.baud).as_secs_f64()
     );
-    let mut remote = RemoteDevice::connect(link, &prep.blob, context, rate * a.speedup)
-        .map_err(|e| refusal_in_words(e, prep.blob.len()))?;
+    let mut remote = RemoteDevice::new(link, &prep.blob, context, rate * a.speedup)?;
+    let started = remote.start();
     for e in &remote.events {
         eprintln!("host: tick {}: {}", e.tick, e.what);
+    }
+    if let Err(e) = started {
+        return Err(gave_up(
+            &a,
+            rate,
+            &remote,
+            refusal_in_words(e, prep.blob.len()),
+        )?);
     }
     let shown = remote.events.len();
     let run = firmware_sim::run(&mut remote, plant.as_mut(), &prep.task, &config.control);
@@ -206,19 +215,7 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
     }
     let report = match run {
         Ok(report) => report,
-        Err(e) => {
-            // What happened up to the end still goes to hil.json: the events say why.
-            let mut hil = hil_report(&a, rate, None, &remote);
-            hil.gave_up = Some(e.to_string());
-            std::fs::create_dir_all(&p.out)
-                .with_context(|| format!("creating {}", p.out.display()))?;
-            let path = p.out.join("hil.json");
-            firmware_sim::write_atomic(&path, serde_json::to_string_pretty(&hil)?.as_bytes())?;
-            return Err(anyhow::Error::new(e).context(format!(
-                "the run was given up (its events: {})",
-                path.display()
-            )));
-        }
+        Err(e) => return Err(gave_up(&a, rate, &remote, anyhow::Error::new(e))?),
     };
     if let Some(warning) = &prep.provenance {
         eprintln!("{warning}");
@@ -251,6 +248,26 @@ pub(crate) fn host_cmd(a: HostArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A run given up (the device never brought up, or lost past `--reconnect-s`): what happened
+/// up to the end still goes to `hil.json`, the events saying why; the error names the file.
+fn gave_up(
+    a: &HostArgs,
+    rate: f32,
+    remote: &RemoteDevice<'_>,
+    e: anyhow::Error,
+) -> Result<anyhow::Error> {
+    let out = &a.plant.out;
+    let mut hil = hil_report(a, rate, None, remote);
+    hil.gave_up = Some(format!("{e:#}"));
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let path = out.join("hil.json");
+    firmware_sim::write_atomic(&path, serde_json::to_string_pretty(&hil)?.as_bytes())?;
+    Ok(e.context(format!(
+        "the run was given up (its events: {})",
+        path.display()
+    )))
 }
 
 /// The serial link to the device at `--port`, with the host's timeouts and injected faults.
