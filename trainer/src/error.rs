@@ -59,10 +59,10 @@ pub enum Error {
     },
     /// A setting was given to an algorithm that has no such setting (SMILe's `gp_weight` to
     /// Meta-BC, say).
-    #[error("`{key}` is not a setting of {algo}")]
+    #[error("`{setting}` is not a setting of {algo}")]
     NoSuchSetting {
-        /// The configuration key.
-        key: &'static str,
+        /// The setting.
+        setting: crate::setting::Setting,
         /// The algorithm's name.
         algo: &'static str,
     },
@@ -79,6 +79,8 @@ pub enum Error {
         run: PathBuf,
         /// The configuration's top-level key that differs.
         key: String,
+        /// The settings that set that key (none: only a configuration file sets it).
+        settings: Box<[crate::setting::Setting]>,
         /// Its value in the run.
         was: String,
         /// The value asked for (`missing` if absent).

@@ -39,6 +39,7 @@ mod error;
 mod io;
 mod model;
 mod optim;
+mod setting;
 
 pub mod eval;
 pub mod run;
@@ -53,6 +54,7 @@ pub use algo::{
 
 /// Errors and the result alias.
 pub use error::{Error, Input, Result};
+pub use setting::Setting;
 
 /// Networks: MLPs, the SAC policy, the context encoder, the discriminator, the meta-policy.
 pub use model::{

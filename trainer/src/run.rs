@@ -21,6 +21,7 @@ use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, 
 use crate::data::MetaData;
 use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
+use crate::setting::Setting;
 
 mod expert;
 pub use expert::{ExpertRequest, train_expert};
@@ -655,6 +656,7 @@ fn check_resume<T: Serialize>(out: &Path, given: &T, running: &T) -> Result<()> 
             return Err(Error::ResumeChanges {
                 run: out.to_path_buf(),
                 key: key.clone(),
+                settings: Setting::of_key(key).into(),
                 was: theirs.to_string(),
                 now: ours.map_or("missing".into(), ToString::to_string),
             });

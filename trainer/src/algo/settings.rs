@@ -9,6 +9,8 @@
 
 use sim::Physics;
 
+use crate::setting::Setting;
+
 /// Typed settings over a configuration file; `None` keeps the file's value.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Overrides {
@@ -44,6 +46,18 @@ impl Overrides {
     pub(crate) fn set<T: Clone>(field: &mut T, value: &Option<T>) {
         if let Some(v) = value {
             *field = v.clone();
+        }
+    }
+
+    /// Refuses `setting` when it is given (`value` is `Some`): `algo` has no such setting.
+    pub(crate) fn refuse<T>(
+        setting: Setting,
+        value: &Option<T>,
+        algo: &'static str,
+    ) -> crate::error::Result<()> {
+        match value {
+            Some(_) => Err(crate::error::Error::NoSuchSetting { setting, algo }),
+            None => Ok(()),
         }
     }
 }

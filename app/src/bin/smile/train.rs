@@ -199,37 +199,52 @@ fn sensing_preset(path: &std::path::Path) -> Result<trainer::Sensing> {
 /// The library's error, with the flag that gives the setting it names.
 fn with_flags(e: trainer::Error) -> anyhow::Error {
     match e {
-        trainer::Error::NoSuchSetting { key, algo } => {
+        trainer::Error::NoSuchSetting { setting, algo } => {
             anyhow::anyhow!(
                 "{} is a SMILe setting; {algo} has no such setting",
-                flag_of(key)
+                flag_of(setting)
             )
         }
-        trainer::Error::ResumeChanges { run, key, was, now } => anyhow::anyhow!(
-            "--resume continues {} with the configuration it started with, but {} changes \
-             `{key}` ({was} -> {now}); drop the flag (or restore {}), or start a new run to \
-             change it. Only --updates (and SMILe's --cpu-budget) may change on --resume",
-            run.display(),
-            flag_of(&key),
-            run.join("config.toml").display()
-        ),
+        trainer::Error::ResumeChanges {
+            run,
+            key,
+            settings,
+            was,
+            now,
+        } => {
+            let flags: Vec<&str> = settings.iter().copied().map(flag_of).collect();
+            let flag = if flags.is_empty() {
+                "config.toml".to_string()
+            } else {
+                flags.join(" / ")
+            };
+            anyhow::anyhow!(
+                "--resume continues {} with the configuration it started with, but {flag} \
+                 changes `{key}` ({was} -> {now}); drop the flag (or restore {}), or start a \
+                 new run to change it. Only --updates (and SMILe's --cpu-budget) may change on \
+                 --resume",
+                run.display(),
+                run.join("config.toml").display()
+            )
+        }
         e => e.into(),
     }
 }
 
-/// The flag that sets a configuration key (`config.toml` for keys no flag sets).
-fn flag_of(key: &str) -> &'static str {
-    match key {
-        "seed" => "--seed",
-        "learner_threads" => "--learner-threads",
-        "disc_hidden" | "sac" | "policy_hidden" => "--hidden / --reward-scale",
-        "sac.reward_scale" => "--reward-scale",
-        "gp_weight" => "--gp-weight",
-        "bc_weight" => "--bc-weight",
-        "cpu_budget_s" => "--cpu-budget",
-        "eval_every" => "--eval-every",
-        "physics" => "--physics",
-        "sensing" => "--sensing",
-        _ => "config.toml",
+/// The flag that gives a setting.
+fn flag_of(setting: trainer::Setting) -> &'static str {
+    use trainer::Setting;
+    match setting {
+        Setting::Updates => "--updates",
+        Setting::CpuBudget => "--cpu-budget",
+        Setting::Seed => "--seed",
+        Setting::LearnerThreads => "--learner-threads",
+        Setting::EvalEvery => "--eval-every",
+        Setting::Hidden => "--hidden",
+        Setting::GpWeight => "--gp-weight",
+        Setting::RewardScale => "--reward-scale",
+        Setting::BcWeight => "--bc-weight",
+        Setting::Physics => "--physics",
+        Setting::Sensing => "--sensing",
     }
 }

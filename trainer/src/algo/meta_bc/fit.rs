@@ -12,8 +12,9 @@ use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::Overrides;
 use crate::algo::throughput::Throughput;
 use crate::data::{better, quick_eval};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::MetricsLog;
+use crate::setting::Setting;
 
 impl Learner for MetaBc {
     type Config = MetaBcConfig;
@@ -152,26 +153,34 @@ impl MetaSettings for MetaBcConfig {
     }
 
     fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()> {
-        let smile_only = [
-            ("cpu_budget_s", o.cpu_budget_s.is_some()),
-            ("gp_weight", o.gp_weight.is_some()),
-            ("sac.reward_scale", o.reward_scale.is_some()),
-            ("bc_weight", o.bc_weight.is_some()),
-        ];
-        if let Some((key, _)) = smile_only.into_iter().find(|(_, given)| *given) {
-            return Err(Error::NoSuchSetting {
-                key,
-                algo: algo.name(),
-            });
-        }
-        Overrides::set(&mut self.total_steps, &o.updates);
-        Overrides::set(&mut self.seed, &o.seed);
-        Overrides::set(&mut self.learner_threads, &o.learner_threads);
-        Overrides::set(&mut self.eval_every, &o.eval_every);
-        Overrides::set(&mut self.policy_hidden, &o.hidden);
-        Overrides::set(&mut self.physics, &o.physics);
-        if o.sensing.is_some() {
-            self.sensing = o.sensing;
+        // Every field named: a setting added to `Overrides` does not compile until each
+        // learner takes or refuses it.
+        let Overrides {
+            updates,
+            cpu_budget_s,
+            seed,
+            learner_threads,
+            eval_every,
+            hidden,
+            gp_weight,
+            reward_scale,
+            bc_weight,
+            physics,
+            sensing,
+        } = o;
+        let name = algo.name();
+        Overrides::refuse(Setting::CpuBudget, cpu_budget_s, name)?;
+        Overrides::refuse(Setting::GpWeight, gp_weight, name)?;
+        Overrides::refuse(Setting::RewardScale, reward_scale, name)?;
+        Overrides::refuse(Setting::BcWeight, bc_weight, name)?;
+        Overrides::set(&mut self.total_steps, updates);
+        Overrides::set(&mut self.seed, seed);
+        Overrides::set(&mut self.learner_threads, learner_threads);
+        Overrides::set(&mut self.eval_every, eval_every);
+        Overrides::set(&mut self.policy_hidden, hidden);
+        Overrides::set(&mut self.physics, physics);
+        if sensing.is_some() {
+            self.sensing = *sensing;
         }
         Ok(())
     }

@@ -160,19 +160,34 @@ impl MetaSettings for SmileConfig {
     }
 
     fn apply(&mut self, _: Algo, o: &Overrides) -> Result<()> {
-        Overrides::set(&mut self.total_updates, &o.updates);
-        Overrides::set(&mut self.cpu_budget_s, &o.cpu_budget_s);
-        Overrides::set(&mut self.seed, &o.seed);
-        Overrides::set(&mut self.learner_threads, &o.learner_threads);
-        Overrides::set(&mut self.eval_every, &o.eval_every);
-        Overrides::set(&mut self.sac.hidden, &o.hidden);
-        Overrides::set(&mut self.disc_hidden, &o.hidden);
-        Overrides::set(&mut self.gp_weight, &o.gp_weight);
-        Overrides::set(&mut self.sac.reward_scale, &o.reward_scale);
-        Overrides::set(&mut self.bc_weight, &o.bc_weight);
-        Overrides::set(&mut self.physics, &o.physics);
-        if o.sensing.is_some() {
-            self.sensing = o.sensing;
+        // Every field named: a setting added to `Overrides` does not compile until each
+        // learner takes or refuses it.
+        let Overrides {
+            updates,
+            cpu_budget_s,
+            seed,
+            learner_threads,
+            eval_every,
+            hidden,
+            gp_weight,
+            reward_scale,
+            bc_weight,
+            physics,
+            sensing,
+        } = o;
+        Overrides::set(&mut self.total_updates, updates);
+        Overrides::set(&mut self.cpu_budget_s, cpu_budget_s);
+        Overrides::set(&mut self.seed, seed);
+        Overrides::set(&mut self.learner_threads, learner_threads);
+        Overrides::set(&mut self.eval_every, eval_every);
+        Overrides::set(&mut self.sac.hidden, hidden);
+        Overrides::set(&mut self.disc_hidden, hidden);
+        Overrides::set(&mut self.gp_weight, gp_weight);
+        Overrides::set(&mut self.sac.reward_scale, reward_scale);
+        Overrides::set(&mut self.bc_weight, bc_weight);
+        Overrides::set(&mut self.physics, physics);
+        if sensing.is_some() {
+            self.sensing = *sensing;
         }
         Ok(())
     }
