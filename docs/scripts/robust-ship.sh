@@ -23,8 +23,21 @@ bin=${SMILE_BIN:-target/release/smile}
 key() { sed -n "s/^$1 = \"\{0,1\}\([^\"]*\)\"\{0,1\}$/\1/p" "$from/deploy.toml"; }
 demos=$from/$(key demos); contexts=$from/$(key contexts); qat=$(key qat_steps); adc=$(key adc_range)
 env=$(sed -n 's/^env = "\(.*\)"$/\1/p' "$run/config.toml")
-sensing=$(python3 -c "import tomllib,sys; s=tomllib.load(open(sys.argv[1],'rb')).get('sensing'); \
-print(f\"trained through the sensors (noise {s.get('noise_std',0)} + {s.get('adc_bits','ideal')}-bit ADC, {s.get('fraction',1.0):g} of the batch rows)\" if s else '')" "$run/config.toml")
+sensing=$(python3 - "$run/config.toml" <<'PY'
+import sys, tomllib
+s = tomllib.load(open(sys.argv[1], "rb")).get("sensing")
+if not s:
+    print("")
+else:
+    adc = f" + {s['adc_bits']}-bit ADC" if s.get("adc_bits") else ""
+    noise = f"noise {s.get('noise_std', 0)}{adc}"
+    share = f"{s.get('fraction', 1.0):g} of the batch rows"
+    if s.get("positions"):
+        print(f"trained through position-only sensing and the estimator ({noise}, {share})")
+    else:
+        print(f"trained through the sensors ({noise}, {share})")
+PY
+)
 label=${sensing:-${NOTE:?a run without [sensing] needs NOTE, its label}}
 mkdir -p "$dst"
 cp "$run"/{meta_policy.safetensors,config.toml,run.json} "$dst"/
