@@ -68,6 +68,9 @@ pub use optim::{Adam, AdamConfig};
 
 /// Demos: deterministic expert rollouts in `sim`'s dataset format.
 pub use algo::expert::{DemoSpec, record as record_demos, record_with as record_demos_with};
+
+/// A trained meta-policy distilled to act through the device's senses (issue 73).
+pub use algo::distill::{DistillConfig, DistillReport, distill_through_sensing};
 /// Demos, the meta-train split, rollouts and replay.
 pub use data::{
     ActFn, ActionNoise, Batch, BatchVecs, Episode, MetaData, ReplayBuffer, Step, TaskReplay,

@@ -559,3 +559,51 @@ fn position_sensing_trains_on_the_estimators_views_and_resumes() {
         "{e}"
     );
 }
+
+/// Distilling a trained policy through the device's senses (issue 73): the student's action on
+/// what the device reads comes closer to the teacher's on the truth, over the student's own
+/// closed loops through the estimator; the run is deterministic, and a zero budget is refused.
+#[test]
+fn distilling_through_the_sensors_closes_the_action_gap() {
+    trainer::threads::set_compute_threads(1);
+    let ds = demos(8, 2, 30);
+    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let mut run = Smile::new(tiny(false), data).unwrap();
+    run.warm_start().unwrap();
+    for _ in 0..20 {
+        run.update_pair().unwrap();
+    }
+    let teacher = run.meta_policy();
+    let sensing = trainer::Sensing {
+        noise_std: 0.05,
+        adc_range: 4.0,
+        positions: true,
+        ..trainer::Sensing::default()
+    };
+    let env = sim::EnvConfig {
+        horizon: Some(30),
+        ..sim::EnvConfig::default()
+    };
+    let cfg = trainer::DistillConfig {
+        rounds: 2,
+        ..trainer::DistillConfig::new(sensing, 300, env)
+    };
+    let (student, report) = trainer::distill_through_sensing(&teacher, &ds, &cfg).unwrap();
+    assert_eq!(
+        report.closed_loop_ticks,
+        2 * ds.tasks.len() * 30,
+        "{report:?}"
+    );
+    assert!(
+        report.action_gap_after < 0.8 * report.action_gap_before,
+        "{report:?}"
+    );
+    let (_, again) = trainer::distill_through_sensing(&teacher, &ds, &cfg).unwrap();
+    assert_eq!(again, report, "same seed, same distillation");
+    // The student is another actor; the encoder is the teacher's.
+    let ctx: Vec<_> = ds.tasks[0].trajectories.iter().collect();
+    assert_eq!(student.latent(&ctx).unwrap(), teacher.latent(&ctx).unwrap());
+    let zero = trainer::DistillConfig { steps: 0, ..cfg };
+    let e = trainer::distill_through_sensing(&teacher, &ds, &zero).unwrap_err();
+    assert!(e.to_string().contains("steps"), "{e}");
+}

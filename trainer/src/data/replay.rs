@@ -357,10 +357,9 @@ impl TaskReplay {
         act_dim: usize,
         capacity_per_task: usize,
     ) -> Result<Self> {
-        let buffers = (0..n_tasks)
-            .map(|_| ReplayBuffer::new(obs_dim, act_dim, capacity_per_task))
-            .collect::<Result<_>>()?;
-        Ok(Self { buffers })
+        Self::of(n_tasks, || {
+            ReplayBuffer::new(obs_dim, act_dim, capacity_per_task)
+        })
     }
 
     /// As [`Self::new`], each buffer [`with views`](ReplayBuffer::with_views).
@@ -370,9 +369,13 @@ impl TaskReplay {
         act_dim: usize,
         capacity_per_task: usize,
     ) -> Result<Self> {
-        let buffers = (0..n_tasks)
-            .map(|_| ReplayBuffer::with_views(obs_dim, act_dim, capacity_per_task))
-            .collect::<Result<_>>()?;
+        Self::of(n_tasks, || {
+            ReplayBuffer::with_views(obs_dim, act_dim, capacity_per_task)
+        })
+    }
+
+    fn of(n_tasks: usize, buffer: impl Fn() -> Result<ReplayBuffer>) -> Result<Self> {
+        let buffers = (0..n_tasks).map(|_| buffer()).collect::<Result<_>>()?;
         Ok(Self { buffers })
     }
 

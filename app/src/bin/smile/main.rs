@@ -11,6 +11,7 @@ use clap::{Parser, Subcommand};
 mod bench;
 mod demos;
 mod device_table;
+mod distill;
 mod eval;
 mod expert;
 mod export;
@@ -68,6 +69,12 @@ enum Cmd {
         after_help = "Examples:\n  smile export --policy runs/pg-smile --quant w8a8 --demos demos/pg-train.safetensors --contexts demos/pg-test.safetensors -o runs/pg-smile/policy.blob\n  smile export --policy runs/pg-smile --format onnx --contexts demos/pg-test.safetensors -o runs/pg-smile/onnx"
     )]
     Export(export::ExportArgs),
+    /// Distil a trained meta-policy to act through the device's senses (noise and ADC, or
+    /// position-only sensing and its estimator), taught by itself on true states.
+    #[command(
+        after_help = "Examples:\n  smile distill --policy assets/policies/cheetah-vel-rapier-smile-bc --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors --sensing docs/configs/sensing-positions.toml --horizon 1000 -o runs/cv-distilled"
+    )]
+    Distill(distill::DistillArgs),
     /// The whole pipeline on point-goal: expert, demos, SMILe + Meta-BC, eval, blob, device.
     #[command(
         after_help = "Examples:\n  smile quickstart\n  smile quickstart --out runs/qs-seed1 --seed 1\n  smile quickstart --budget tiny --quiet"
@@ -172,6 +179,7 @@ fn run() -> Result<()> {
         Cmd::Train(a) => train::run(a),
         Cmd::Eval(a) => eval::run(a),
         Cmd::Export(a) => export::run(a),
+        Cmd::Distill(a) => distill::run(a),
         Cmd::Quickstart(a) => quickstart::run(a),
         Cmd::Sweep(a) => sweep::run(a),
         Cmd::Report(a) => report::run(a),

@@ -173,7 +173,7 @@ fn overrides(a: &TrainArgs) -> Result<Overrides> {
 }
 
 /// The `[sensing]` section of the `--sensing` file, checked, or an error naming the file.
-fn sensing_preset(path: &std::path::Path) -> Result<trainer::Sensing> {
+pub(crate) fn sensing_preset(path: &std::path::Path) -> Result<trainer::Sensing> {
     #[derive(serde::Deserialize)]
     #[serde(deny_unknown_fields)]
     struct Preset {
