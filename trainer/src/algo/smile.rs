@@ -150,11 +150,10 @@ impl Smile {
         );
         let enc_opt = Adam::new(encoder.vars(), AdamConfig::with_lr(cfg.enc_lr));
         // Position-only sensing keeps the states as the policy read them beside the true ones.
-        let replay = if cfg.sensing.is_some_and(|s| s.positions) {
-            TaskReplay::with_views(data.train.len(), od, ad, cfg.replay_per_task)?
-        } else {
-            TaskReplay::new(data.train.len(), od, ad, cfg.replay_per_task)?
-        };
+        let mut replay = TaskReplay::new(data.train.len(), od, ad, cfg.replay_per_task)?;
+        if cfg.sensing.is_some_and(|s| s.positions) {
+            replay = replay.with_views();
+        }
         Ok(Self {
             cfg,
             data,

@@ -133,8 +133,14 @@ impl ReplayBuffer {
     /// ([`Self::push_viewed`]; batches carry them in `view_obs` and `view_next_obs`).
     pub fn with_views(obs_dim: usize, act_dim: usize, capacity: usize) -> Result<Self> {
         let mut b = Self::new(obs_dim, act_dim, capacity)?;
-        b.views = Some((vec![0.0; capacity * obs_dim], vec![0.0; capacity * obs_dim]));
+        b.keep_views();
         Ok(b)
+    }
+
+    /// Makes room for the views (an empty buffer's, so nothing stored lacks one).
+    fn keep_views(&mut self) {
+        let n = self.capacity * self.obs_dim;
+        self.views = Some((vec![0.0; n], vec![0.0; n]));
     }
 
     /// Whether the buffer keeps the policy's views.
@@ -357,26 +363,18 @@ impl TaskReplay {
         act_dim: usize,
         capacity_per_task: usize,
     ) -> Result<Self> {
-        Self::of(n_tasks, || {
-            ReplayBuffer::new(obs_dim, act_dim, capacity_per_task)
-        })
-    }
-
-    /// As [`Self::new`], each buffer [`with views`](ReplayBuffer::with_views).
-    pub fn with_views(
-        n_tasks: usize,
-        obs_dim: usize,
-        act_dim: usize,
-        capacity_per_task: usize,
-    ) -> Result<Self> {
-        Self::of(n_tasks, || {
-            ReplayBuffer::with_views(obs_dim, act_dim, capacity_per_task)
-        })
-    }
-
-    fn of(n_tasks: usize, buffer: impl Fn() -> Result<ReplayBuffer>) -> Result<Self> {
-        let buffers = (0..n_tasks).map(|_| buffer()).collect::<Result<_>>()?;
+        let buffers = (0..n_tasks)
+            .map(|_| ReplayBuffer::new(obs_dim, act_dim, capacity_per_task))
+            .collect::<Result<_>>()?;
         Ok(Self { buffers })
+    }
+
+    /// These buffers, each keeping the policy's views too ([`ReplayBuffer::with_views`]).
+    pub fn with_views(mut self) -> Self {
+        for b in &mut self.buffers {
+            b.keep_views();
+        }
+        self
     }
 
     /// Number of tasks.
