@@ -257,3 +257,56 @@ fn the_sensing_preset_trains_through_the_sensors_and_a_bad_one_is_refused() {
     }
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `smile distill` (issue 73): a trained policy distilled through the position-sensing preset
+/// writes a policy folder the other commands load, with `distill.json`; a zero budget and demos
+/// of another family are refused, naming the flag or the file.
+#[test]
+fn distill_writes_a_policy_and_refuses_bad_input_by_name() {
+    let dir = tmp("distill");
+    let (train, run, out) = tiny_run(&dir, true, &[]);
+    common::ok(&out);
+    let preset = format!(
+        "{}/../docs/configs/sensing-positions.toml",
+        env!("CARGO_MANIFEST_DIR")
+    );
+    let student = dir.join("student");
+    let base = [
+        "distill",
+        "--policy",
+        s(&run),
+        "--demos",
+        s(&train),
+        "--sensing",
+        &preset,
+        "--horizon",
+        "20",
+        "--rounds",
+        "2",
+    ];
+    let args = [&base[..], &["--steps", "40", "-o", s(&student)]].concat();
+    let said = String::from_utf8_lossy(&smile_env(&args, &[]).stdout).into_owned();
+    assert!(said.contains("action gap"), "{said}");
+    trainer::MetaPolicy::load(&student).unwrap();
+    let report = std::fs::read_to_string(student.join("distill.json")).unwrap();
+    assert!(report.contains("\"positions\": true") && report.contains("closed_loop_ticks"));
+
+    let zero = [&base[..], &["--steps", "0", "-o", s(&student)]].concat();
+    let refused = smile_env(&zero, &[]);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert_eq!(refused.status.code(), Some(2), "{err}");
+    assert!(err.contains("--steps"), "{err}");
+    let cheetah = dir.join("cheetah.safetensors");
+    cheetah_test_demos(&cheetah);
+    let mut wrong = base.to_vec();
+    wrong[4] = s(&cheetah);
+    let nowhere = dir.join("no");
+    let wrong = [&wrong[..], &["-o", s(&nowhere)]].concat();
+    let err = one_line_error(&smile_env(&wrong, &[]));
+    assert!(err.contains("cheetah") && err.contains("demos"), "{err}");
+    assert!(
+        !dir.join("no").exists(),
+        "nothing written for refused input"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
