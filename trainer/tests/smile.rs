@@ -603,6 +603,17 @@ fn distilling_through_the_sensors_closes_the_action_gap() {
     // The student is another actor; the encoder is the teacher's.
     let ctx: Vec<_> = ds.tasks[0].trajectories.iter().collect();
     assert_eq!(student.latent(&ctx).unwrap(), teacher.latent(&ctx).unwrap());
+    // One student through two sensors: the second round reads through the noise alone.
+    let both = trainer::DistillConfig {
+        also: vec![trainer::Sensing {
+            positions: false,
+            ..sensing
+        }],
+        ..cfg.clone()
+    };
+    let (_, two) = trainer::distill_through_sensing(&teacher, &ds, &both).unwrap();
+    assert_eq!(two.closed_loop_ticks, report.closed_loop_ticks);
+    assert_ne!(two, report, "the second round read through another sensor");
     let zero = trainer::DistillConfig { steps: 0, ..cfg };
     let e = trainer::distill_through_sensing(&teacher, &ds, &zero).unwrap_err();
     assert!(e.to_string().contains("steps"), "{e}");

@@ -32,6 +32,9 @@ pub struct DistillConfig {
     /// What the device reads (the `[sensing]` section; its `fraction` is unused: every closed
     /// loop reads through it, and the demos' clean rows keep the truth in the set).
     pub sensing: Sensing,
+    /// Further sensors the same student must act through: round `r` reads through
+    /// `[sensing, also...][r % n]`, so one blob serves each (empty: `sensing` alone).
+    pub also: Vec<Sensing>,
     /// Adam steps in all (at least 1).
     pub steps: usize,
     /// DAgger rounds: closed loops of the current student, then `steps / rounds` steps.
@@ -54,6 +57,7 @@ impl DistillConfig {
     pub fn new(sensing: Sensing, steps: usize, env: EnvConfig) -> Self {
         Self {
             sensing,
+            also: Vec::new(),
             steps,
             rounds: 4,
             episodes: 1,
@@ -66,6 +70,9 @@ impl DistillConfig {
 
     fn check(&self) -> Result<()> {
         self.sensing.check()?;
+        for s in &self.also {
+            s.check()?;
+        }
         let counts = [
             ("steps", self.steps),
             ("rounds", self.rounds),
@@ -85,6 +92,16 @@ impl DistillConfig {
             )));
         }
         Ok(())
+    }
+}
+
+impl DistillConfig {
+    /// The sensor round `round`'s closed loops read through.
+    fn round_sensing(&self, round: usize) -> &Sensing {
+        match round % (1 + self.also.len()) {
+            0 => &self.sensing,
+            k => &self.also[k - 1],
+        }
     }
 }
 
@@ -241,7 +258,7 @@ fn closed_loops(
                 env,
                 &td.task,
                 seed,
-                Some(&cfg.sensing),
+                Some(cfg.round_sensing(round)),
                 &mut |o, a| {
                     *read.borrow_mut() = o.to_vec();
                     a.copy_from_slice(&student.act(o, z, true, &mut rng)?);

@@ -19,9 +19,10 @@ pub struct DistillArgs {
     #[arg(long)]
     demos: PathBuf,
     /// A TOML file whose `[sensing]` section is what the device reads (presets:
-    /// docs/configs/sensing-noise01-adc12.toml, sensing-positions.toml).
-    #[arg(long)]
-    sensing: PathBuf,
+    /// docs/configs/sensing-noise01-adc12.toml, sensing-positions.toml). Several (comma or
+    /// repeated): one student for each sensor, the rounds taking them in turn.
+    #[arg(long, value_delimiter = ',', required = true)]
+    sensing: Vec<PathBuf>,
     /// Adam steps in all.
     #[arg(long, default_value_t = 4000, value_parser = crate::positive)]
     steps: usize,
@@ -45,7 +46,12 @@ pub fn run(a: DistillArgs) -> Result<()> {
     let teacher =
         MetaPolicy::load(&a.policy).with_context(|| format!("--policy {}", a.policy.display()))?;
     let demos = trainer::run::read_demos_of(&a.demos, trainer::Input::Demos, teacher.family)?;
-    let sensing = crate::train::sensing_preset(&a.sensing)?;
+    let sensings = a
+        .sensing
+        .iter()
+        .map(|p| crate::train::sensing_preset(p))
+        .collect::<Result<Vec<_>>>()?;
+    let (sensing, also) = (sensings[0], sensings[1..].to_vec());
     let env = sim::EnvConfig {
         horizon: a.horizon,
         physics: teacher.physics,
@@ -54,6 +60,7 @@ pub fn run(a: DistillArgs) -> Result<()> {
     let cfg = DistillConfig {
         rounds: a.rounds,
         seed: a.seed,
+        also,
         ..DistillConfig::new(sensing, a.steps, env)
     };
     let (student, report) = trainer::distill_through_sensing(&teacher, &demos, &cfg)?;
@@ -73,7 +80,7 @@ pub fn run(a: DistillArgs) -> Result<()> {
     }
     let json = serde_json::json!({
         "source": a.policy,
-        "sensing": sensing,
+        "sensing": sensings,
         "steps": cfg.steps,
         "rounds": cfg.rounds,
         "episodes_per_task_and_round": cfg.episodes,
