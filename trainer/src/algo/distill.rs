@@ -252,31 +252,30 @@ fn closed_loops(
                 .seed
                 .wrapping_mul(sim::seeds::TRAINING_SEED_STRIDE)
                 .wrapping_add(episode as u64);
+            // The policy's input of the tick, kept for the step's pair (one buffer, reused).
             let read = std::cell::RefCell::new(Vec::new());
-            let mut ticks: Vec<(Vec<f32>, Vec<f32>)> = Vec::new();
             sensed_episode(
                 env,
                 &td.task,
                 seed,
                 Some(cfg.round_sensing(round)),
                 &mut |o, a| {
-                    *read.borrow_mut() = o.to_vec();
+                    let mut r = read.borrow_mut();
+                    r.clear();
+                    r.extend_from_slice(o);
                     a.copy_from_slice(&student.act(o, z, true, &mut rng)?);
                     Ok(())
                 },
                 &mut |st| {
                     // Position-only sensing names the reading itself (a tick without an
                     // estimate acts safely and reads as the truth); else the policy's input.
-                    let o = st
-                        .sensed
-                        .map_or_else(|| read.borrow().clone(), |(o, _)| o.to_vec());
-                    ticks.push((o, st.obs.to_vec()));
+                    match st.sensed {
+                        Some((o, _)) => pairs.push(student, o, st.obs, z),
+                        None => pairs.push(student, &read.borrow(), st.obs, z),
+                    }
                     Ok(())
                 },
             )?;
-            for (o, s) in &ticks {
-                pairs.push(student, o, s, z);
-            }
         }
     }
     Ok(())

@@ -223,28 +223,31 @@ struct Readings {
     sensor: sim::Sensor,
     path: PositionSensing,
     /// The state as the policy reads it this tick, and whether the estimator had one.
-    now: (Vec<f32>, bool),
-    /// The next state's reading, made when the step landed; taken by the next tick.
-    next: Option<(Vec<f32>, bool)>,
+    now: Vec<f32>,
+    now_ready: bool,
+    /// The next state's reading, made when the step landed; `next_ready` is `Some` until the
+    /// next tick takes it. The two buffers swap: nothing is allocated per tick.
+    next: Vec<f32>,
+    next_ready: Option<bool>,
 }
 
-impl Readings {
-    /// One tick of the device's senses on the true state `truth`: the measured entries
-    /// through the sensor, the estimator into a view. Without an estimate yet (a channel had
-    /// no valid reading) the view is the truth and `false`: the device holds its safe action.
-    fn read(&mut self, truth: &[f32]) -> Result<(Vec<f32>, bool)> {
-        let sensor = &mut self.sensor;
-        self.path.read(truth, |x| sensor.read(x));
-        let mut view = truth.to_vec();
-        let ready = self
-            .path
-            .estimate(&mut view)
-            .map_err(|e| Error::Config(format!("[sensing] positions: {e}")))?;
-        if ready.is_none() {
-            view.copy_from_slice(truth);
-        }
-        Ok((view, ready.is_some()))
-    }
+/// One tick of the device's senses on the true state `truth`: the measured entries through
+/// the sensor, the estimator into `view`. Without an estimate yet (a channel had no valid
+/// reading) the estimator writes nothing, the view stays the truth, and `false`: the device
+/// holds its safe action.
+fn sense(
+    sensor: &mut sim::Sensor,
+    path: &mut PositionSensing,
+    truth: &[f32],
+    view: &mut Vec<f32>,
+) -> Result<bool> {
+    path.read(truth, |x| sensor.read(x));
+    view.clear();
+    view.extend_from_slice(truth);
+    let ready = path
+        .estimate(view)
+        .map_err(|e| Error::Config(format!("[sensing] positions: {e}")))?;
+    Ok(ready.is_some())
 }
 
 /// [`sensed_episode`] with position-only sensing: each tick the sensor reads the measured
@@ -273,34 +276,39 @@ fn estimated_episode(
             .map_err(|e| Error::Config(format!("[sensing]: {e}")))?,
         path: PositionSensing::new(family, filter)
             .map_err(|e| Error::Config(format!("[sensing] positions: {e}")))?,
-        now: (Vec::new(), false),
-        next: None,
+        now: Vec::new(),
+        now_ready: false,
+        next: Vec::new(),
+        next_ready: None,
     });
     run_episode(
         env,
         task,
         seed,
         &mut |o, a| {
-            let mut r = readings.borrow_mut();
-            r.now = match r.next.take() {
-                Some(next) => next,
-                None => r.read(o)?,
-            };
-            if r.now.1 {
-                act(&r.now.0, a)
+            let r = &mut *readings.borrow_mut();
+            match r.next_ready.take() {
+                Some(ready) => {
+                    std::mem::swap(&mut r.now, &mut r.next);
+                    r.now_ready = ready;
+                }
+                None => r.now_ready = sense(&mut r.sensor, &mut r.path, o, &mut r.now)?,
+            }
+            if r.now_ready {
+                act(&r.now, a)
             } else {
                 a.fill(0.0);
                 Ok(())
             }
         },
         &mut |st| {
-            let mut r = readings.borrow_mut();
-            let next = r.read(st.next_obs)?;
+            let r = &mut *readings.borrow_mut();
+            let ready = sense(&mut r.sensor, &mut r.path, st.next_obs, &mut r.next)?;
             let out = on_step(&Step {
-                sensed: Some((&r.now.0, &next.0)),
+                sensed: Some((&r.now, &r.next)),
                 ..*st
             });
-            r.next = Some(next);
+            r.next_ready = Some(ready);
             out
         },
     )
