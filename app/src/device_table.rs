@@ -694,12 +694,12 @@ mod tests {
     fn a_column_is_paired_with_float_task_by_task() {
         let float = [10.0, 20.0, 30.0, 40.0];
         // A return, higher is better: every task 1 lower is 4% worse, with no spread.
-        let c = cell(Family::WalkerDyn, &float, &[9.0, 19.0, 29.0, 39.0]);
+        let c = cell(Family::WALKER_DYN, &float, &[9.0, 19.0, 29.0, 39.0]);
         assert!((c.degradation_pct - 4.0).abs() < 1e-5, "{c:?}");
         assert!(c.stderr_pct.abs() < 1e-6, "{c:?}");
         // The same mean from per-task losses 3, -1, 3, -1: sample variance 16 / 3, s.e.
         // sqrt(16 / 3 / 4), in percent of the float mean 25.
-        let c = cell(Family::WalkerDyn, &float, &[7.0, 21.0, 27.0, 41.0]);
+        let c = cell(Family::WALKER_DYN, &float, &[7.0, 21.0, 27.0, 41.0]);
         assert!((c.degradation_pct - 4.0).abs() < 1e-5, "{c:?}");
         let se = (16.0f64 / 3.0 / 4.0).sqrt() / 25.0 * 100.0;
         assert!(
@@ -707,10 +707,10 @@ mod tests {
             "{c:?} against {se}"
         );
         // A distance, lower is better: larger is worse.
-        let c = cell(Family::PointGoal, &[0.1, 0.3], &[0.2, 0.4]);
+        let c = cell(Family::POINT_GOAL, &[0.1, 0.3], &[0.2, 0.4]);
         assert!((c.degradation_pct - 50.0).abs() < 1e-4, "{c:?}");
         // One task has no spread to measure.
-        assert!(cell(Family::PointGoal, &[0.1], &[0.2]).stderr_pct.is_nan());
+        assert!(cell(Family::POINT_GOAL, &[0.1], &[0.2]).stderr_pct.is_nan());
     }
 
     /// A blob the device can hold is not flagged; one with 256-wide layers is, with the width,

@@ -164,8 +164,14 @@ impl std::ops::Deref for Quickstart<'_> {
 
 impl<'a> Quickstart<'a> {
     /// Looks for the shipped assets once.
-    pub(crate) fn resolve(args: &'a QuickstartConfig) -> Self {
-        let recipe = recipe(args.env);
+    pub(crate) fn resolve(args: &'a QuickstartConfig) -> Result<Self> {
+        let recipe = recipe(args.env).ok_or_else(|| {
+            Error::Usage(format!(
+                "the quickstart runs the paper's families, not {}: train a family of your own \
+                 through the library (GUIDE.md, \"Your own task family\")",
+                args.env
+            ))
+        })?;
         let shipped = (recipe.expert != ExpertSource::Scripted && args.budget != Budget::Tiny)
             .then(|| {
                 let root = args.assets.clone().unwrap_or_else(|| {
@@ -179,11 +185,11 @@ impl<'a> Quickstart<'a> {
                     .iter()
                     .all(|f| dir.join(f).exists())
             });
-        Self {
+        Ok(Self {
             args,
             recipe,
             shipped,
-        }
+        })
     }
 
     /// The recipe's shorter episode and presets when the quickstart trains its own expert.
@@ -518,7 +524,7 @@ fn clear_results(out: &Path) -> Result<()> {
 /// Runs the whole pipeline; returns what it measured (also in `out/summary.json`).
 pub fn run(args: &QuickstartConfig) -> Result<Summary> {
     let start = Instant::now();
-    let args = &Quickstart::resolve(args);
+    let args = &Quickstart::resolve(args)?;
     let out = &args.out;
     let _lock = prepare(args)?;
 

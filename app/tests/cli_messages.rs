@@ -29,7 +29,7 @@ fn smile_env(args: &[&str], env: &[(&str, &str)]) -> Output {
 
 /// Cheetah-vel test-split "demos" of an open-loop action: only family, split and shapes matter.
 fn cheetah_test_demos(path: &Path) {
-    let fam = Family::CheetahVel;
+    let fam = Family::CHEETAH_VEL;
     common::open_loop_demos(fam, Split::Test, fam.test_tasks(), 5)
         .write(path)
         .unwrap();

@@ -18,7 +18,7 @@ fn train_eval_export_and_refuse_meta_test_data() {
     let dir: PathBuf = std::env::temp_dir().join(format!("smile-cli-meta-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
     demos(Split::Train, fam.train_tasks()[..8].to_vec(), &train);
     demos(Split::Test, fam.test_tasks(), &test);

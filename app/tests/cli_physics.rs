@@ -189,9 +189,9 @@ fn the_pipeline_runs_on_mujoco_and_each_plant_refuses_the_others_files() {
     ok(&eval_on(&test, &sizes));
     let rapier_test = dir.join("rapier-test.safetensors");
     common::open_loop_demos(
-        sim::Family::CheetahVel,
+        sim::Family::CHEETAH_VEL,
         sim::Split::Test,
-        sim::Family::CheetahVel.test_tasks(),
+        sim::Family::CHEETAH_VEL.test_tasks(),
         20,
     )
     .write(&rapier_test)

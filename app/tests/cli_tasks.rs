@@ -22,7 +22,7 @@ const LABEL_VALUE: &str = "0.4909";
 #[test]
 fn demos_task_params_and_per_task_experts_match_a_label_value() {
     let dir = tmp("demos");
-    let goal = Family::PointGoal.test_tasks()[1];
+    let goal = Family::POINT_GOAL.test_tasks()[1];
     assert_eq!(goal.label(), format!("goal_angle={LABEL_VALUE}"));
 
     let pd = dir.join("pd");
@@ -96,7 +96,7 @@ fn demos_task_params_and_per_task_experts_match_a_label_value() {
 #[test]
 fn eval_finds_contexts_recorded_at_label_values() {
     let dir = tmp("eval");
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let train = dir.join("train.safetensors");
     common::pd_demos(Split::Train, fam.train_tasks()[..6].to_vec(), 2, 20)
         .write(&train)

@@ -18,7 +18,7 @@ use common::s;
 
 /// Cheetah-vel "demos" of a fixed open-loop action: only their family and shapes matter here.
 fn cheetah_demos(path: &Path) {
-    let fam = Family::CheetahVel;
+    let fam = Family::CHEETAH_VEL;
     common::open_loop_demos(fam, Split::Train, fam.train_tasks()[..2].to_vec(), 5)
         .write(path)
         .unwrap();
@@ -26,7 +26,7 @@ fn cheetah_demos(path: &Path) {
 
 /// A tiny Meta-BC run on point-goal demos in `dir/bc`; returns (run dir, train demos, test demos).
 fn tiny_bc(dir: &Path, steps: &str) -> (PathBuf, PathBuf, PathBuf) {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
     common::pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
         .write(&train)
@@ -205,7 +205,7 @@ fn resume_reads_the_algorithm_and_truncates_the_metrics_log() {
 fn a_refused_run_leaves_no_directory() {
     let dir = tmp("refused");
     let test = dir.join("test.safetensors");
-    common::pd_demos(Split::Test, Family::PointGoal.test_tasks(), 1, 10)
+    common::pd_demos(Split::Test, Family::POINT_GOAL.test_tasks(), 1, 10)
         .write(&test)
         .unwrap();
     for algo in ["smile", "meta-bc"] {
@@ -236,7 +236,7 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
     let train = dir.join("train.safetensors");
     common::pd_demos(
         Split::Train,
-        Family::PointGoal.train_tasks()[..4].to_vec(),
+        Family::POINT_GOAL.train_tasks()[..4].to_vec(),
         1,
         5,
     )

@@ -163,11 +163,11 @@ fn tract_matches_the_trainer_on_every_family_and_algorithm() {
     trainer::threads::set_compute_threads(1);
     let root = tmp("families");
     let families = [
-        Family::PointGoal,
-        Family::CheetahVel,
-        Family::WalkerDyn,
-        Family::AntGoal,
-        Family::AntLinClass,
+        Family::POINT_GOAL,
+        Family::CHEETAH_VEL,
+        Family::WALKER_DYN,
+        Family::ANT_GOAL,
+        Family::ANT_LINCLASS,
     ];
     let algos = ["smile", "smile-state-only", "meta-bc", "meta-dagger"];
     let mut worst = 0.0f32;
@@ -240,7 +240,7 @@ fn entries(dir: &Path) -> Vec<String> {
 #[test]
 fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() {
     let dir = tmp("cli");
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let test = dir.join("test.safetensors");
     let demos = test_demos(fam, 16);
     demos.write(&test).unwrap();
@@ -300,7 +300,7 @@ fn smile_export_format_onnx_writes_a_runnable_directory_and_refuses_bad_input() 
     assert!(err.contains("meta_policy.safetensors"), "{err}");
     // Contexts and demos of another family.
     let cheetah = dir.join("cheetah.safetensors");
-    test_demos(Family::CheetahVel, 1).write(&cheetah).unwrap();
+    test_demos(Family::CHEETAH_VEL, 1).write(&cheetah).unwrap();
     let x = dir.join("x");
     for o in [
         export_onnx(&run, &cheetah, &x, &[]),
@@ -382,7 +382,7 @@ fn read_reference(path: &Path, meta: &onnx::OnnxMeta) -> Reference {
 #[test]
 fn the_export_is_deterministic() {
     // The same policy gives the same bytes (no timestamps, no map-order in the graphs).
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let demos = test_demos(fam, 2);
     assert_eq!(demos.split, Split::Test);
     let mp = random_policy(fam, "meta-bc", ObsNorm::from_demos(&demos).unwrap(), 5);

@@ -262,7 +262,7 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
     let other = dir.join("other.safetensors");
     common::pd_demos(
         Split::Train,
-        Family::PointGoal.train_tasks()[..8].to_vec(),
+        Family::POINT_GOAL.train_tasks()[..8].to_vec(),
         3,
         20,
     )

@@ -75,7 +75,7 @@ fn killed_and_resumed_runs_end_byte_identical_to_uninterrupted_ones() {
     let train = dir.join("train.safetensors");
     common::pd_demos(
         sim::Split::Train,
-        Family::PointGoal.train_tasks()[..8].to_vec(),
+        Family::POINT_GOAL.train_tasks()[..8].to_vec(),
         2,
         20,
     )

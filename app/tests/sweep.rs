@@ -18,7 +18,7 @@ fn tmp(name: &str) -> PathBuf {
 
 /// Point-goal PD demos (train: 8 tasks x 2, test: all 16 x 1) and a plan over them in `dir`.
 fn setup(dir: &Path, plan: &str) -> PathBuf {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     common::pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
         .write(dir.join("train.safetensors"))
         .unwrap();
@@ -306,7 +306,7 @@ fn an_edited_plan_reruns_what_changed_and_nothing_collides() {
     std::fs::create_dir_all(dir.join("other")).unwrap();
     common::pd_demos(
         Split::Train,
-        Family::PointGoal.train_tasks()[..8].to_vec(),
+        Family::POINT_GOAL.train_tasks()[..8].to_vec(),
         3,
         20,
     )

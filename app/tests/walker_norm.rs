@@ -49,7 +49,7 @@ fn expert(out: &Path, extra: &[&str]) {
 /// Mean return over the walker protocol's 3 episode seeds of `policy` acting on the observation
 /// followed by `parameter`: an independent re-implementation of the reference rollouts.
 fn rollout_return(policy: &Expert, task: &Task, parameter: &[f32]) -> f64 {
-    let fam = Family::WalkerDyn;
+    let fam = Family::WALKER_DYN;
     let cfg = EnvConfig {
         horizon: Some(20),
         ..EnvConfig::default()
@@ -84,7 +84,7 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let (base, general, own) = (dir.join("base"), dir.join("general"), dir.join("own0"));
-    let test_tasks = Family::WalkerDyn.test_tasks();
+    let test_tasks = Family::WALKER_DYN.test_tasks();
     expert(&base, &["--nominal"]);
     expert(&general, &[]);
     expert(&own, &["--task-value", &test_tasks[0].value().to_string()]);
@@ -114,7 +114,7 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
         ]));
     }
     let mut bc = MetaBcConfig {
-        env: Family::WalkerDyn,
+        env: Family::WALKER_DYN,
         policy_hidden: vec![16, 16],
         tasks_per_batch: 4,
         per_task: 16,
@@ -227,7 +227,7 @@ fn eval_with_base_and_experts_reports_a_consistent_normalised_score() {
 
     // Independent rollouts: the base acts on the nominal (zero) parameter, task 0 uses its own
     // per-task expert and task 1 the general one, each with its task's parameter.
-    let zeros = vec![0.0f32; Family::WalkerDyn.task_dim()];
+    let zeros = vec![0.0f32; Family::WALKER_DYN.task_dim()];
     let close = |a: f64, b: f64| (a - b).abs() <= 1e-3 * (1.0 + b.abs());
     let base_policy = Expert::load(&base).unwrap();
     for i in [0, 1] {

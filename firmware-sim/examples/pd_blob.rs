@@ -18,10 +18,10 @@ use sim::{
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let dir = PathBuf::from(std::env::args().nth(1).unwrap_or_else(|| "runs/pd".into()));
     std::fs::create_dir_all(&dir)?;
-    let mut env = make_env(Family::PointGoal, EnvConfig::default())?;
+    let mut env = make_env(Family::POINT_GOAL, EnvConfig::default())?;
     let expert = PointGoalPdExpert::default();
-    let mut demos = DemoDataset::new(Family::PointGoal, Split::Test, "scripted-pd");
-    for (i, task) in Family::PointGoal.test_tasks().iter().enumerate() {
+    let mut demos = DemoDataset::new(Family::POINT_GOAL, Split::Test, "scripted-pd");
+    for (i, task) in Family::POINT_GOAL.test_tasks().iter().enumerate() {
         let demo = record_trajectory(env.as_mut(), task, 1000 + i as u64, |o, a| {
             expert.act(o, a).expect("oracle obs has the right length")
         })?;

@@ -14,7 +14,7 @@ use infer_core::{Calibration, Dims, FloatModel, Model, ModelKind, Quant, write_b
 use sim::{EnvConfig, Family, Trajectory, TransitionRef, make_env};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let family = Family::CheetahVel;
+    let family = Family::CHEETAH_VEL;
     let task = family.test_tasks()[10];
     let (obs, act) = (family.obs_dim(), family.act_dim());
     // A synthetic 20-step context: timing does not depend on the values.

@@ -107,7 +107,7 @@ pub fn run_session(
 
 /// The dimension mismatch in words, naming the families the blob fits (`--env` to pass).
 fn dims_message(blob_obs: usize, blob_act: usize, plant_obs: usize, plant_act: usize) -> String {
-    let fits: Vec<&str> = sim::Family::ALL
+    let fits: Vec<&str> = sim::Family::BUILTIN
         .iter()
         .filter(|f| f.obs_dim() == blob_obs && f.act_dim() == blob_act)
         .map(|f| f.name())

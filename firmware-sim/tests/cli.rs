@@ -33,7 +33,7 @@ fn export_report(tasks: &[(f64, f32)], blob_sha256: &str) -> String {
         context: None,
         qat_steps: None,
         algo: "scripted-pd".into(),
-        env: Family::PointGoal,
+        env: Family::POINT_GOAL,
         physics: sim::Physics::Rapier,
         parity: sim::Parity {
             contexts: 0,
@@ -76,7 +76,7 @@ fn fails(out: &Output) -> String {
 /// of the first `n` test goals: (dir, blob, demos).
 fn blob_and_demos(name: &str, n: usize) -> (PathBuf, PathBuf, PathBuf) {
     let dir = tmp(name);
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let mut env = make_env(fam, EnvConfig::default()).unwrap();
     let pd = PointGoalPdExpert::default();
     let mut ds = DemoDataset::new(fam, Split::Test, "scripted-pd");
@@ -116,7 +116,7 @@ fn summary_metric(summary: &str) -> f32 {
 #[test]
 fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
     let (dir, blob, demos) = blob_and_demos("run", 6);
-    let tasks = Family::PointGoal.test_tasks();
+    let tasks = Family::POINT_GOAL.test_tasks();
     for (spec, task) in [
         ("3".to_string(), tasks[3]),
         (format!("param={}", tasks[5].value()), tasks[5]),
@@ -154,7 +154,7 @@ fn run_by_test_index_and_by_parameter_writes_a_trace_of_the_taught_goal() {
 #[test]
 fn compare_runs_the_reports_tasks_on_the_device() {
     let (dir, blob, demos) = blob_and_demos("compare", 3);
-    let tasks = Family::PointGoal.test_tasks();
+    let tasks = Family::POINT_GOAL.test_tasks();
     let report = export_report(&[(tasks[0].value(), 0.5), (tasks[2].value(), 0.25)], "");
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
@@ -224,7 +224,7 @@ fn compare_runs_the_reports_tasks_on_the_device() {
 #[test]
 fn a_report_of_another_blob_and_values_out_of_range_are_refused() {
     let (dir, blob, demos) = blob_and_demos("refuse", 1);
-    let task = Family::PointGoal.test_tasks()[0];
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let mut reference = blob.clone().into_os_string();
     reference.push(".json");
     let report = |sha: &str| export_report(&[(task.value(), 0.5)], sha);
@@ -313,7 +313,7 @@ fn the_plant_is_the_blobs_and_demos_of_another_plant_are_refused() {
 #[test]
 fn a_blob_of_another_family_and_counts_that_cannot_run_are_refused() {
     let (dir, blob, demos) = blob_and_demos("family", 1);
-    let task = Family::PointGoal.test_tasks()[0];
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let sha = sim::sha256_hex(&std::fs::read(&blob).unwrap());
     std::fs::write(
         dir.join("pd.blob.json"),

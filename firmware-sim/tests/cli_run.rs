@@ -21,7 +21,7 @@ fn stdout(out: &Output) -> String {
 
 /// The reference point-goal blob and one short PD demo per point-goal test goal.
 fn point_goal_files(dir: &Path) -> (PathBuf, PathBuf) {
-    let family = Family::PointGoal;
+    let family = Family::POINT_GOAL;
     let mut env = make_env(family, EnvConfig::default()).unwrap();
     let expert = PointGoalPdExpert::default();
     let mut demos = DemoDataset::new(family, Split::Test, "scripted-pd");
@@ -43,7 +43,7 @@ fn point_goal_files(dir: &Path) -> (PathBuf, PathBuf) {
 
 /// A random (untrained) cheetah-vel blob and 10-step demos of the first 5 cheetah test tasks.
 fn cheetah_files(dir: &Path) -> (PathBuf, PathBuf) {
-    let family = Family::CheetahVel;
+    let family = Family::CHEETAH_VEL;
     let dims = Dims {
         obs: family.obs_dim(),
         act: family.act_dim(),

@@ -27,13 +27,13 @@ fn run_task(blob: &[u8], task: &Task, config: &LoopConfig) -> firmware_sim::RunR
     let mut controller = Controller::new(&model, device.config()).unwrap();
     let d = demo(task, 100);
     host::teach(&mut link, &mut controller, &[&d], 4, 2).unwrap();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     run(&mut controller, plant.as_mut(), task, config).unwrap()
 }
 
 #[test]
 fn a_taught_device_reaches_held_out_goals_over_a_lossy_link() {
-    let tasks = Family::PointGoal.test_tasks();
+    let tasks = Family::POINT_GOAL.test_tasks();
     for task in tasks.iter().step_by(5) {
         let d = demo(task, 7);
         let bytes = blob(Quant::W8A8, &d);
@@ -52,7 +52,7 @@ fn a_taught_device_reaches_held_out_goals_over_a_lossy_link() {
             link.stats.retries > 0,
             "a 5% lossy link should have needed retries"
         );
-        let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+        let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
         let report = run(
             &mut controller,
             plant.as_mut(),
@@ -104,7 +104,7 @@ fn corrupted_frames_are_detected_and_resent() {
 
 #[test]
 fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
-    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let d = demo(&Family::POINT_GOAL.test_tasks()[0], 1);
     let bytes = blob(Quant::F32, &d);
     let mut device = firmware_sim::erased(DeviceConfig::default());
     let dead = LinkConfig {
@@ -152,7 +152,7 @@ fn a_dead_link_fails_cleanly_and_nothing_partial_runs() {
 
 #[test]
 fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
-    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let d = demo(&Family::POINT_GOAL.test_tasks()[0], 1);
     let bytes = blob(Quant::F32, &d);
     let mut small = firmware_sim::erased(DeviceConfig {
         flash_bytes: 256,
@@ -182,8 +182,8 @@ fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
     );
     // Teaching nothing and running is refused too.
     let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
-    let task = Family::PointGoal.test_tasks()[0];
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let err = run(
         &mut controller,
         plant.as_mut(),
@@ -199,12 +199,12 @@ fn oversize_blobs_and_budgets_are_refused_before_the_loop() {
 
 #[test]
 fn loop_settings_the_plant_cannot_honour_are_named_errors() {
-    let d = demo(&Family::PointGoal.test_tasks()[0], 1);
+    let d = demo(&Family::POINT_GOAL.test_tasks()[0], 1);
     let bytes = blob(Quant::F32, &d);
     let model = Model::from_bytes(&bytes).unwrap();
     let mut controller = Controller::new(&model, DeviceConfig::default()).unwrap();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
-    let task = Family::PointGoal.test_tasks()[0];
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let plant_rate = 1.0 / plant.control_dt();
     let mut loop_run =
         |config: LoopConfig| run(&mut controller, plant.as_mut(), &task, &config).unwrap_err();
@@ -222,7 +222,7 @@ fn loop_settings_the_plant_cannot_honour_are_named_errors() {
 
 #[test]
 fn a_nan_sensor_reading_gives_the_safe_action_and_a_fault() {
-    let task = Family::PointGoal.test_tasks()[2];
+    let task = Family::POINT_GOAL.test_tasks()[2];
     let bytes = blob(Quant::W8A8, &demo(&task, 1));
     let report = run_task(
         &bytes,
@@ -250,7 +250,7 @@ fn a_nan_sensor_reading_gives_the_safe_action_and_a_fault() {
 
 #[test]
 fn each_tick_senses_acts_and_actuates_and_latency_shifts_by_exactly_one_tick() {
-    let task = Family::PointGoal.test_tasks()[4];
+    let task = Family::POINT_GOAL.test_tasks()[4];
     let bytes = blob(Quant::W8A8, &demo(&task, 2));
     let now = run_task(&bytes, &task, &LoopConfig::default());
     assert_eq!(now.records.len(), 100);
@@ -282,7 +282,7 @@ fn each_tick_senses_acts_and_actuates_and_latency_shifts_by_exactly_one_tick() {
 
 #[test]
 fn control_rate_holds_actions_over_plant_steps() {
-    let task = Family::PointGoal.test_tasks()[1];
+    let task = Family::POINT_GOAL.test_tasks()[1];
     let bytes = blob(Quant::W8A8, &demo(&task, 3));
     let slow = run_task(
         &bytes,
@@ -299,7 +299,7 @@ fn control_rate_holds_actions_over_plant_steps() {
     let model = Model::from_bytes(device.blob().unwrap()).unwrap();
     let mut controller = Controller::new(&model, device.config()).unwrap();
     host::teach(&mut link, &mut controller, &[&demo(&task, 3)], 4, 2).unwrap();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     let err = run(
         &mut controller,
         plant.as_mut(),
@@ -314,7 +314,7 @@ fn control_rate_holds_actions_over_plant_steps() {
 
 #[test]
 fn same_seed_blob_and_context_give_a_bit_identical_trace() {
-    let task = Family::PointGoal.test_tasks()[6];
+    let task = Family::POINT_GOAL.test_tasks()[6];
     let bytes = blob(Quant::W8A8, &demo(&task, 4));
     let config = LoopConfig {
         noise_std: 0.01,
@@ -335,7 +335,7 @@ fn same_seed_blob_and_context_give_a_bit_identical_trace() {
 
 #[test]
 fn a_session_runs_end_to_end_and_refuses_a_blob_for_another_plant() {
-    let task = Family::PointGoal.test_tasks()[5];
+    let task = Family::POINT_GOAL.test_tasks()[5];
     let d = demo(&task, 8);
     let session = firmware_sim::run_session(
         &blob(Quant::W8A8, &d),
@@ -381,7 +381,7 @@ fn a_session_runs_end_to_end_and_refuses_a_blob_for_another_plant() {
 
 #[test]
 fn re_teaching_mid_run_switches_the_task() {
-    let tasks = Family::PointGoal.test_tasks();
+    let tasks = Family::POINT_GOAL.test_tasks();
     let (a, b) = (tasks[1], tasks[9]);
     let (demo_a, demo_b) = (demo(&a, 1), demo(&b, 2));
     let bytes = blob(Quant::W8A8, &demo_a);
@@ -395,7 +395,7 @@ fn re_teaching_mid_run_switches_the_task() {
     let mut controller = Controller::new(&model, device.config()).unwrap();
     host::teach(&mut link, &mut controller, &[&demo_a], 4, 2).unwrap();
     let z_a = controller.z().unwrap().to_vec();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     let first = run(
         &mut controller,
         plant.as_mut(),

@@ -84,7 +84,7 @@ impl Drop for DeviceProcess {
 /// A point-goal PD blob with its export report, and one PD demo of each of the first four
 /// test goals: (blob, demos).
 fn blob_and_demos(dir: &Path) -> (PathBuf, PathBuf) {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let mut ds = DemoDataset::new(fam, Split::Test, "scripted-pd");
     for (i, task) in fam.test_tasks().into_iter().take(4).enumerate() {
         ds.tasks.push(TaskDemos {

@@ -10,7 +10,7 @@ use infer_core::{Dims, Error, FloatModel, Model, ModelKind, Quant, write_blob};
 use sim::{Family, Task, Trajectory};
 
 fn demo() -> Trajectory {
-    common::pd_demo(&Family::PointGoal.test_tasks()[0], 1)
+    common::pd_demo(&Family::POINT_GOAL.test_tasks()[0], 1)
 }
 
 fn point_goal_blob() -> Vec<u8> {
@@ -242,7 +242,7 @@ fn a_valid_blob_the_device_cannot_run_is_refused_and_the_session_names_why() {
     assert_upload_does_not_fit(&blob, tight);
 
     // A session reports the reason the device could not give over the wire.
-    let task = Family::PointGoal.test_tasks()[0];
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let d = demo();
     let config = SessionConfig {
         device: tight,

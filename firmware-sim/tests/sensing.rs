@@ -19,7 +19,7 @@ fn run_task(task: &Task, config: &LoopConfig) -> RunReport {
     let model = Model::from_bytes(device.blob().unwrap()).unwrap();
     let mut controller = Controller::new(&model, device.config()).unwrap();
     host::teach(&mut link, &mut controller, &[&d], 4, 2).unwrap();
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     run(&mut controller, plant.as_mut(), task, config).unwrap()
 }
 
@@ -35,7 +35,7 @@ fn position_sensing_controls_as_well_as_full_sensing() {
     // Measured mean |v est - v|: 0.006, 0.063 and 0.12 (differentiating positions amplifies
     // their noise); an estimator stuck at v = 0 would give about 0.15 at every noise level.
     for (noise_std, bound) in [(0.0, 0.02), (0.01, 0.1), (0.05, 0.2)] {
-        for task in Family::PointGoal.test_tasks().iter().step_by(5) {
+        for task in Family::POINT_GOAL.test_tasks().iter().step_by(5) {
             let config = LoopConfig {
                 noise_std,
                 adc_bits: Some(12),
@@ -75,7 +75,7 @@ fn position_sensing_controls_as_well_as_full_sensing() {
 
 #[test]
 fn a_nan_position_reading_is_held_by_the_estimator_and_counted_as_a_fault() {
-    let task = Family::PointGoal.test_tasks()[2];
+    let task = Family::POINT_GOAL.test_tasks()[2];
     let report = run_task(
         &task,
         &positions(LoopConfig {
@@ -99,7 +99,7 @@ fn a_nan_position_reading_is_held_by_the_estimator_and_counted_as_a_fault() {
 fn out_of_range_readings_never_reach_the_policy() {
     // A sensor whose full scale is +-1.5 m, on goals 2 m away: near the goal, readings leave
     // the range, are rejected, and the estimator coasts on its prediction.
-    let task = Family::PointGoal.test_tasks()[0];
+    let task = Family::POINT_GOAL.test_tasks()[0];
     let report = run_task(
         &task,
         &positions(LoopConfig {
@@ -136,7 +136,7 @@ fn out_of_range_readings_never_reach_the_policy() {
 /// applied to the plant's true observation, bit for bit.
 #[test]
 fn the_device_reads_through_the_sensor_model_training_uses() {
-    let task = Family::PointGoal.test_tasks()[1];
+    let task = Family::POINT_GOAL.test_tasks()[1];
     let config = LoopConfig {
         noise_std: 0.01,
         adc_bits: Some(12),
@@ -145,7 +145,7 @@ fn the_device_reads_through_the_sensor_model_training_uses() {
         ..LoopConfig::default()
     };
     let report = run_task(&task, &config);
-    let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     let mut truth = plant.reset(&task, config.seed).unwrap().to_vec();
     let mut sensor = sim::Sensor::new(config.sensor_model(), config.seed).unwrap();
     let mut expected = vec![0.0; truth.len()];

@@ -14,9 +14,9 @@ fn env_steps(c: &mut Criterion) {
     group.measurement_time(Duration::from_secs(4));
     group.warm_up_time(Duration::from_secs(1));
     let plants = Physics::ALL.into_iter().filter(|p| p.is_available());
-    let cases = plants.flat_map(|p| Family::ALL.into_iter().map(move |f| (p, f)));
+    let cases = plants.flat_map(|p| Family::BUILTIN.into_iter().map(move |f| (p, f)));
     for (physics, family) in cases {
-        if physics == Physics::Mujoco && family == Family::PointGoal {
+        if physics == Physics::Mujoco && family == Family::POINT_GOAL {
             continue;
         }
         let config = EnvConfig {

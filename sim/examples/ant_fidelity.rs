@@ -8,8 +8,8 @@ use sim::{EnvConfig, Family, make_env};
 use std::time::Instant;
 
 fn main() {
-    let mut env = make_env(Family::AntGoal, EnvConfig::default()).unwrap();
-    let task = Family::AntGoal.train_tasks()[0];
+    let mut env = make_env(Family::ANT_GOAL, EnvConfig::default()).unwrap();
+    let task = Family::ANT_GOAL.train_tasks()[0];
     for mode in ["random", "sine", "zero"] {
         let (mut flips, mut maxz, mut disp, mut n, mut zend) = (0, 0.0f32, 0.0f32, 0, 0.0f32);
         let t0 = Instant::now();

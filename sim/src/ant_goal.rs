@@ -31,9 +31,9 @@ pub struct AntGoalEnv {
 impl AntGoalEnv {
     /// An ant-goal environment on `config.physics` reset to the first train goal with seed 0.
     pub fn new(config: EnvConfig) -> Result<Self, SimError> {
-        let task = Family::AntGoal.train_tasks()[0];
+        let task = Family::ANT_GOAL.train_tasks()[0];
         Ok(Self {
-            ant: AntEpisode::new(Family::AntGoal, config, HORIZON)?,
+            ant: AntEpisode::new(Family::ANT_GOAL, config, HORIZON)?,
             goal: task.goal().unwrap_or_default(),
             task,
         })
@@ -57,7 +57,7 @@ impl AntGoalEnv {
 
 impl Environment for AntGoalEnv {
     fn family(&self) -> Family {
-        Family::AntGoal
+        Family::ANT_GOAL
     }
 
     fn physics(&self) -> crate::kinds::Physics {
@@ -77,10 +77,10 @@ impl Environment for AntGoalEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_family(Family::AntGoal, task)?;
+        check_family(Family::ANT_GOAL, task)?;
         if !task.value().is_finite() {
             return Err(SimError::InvalidTask {
-                family: Family::AntGoal,
+                family: Family::ANT_GOAL,
                 reason: "goal angle is not finite".into(),
             });
         }
@@ -120,7 +120,7 @@ impl Environment for AntGoalEnv {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The family's declaration (`families.rs` lists it).
+// The family's declaration (`families.rs` lists it), its constant and its tasks.
 
 /// ant-goal: point-goal's goals for the 3-D ant; Figure 2's protocol.
 pub(crate) const SPEC: FamilySpec = FamilySpec {
@@ -137,7 +137,7 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     train_tasks: || goal_train_angles().map(Task::ant_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::ant_goal).collect(),
     task_from_value: |v| Ok(Task::ant_goal(v as f32)),
-    nominal_task: None,
+    nominal_value: None,
     obs_components: &crate::ant::OBS_COMPONENTS,
     eval: EvalDefaults {
         context_sizes: &[1],
@@ -151,6 +151,18 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     },
     make_env: |config| Ok(Box::new(AntGoalEnv::new(config)?)),
 };
+
+impl Family {
+    /// ant-goal, declared by this module's `SPEC`.
+    pub const ANT_GOAL: Family = Family::of(&SPEC);
+}
+
+impl Task {
+    /// An ant-goal task with its goal at `goal_angle` radians on the radius-2 circle.
+    pub fn ant_goal(goal_angle: f32) -> Task {
+        Task::new(Family::ANT_GOAL, goal_angle as f64)
+    }
+}
 
 #[cfg(test)]
 mod tests;

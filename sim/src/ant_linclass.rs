@@ -103,7 +103,7 @@ pub fn draw_pair(
 /// The target the scripted expert walks to, from an oracle observation (observation, then w):
 /// [`TARGETS`]`[0]` when the first point is on w's positive side, else `[1]`.
 pub fn scripted_target(oracle_obs: &[f32]) -> Result<[f32; 2], SimError> {
-    let expected = Family::AntLinClass.oracle_obs_dim();
+    let expected = Family::ANT_LINCLASS.oracle_obs_dim();
     if oracle_obs.len() != expected {
         return Err(SimError::BufferLength {
             expected,
@@ -133,14 +133,14 @@ pub const AIM_SCALE: f32 = 1.2;
 /// Writes the ant-goal oracle observation (the ant's 29 entries, then the goal (x, y)) that
 /// makes an ant-goal expert walk towards [`scripted_target`], aimed `aim_scale` times as far
 /// ([`AIM_SCALE`] by default): how the scripted classifier drives a learned locomotion expert.
-/// `out` has length `Family::AntGoal.oracle_obs_dim()`.
+/// `out` has length `Family::ANT_GOAL.oracle_obs_dim()`.
 pub fn goal_expert_input(
     oracle_obs: &[f32],
     aim_scale: f32,
     out: &mut [f32],
 ) -> Result<(), SimError> {
     let target = scripted_target(oracle_obs)?;
-    let expected = Family::AntGoal.oracle_obs_dim();
+    let expected = Family::ANT_GOAL.oracle_obs_dim();
     if out.len() != expected {
         return Err(SimError::BufferLength {
             expected,
@@ -167,9 +167,9 @@ impl AntLinClassEnv {
     /// An ant-linclass environment on `config.physics` reset to the first train task with
     /// seed 0.
     pub fn new(config: EnvConfig) -> Result<Self, SimError> {
-        let task = Family::AntLinClass.train_tasks()[0];
+        let task = Family::ANT_LINCLASS.train_tasks()[0];
         let mut env = Self {
-            ant: AntEpisode::new(Family::AntLinClass, config, HORIZON)?,
+            ant: AntEpisode::new(Family::ANT_LINCLASS, config, HORIZON)?,
             task,
             correct: 0,
             decision: Decision::Undecided,
@@ -197,7 +197,7 @@ impl AntLinClassEnv {
 
 impl Environment for AntLinClassEnv {
     fn family(&self) -> Family {
-        Family::AntLinClass
+        Family::ANT_LINCLASS
     }
 
     fn physics(&self) -> crate::kinds::Physics {
@@ -217,11 +217,12 @@ impl Environment for AntLinClassEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_family(Family::AntLinClass, task)?;
-        let (Some(normal), Task::AntLinClass { hyperplane_seed }) = (task.linclass_normal(), *task)
+        check_family(Family::ANT_LINCLASS, task)?;
+        let (Some(normal), Some(hyperplane_seed)) =
+            (task.linclass_normal(), task.hyperplane_seed())
         else {
             return Err(SimError::InvalidTask {
-                family: Family::AntLinClass,
+                family: Family::ANT_LINCLASS,
                 reason: "not a hyperplane task".into(),
             });
         };
@@ -291,7 +292,7 @@ impl Environment for AntLinClassEnv {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The family's declaration (`families.rs` lists it).
+// The family's declaration (`families.rs` lists it), its constant and its tasks.
 
 /// ant-linclass: 64 train and 32 test hyperplane seeds; aggregating demos is what this family
 /// tests, so the success is read per context size (1, 2, 4, 8).
@@ -321,7 +322,7 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
             .map(Task::ant_linclass)
             .ok_or("a hyperplane seed must be a non-negative integer")
     },
-    nominal_task: None,
+    nominal_value: None,
     obs_components: &OBS_COMPONENTS,
     eval: EvalDefaults {
         context_sizes: &[1, 2, 4, 8],
@@ -333,6 +334,29 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     view: RunView::Velocity { target: false },
     make_env: |config| Ok(Box::new(AntLinClassEnv::new(config)?)),
 };
+
+impl Family {
+    /// ant-linclass, declared by this module's `SPEC`.
+    pub const ANT_LINCLASS: Family = Family::of(&SPEC);
+}
+
+impl Task {
+    /// An ant-linclass task whose hyperplane is drawn from `hyperplane_seed`.
+    pub fn ant_linclass(hyperplane_seed: u64) -> Task {
+        Task::new(Family::ANT_LINCLASS, hyperplane_seed as f64)
+    }
+
+    /// The seed of an ant-linclass task's hyperplane (`None` for other families).
+    pub fn hyperplane_seed(&self) -> Option<u64> {
+        (self.family() == Family::ANT_LINCLASS).then_some(self.value() as u64)
+    }
+
+    /// The unit normal of an ant-linclass task's hyperplane (`None` for other families).
+    pub fn linclass_normal(&self) -> Option<[f32; POINT_DIM]> {
+        self.hyperplane_seed()
+            .map(crate::hyperplane::hyperplane_normal)
+    }
+}
 
 /// ant-linclass: the ant's entries, then the two points to classify, which the device is given
 /// (as data, not measured by a sensor): passed through.

@@ -1,7 +1,7 @@
 //! cheetah-vel, the family's declaration: the planar cheetah (`planar.rs`, on either plant
 //! through `legged.rs`) running at a target forward velocity.
 
-use crate::kinds::Task;
+use crate::kinds::{Family, Task};
 use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
 use crate::task::{MetricKind, TASK_VALUE_TOLERANCE};
 
@@ -29,7 +29,7 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
             .collect()
     },
     task_from_value: |v| Ok(Task::cheetah_vel(v as f32)),
-    nominal_task: None,
+    nominal_value: None,
     obs_components: &crate::planar::OBS_COMPONENTS,
     eval: EvalDefaults {
         context_sizes: &[1, 2, 3, 4],
@@ -41,3 +41,20 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     view: RunView::Velocity { target: true },
     make_env: |config| Ok(Box::new(crate::legged::PlanarLeggedEnv::cheetah(config)?)),
 };
+
+impl Family {
+    /// cheetah-vel, declared by this module's `SPEC`.
+    pub const CHEETAH_VEL: Family = Family::of(&SPEC);
+}
+
+impl Task {
+    /// A cheetah-vel task with target velocity `target_velocity` m/s.
+    pub fn cheetah_vel(target_velocity: f32) -> Task {
+        Task::new(Family::CHEETAH_VEL, target_velocity as f64)
+    }
+
+    /// The target velocity of a cheetah-vel task, m/s (`None` for other families).
+    pub fn target_velocity(&self) -> Option<f32> {
+        (self.family() == Family::CHEETAH_VEL).then_some(self.value() as f32)
+    }
+}

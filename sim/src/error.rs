@@ -80,12 +80,22 @@ pub enum SimError {
         /// Provided length.
         got: usize,
     },
-    /// A task family name that is not one of the known CLI names.
-    #[error(
-        "unknown task family {0:?}; expected one of point-goal, cheetah-vel, walker-dyn, \
-         ant-goal, ant-linclass"
-    )]
-    UnknownFamily(String),
+    /// A task family name that is not one of the known ones (built in or registered).
+    #[error("unknown task family {name:?}; expected one of {known}")]
+    UnknownFamily {
+        /// The name asked for.
+        name: String,
+        /// The names known: the built-in families, then the registered ones.
+        known: String,
+    },
+    /// A family that cannot be registered under its name ([`crate::Family::register`]).
+    #[error("cannot register the task family {name:?}: {reason}")]
+    FamilyNameTaken {
+        /// The family's name.
+        name: String,
+        /// Why: the name is taken, or not a CLI word.
+        reason: &'static str,
+    },
     /// An episode-length override of zero steps (every command's `horizon` reaches the plant
     /// through [`make_env`](crate::make_env), which refuses it).
     #[error("horizon must be at least 1 step (leave it out for the family's own), not 0")]

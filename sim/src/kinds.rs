@@ -1,108 +1,101 @@
 //! The kinds every module of the crate names, the task family (and a family's task) and the
-//! physics backend, kept below them all so the error type can carry one without a loop: the
-//! one list of families, and the enums written from it. Their methods live with what they
-//! read: `task.rs` (tasks, splits) and `families.rs` (the map to the families' declarations)
-//! for [`Family`] and [`Task`], `physics.rs` (names, availability) for [`Physics`].
+//! physics backend, kept below them all so the error type can carry one without a loop. Their
+//! methods live with what they read: `task.rs` (tasks, splits), each family's module (its
+//! [`Family`] constant and its tasks' constructors), `families.rs` (the built-in list and the
+//! registry of families declared elsewhere), `physics.rs` (names, availability) for
+//! [`Physics`].
 
-/// The one list of task families, in CLI order: per family what it is (its [`Family`]
-/// variant's doc), its variant, the module that declares its `SPEC` (`families.rs` maps the
-/// variant there), and its [`Task`] variant: what a task is and its one parameter. This module
-/// writes the two enums from it; `families.rs` writes [`Family::ALL`] and [`Family::spec`].
-/// Adding a family is its module and its entry here (and the app's quickstart recipe).
-macro_rules! with_families {
-    ($then:ident) => {
-        $then! {
-            /// Planar point robot reaching a goal on the circle of radius 2 (top view).
-            #[default]
-            PointGoal in point_goal,
-            /// point-goal: reach the goal at this angle (radians) on the circle of radius 2.
-            task {
-                /// Angle of the goal on the circle, radians.
-                goal_angle: f32
-            };
-            /// Planar HalfCheetah analogue running at a target forward velocity.
-            CheetahVel in cheetah_vel,
-            /// cheetah-vel: run forward at this speed (m/s).
-            task {
-                /// Target forward velocity v*, m/s.
-                target_velocity: f32
-            };
-            /// Planar Walker2d analogue under randomised body dynamics.
-            WalkerDyn in walker_dyn,
-            /// walker-dyn: walk under the dynamics drawn from this seed.
-            task {
-                /// Seed of the dynamics randomisation (see [`crate::WalkerDynamics::from_seed`]);
-                /// [`crate::WALKER_NOMINAL_SEED`] means the unmodified robot.
-                dynamics_seed: u64
-            };
-            /// 3-D Ant (Gymnasium's quadruped) walking to a goal on the circle of radius 2; the
-            /// same goal angles as point-goal.
-            AntGoal in ant_goal,
-            /// ant-goal: walk the ant's torso to the goal at this angle (radians) on the circle
-            /// of radius 2.
-            task {
-                /// Angle of the goal on the circle, radians.
-                goal_angle: f32
-            };
-            /// 3-D Ant walking to one of two targets to classify a pair of 4-D points by a
-            /// hidden hyperplane ([`crate::ant_linclass`]).
-            AntLinClass in ant_linclass,
-            /// ant-linclass: classify pairs of 4-D points by the hyperplane drawn from this seed.
-            task {
-                /// Seed of the hyperplane's normal ([`crate::ant_linclass::hyperplane_normal`]).
-                hyperplane_seed: u64
-            };
-        }
-    };
-}
-pub(crate) use with_families;
+use std::fmt;
+use std::hash::{Hash, Hasher};
 
-/// Writes [`Family`] and [`Task`] from the list, with the two matches between them.
-macro_rules! declare_families {
-    ($(
-        $(#[$family_attr:meta])* $variant:ident in $module:ident,
-        $(#[$task_doc:meta])* task { $(#[$param_doc:meta])* $param:ident: $ty:ty };
-    )+) => {
-        /// A family of tasks sharing one robot; the CLI names are `point-goal`, `cheetah-vel`,
-        /// `walker-dyn`, `ant-goal`, `ant-linclass`.
-        ///
-        /// What the workspace knows about each family is its [`crate::FamilySpec`]
-        /// ([`Family::spec`]), declared in the family's own module and mapped in
-        /// `families.rs`. Deliberately not `#[non_exhaustive]`: a new family fails to compile
-        /// in the app's per-family recipes instead of falling silently into a catch-all arm.
-        /// The default is point-goal, the toy every learner's configuration starts from.
-        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Default)]
-        pub enum Family {
-            $($(#[$family_attr])* $variant,)+
-        }
+use crate::spec::FamilySpec;
 
-        /// One task: the hidden parameter the learner must infer from demonstrations.
-        #[derive(Debug, Clone, Copy, PartialEq)]
-        #[non_exhaustive]
-        pub enum Task {
-            $($(#[$task_doc])* $variant { $(#[$param_doc])* $param: $ty },)+
-        }
-
-        impl Task {
-            /// The family this task belongs to.
-            pub fn family(&self) -> Family {
-                match self {
-                    $(Task::$variant { .. } => Family::$variant,)+
-                }
-            }
-
-            /// The single number naming this task: goal angle, target velocity or dynamics
-            /// seed. `family.task_from_value(task.value())` gives the task back.
-            pub fn value(&self) -> f64 {
-                match *self {
-                    $(Task::$variant { $param } => $param as f64,)+
-                }
-            }
-        }
-    };
+/// A family of tasks sharing one robot: a handle on its declaration, the [`FamilySpec`] its
+/// module writes (everything the workspace knows about it: tasks and splits, observation,
+/// metric, evaluation, the environment's constructor).
+///
+/// The families are open, as Gymnasium's `register` makes environments: the five of the paper
+/// are constants in their modules ([`Family::POINT_GOAL`], [`Family::CHEETAH_VEL`],
+/// [`Family::WALKER_DYN`], [`Family::ANT_GOAL`], [`Family::ANT_LINCLASS`]; the CLI names are
+/// `point-goal`, `cheetah-vel`, `walker-dyn`, `ant-goal`, `ant-linclass`), and a crate outside
+/// this one declares its own with [`Family::of`] and one [`Family::register`] call, after which
+/// configurations, datasets and policy files name it like any other. Two handles are the same
+/// family when their names are (the registry keeps names unique). The default is point-goal,
+/// the toy every learner's configuration starts from.
+#[derive(Clone, Copy)]
+pub struct Family {
+    spec: &'static FamilySpec,
 }
 
-with_families!(declare_families);
+impl Family {
+    /// The family `spec` declares. Files and flags name it once it is registered
+    /// ([`Family::register`]); the built-in families always are.
+    pub const fn of(spec: &'static FamilySpec) -> Family {
+        Family { spec }
+    }
+
+    /// The family's declaration: everything the workspace knows about it ([`FamilySpec`]).
+    /// Everything else reads its fields instead of matching on family names.
+    pub fn spec(self) -> &'static FamilySpec {
+        self.spec
+    }
+}
+
+impl PartialEq for Family {
+    fn eq(&self, other: &Family) -> bool {
+        self.spec.name == other.spec.name
+    }
+}
+
+impl Eq for Family {}
+
+impl Hash for Family {
+    fn hash<H: Hasher>(&self, state: &mut H) {
+        self.spec.name.hash(state)
+    }
+}
+
+impl fmt::Debug for Family {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.spec.name)
+    }
+}
+
+impl Default for Family {
+    fn default() -> Family {
+        Family::POINT_GOAL
+    }
+}
+
+/// One task: the hidden parameter the learner must infer from demonstrations, one number of
+/// its family (a goal angle, a target velocity, a dynamics or hyperplane seed). Each family's
+/// module has its constructors ([`Task::cheetah_vel`], ...); [`Family::task_from_value`]
+/// checks a number from a user or a file.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Task {
+    family: Family,
+    value: f64,
+}
+
+impl Task {
+    /// The task of `family` whose parameter is `value`, unchecked: what a family's own
+    /// constructors and `task_from_value` build on (a seed is an integer in `f64`, exact up to
+    /// 2^53; a velocity or angle an `f32` widened, exact).
+    pub const fn new(family: Family, value: f64) -> Task {
+        Task { family, value }
+    }
+
+    /// The family this task belongs to.
+    pub fn family(&self) -> Family {
+        self.family
+    }
+
+    /// The single number naming this task: goal angle, target velocity or seed.
+    /// `family.task_from_value(task.value())` gives the task back.
+    pub fn value(&self) -> f64 {
+        self.value
+    }
+}
 
 /// A physics backend. A task family (tasks, splits, reward, metric, observation layout) is
 /// written once; each robot has one implementation per backend ([`crate::Robot`]).

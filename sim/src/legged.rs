@@ -53,7 +53,7 @@ impl PlanarLeggedEnv {
     /// seed 0.
     pub fn cheetah(config: EnvConfig) -> Result<Self, SimError> {
         Self::build(
-            Family::CheetahVel,
+            Family::CHEETAH_VEL,
             Robot::HalfCheetah,
             CHEETAH_HORIZON,
             f32::INFINITY,
@@ -65,7 +65,7 @@ impl PlanarLeggedEnv {
     /// seed 0.
     pub fn walker(config: EnvConfig) -> Result<Self, SimError> {
         Self::build(
-            Family::WalkerDyn,
+            Family::WALKER_DYN,
             Robot::Walker2d,
             WALKER_HORIZON,
             WALKER_VELOCITY_CLIP,
@@ -142,7 +142,7 @@ impl Environment for PlanarLeggedEnv {
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
         check_family(self.family, task)?;
-        if let Task::CheetahVel { target_velocity } = *task
+        if let Some(target_velocity) = task.target_velocity()
             && !target_velocity.is_finite()
         {
             return Err(SimError::InvalidTask {
@@ -172,12 +172,12 @@ impl Environment for PlanarLeggedEnv {
         self.observe();
         let forward_velocity = (self.torso_x() - x_before) / self.control_dt();
         let effort: f32 = self.action.iter().map(|a| a * a).sum();
-        let (reward, metric_sample, terminated) = match self.task {
-            Task::CheetahVel { target_velocity } => {
+        let (reward, metric_sample, terminated) = match self.task.target_velocity() {
+            Some(target_velocity) => {
                 let error = (forward_velocity - target_velocity).abs();
                 (-error - CHEETAH_ACTION_COST * effort, error, false)
             }
-            _ => {
+            None => {
                 let reward = forward_velocity + WALKER_ALIVE_BONUS - WALKER_ACTION_COST * effort;
                 let fell = self.config.healthy_termination && !self.walker_healthy();
                 (reward, reward, fell)
@@ -243,7 +243,7 @@ mod tests {
         let mut env = PlanarLeggedEnv::cheetah(config(200)).unwrap();
         let task = Task::cheetah_vel(1.0);
         env.reset(&task, 1).unwrap();
-        let mut metric = EpisodeMetric::new(Family::CheetahVel);
+        let mut metric = EpisodeMetric::new(Family::CHEETAH_VEL);
         for step in 0.. {
             let transition = env.step(&trot(step, env.control_dt())).unwrap();
             metric.record(&transition.info);
@@ -287,7 +287,7 @@ mod tests {
         // steps over seeds 0-5 and falls within 76-162 steps without it.
         let mut env = PlanarLeggedEnv::walker(config(1000)).unwrap();
         let (mut passive_total, mut held_total) = (0, 0);
-        for task in Family::WalkerDyn.train_tasks().iter().take(6) {
+        for task in Family::WALKER_DYN.train_tasks().iter().take(6) {
             let passive = walker_steps_upright(&mut env, task, (0.0, 0.0));
             let held = walker_steps_upright(&mut env, task, (1.0, 0.1));
             eprintln!("{task}: passive {passive}, held {held}");
@@ -312,7 +312,7 @@ mod tests {
             ..EnvConfig::default()
         })
         .unwrap();
-        let task = Family::WalkerDyn.test_tasks()[0];
+        let task = Family::WALKER_DYN.test_tasks()[0];
         assert_eq!(walker_steps_upright(&mut env, &task, (0.0, 0.0)), 150);
     }
 
@@ -334,9 +334,9 @@ mod tests {
         // Seed 4 twice is the same; another seed (cheetah) or task (walker) is not.
         let cheetah = Task::cheetah_vel(2.0);
         for (family, task, (other_task, other_seed)) in [
-            (Family::CheetahVel, cheetah, (cheetah, 5)),
+            (Family::CHEETAH_VEL, cheetah, (cheetah, 5)),
             (
-                Family::WalkerDyn,
+                Family::WALKER_DYN,
                 Task::walker_dyn(3),
                 (Task::walker_dyn(4), 4),
             ),

@@ -87,7 +87,7 @@ impl PointGoalEnv {
     /// A point-goal environment reset to the first train goal with seed 0.
     pub fn new(config: EnvConfig) -> Self {
         let (world, body) = point_world();
-        let task = Family::PointGoal.train_tasks()[0];
+        let task = Family::POINT_GOAL.train_tasks()[0];
         let mut env = Self {
             world,
             body,
@@ -137,7 +137,7 @@ impl PointGoalEnv {
 
 impl Environment for PointGoalEnv {
     fn family(&self) -> Family {
-        Family::PointGoal
+        Family::POINT_GOAL
     }
 
     fn control_dt(&self) -> f32 {
@@ -153,14 +153,14 @@ impl Environment for PointGoalEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_family(Family::PointGoal, task)?;
+        check_family(Family::POINT_GOAL, task)?;
         self.place(task, seed);
         Ok(&self.obs)
     }
 
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError> {
         self.clock.ensure_running()?;
-        clip_action(Family::PointGoal, action, &mut self.action)?;
+        clip_action(Family::POINT_GOAL, action, &mut self.action)?;
         let force = Vector::new(self.action[0], self.action[1]) * MAX_FORCE;
         let body = &mut self.world.bodies[self.body];
         body.reset_forces(false);
@@ -169,7 +169,7 @@ impl Environment for PointGoalEnv {
         self.observe();
         if self.obs.iter().any(|x| !x.is_finite()) {
             return Err(SimError::PhysicsDiverged {
-                family: Family::PointGoal,
+                family: Family::POINT_GOAL,
                 step: self.clock.step,
             });
         }
@@ -229,7 +229,7 @@ impl Default for PointGoalPdExpert {
 impl PointGoalPdExpert {
     /// The action for an oracle observation; errors on a wrong length.
     pub fn act(&self, oracle_obs: &[f32], action: &mut [f32]) -> Result<(), SimError> {
-        let expected = Family::PointGoal.oracle_obs_dim();
+        let expected = Family::POINT_GOAL.oracle_obs_dim();
         if oracle_obs.len() != expected {
             return Err(SimError::BufferLength {
                 expected,
@@ -252,7 +252,7 @@ impl PointGoalPdExpert {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The family's declaration (`families.rs` lists it).
+// The family's declaration (`families.rs` lists it), its constant and its tasks.
 
 /// point-goal: 32 train goals at k pi/16, 16 test goals between them; Figure 2's protocol.
 pub(crate) const SPEC: FamilySpec = FamilySpec {
@@ -269,7 +269,7 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     train_tasks: || goal_train_angles().map(Task::point_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::point_goal).collect(),
     task_from_value: |v| Ok(Task::point_goal(v as f32)),
-    nominal_task: None,
+    nominal_value: None,
     obs_components: &OBS_COMPONENTS,
     eval: EvalDefaults {
         context_sizes: &[1],
@@ -290,6 +290,18 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
         Ok(Box::new(PointGoalEnv::new(config)))
     },
 };
+
+impl Family {
+    /// point-goal, declared by this module's `SPEC`.
+    pub const POINT_GOAL: Family = Family::of(&SPEC);
+}
+
+impl Task {
+    /// A point-goal task with its goal at `goal_angle` radians on the radius-2 circle.
+    pub fn point_goal(goal_angle: f32) -> Task {
+        Task::new(Family::POINT_GOAL, goal_angle as f64)
+    }
+}
 
 /// Rapier integrates the point's position with the velocity before the step's damping and
 /// reports the velocity after it.
@@ -318,7 +330,7 @@ mod tests {
         let expert = PointGoalPdExpert::default();
         let mut oracle = [0.0; OBS_DIM + 2];
         let mut action = [0.0; ACT_DIM];
-        let mut metric = EpisodeMetric::new(Family::PointGoal);
+        let mut metric = EpisodeMetric::new(Family::POINT_GOAL);
         let mut trace = env.reset(task, seed).unwrap().to_vec();
         loop {
             env.oracle_observation(&mut oracle).unwrap();
@@ -336,7 +348,7 @@ mod tests {
     #[test]
     fn scripted_expert_reaches_every_test_goal_within_a_tenth() {
         let mut env = PointGoalEnv::new(EnvConfig::default());
-        for (i, task) in Family::PointGoal.test_tasks().iter().enumerate() {
+        for (i, task) in Family::POINT_GOAL.test_tasks().iter().enumerate() {
             let (min_distance, _) = run_expert(&mut env, task, i as u64);
             assert!(min_distance < 0.1, "{task}: min distance {min_distance}");
         }
@@ -344,7 +356,7 @@ mod tests {
 
     #[test]
     fn trajectories_are_bit_identical_for_equal_seeds_and_differ_across_seeds() {
-        let task = Family::PointGoal.test_tasks()[5];
+        let task = Family::POINT_GOAL.test_tasks()[5];
         let mut env = PointGoalEnv::new(EnvConfig::default());
         let (_, first) = run_expert(&mut env, &task, 7);
         let (_, again) = run_expert(&mut PointGoalEnv::new(EnvConfig::default()), &task, 7);
@@ -371,7 +383,7 @@ mod tests {
             env.step(&[0.0, f32::NAN]),
             Err(SimError::NonFiniteAction { index: 1, .. })
         ));
-        let task = Family::PointGoal.train_tasks()[0];
+        let task = Family::POINT_GOAL.train_tasks()[0];
         env.reset(&task, 1).unwrap();
         let clipped = env.step(&[1.0, -1.0]).unwrap().obs.to_vec();
         env.reset(&task, 1).unwrap();

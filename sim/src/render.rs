@@ -243,7 +243,7 @@ mod tests {
 
     #[test]
     fn point_goal_frames_show_robot_goal_and_circle_in_a_top_view() {
-        let frames = frames_of(Family::PointGoal, 3);
+        let frames = frames_of(Family::POINT_GOAL, 3);
         assert!(frames.iter().all(|f| f.view == View::Top));
         let svg = frame_to_svg(&frames[3]);
         assert!(svg.starts_with("<svg") && svg.trim_end().ends_with("</svg>"));
@@ -253,7 +253,7 @@ mod tests {
 
     #[test]
     fn legged_frames_are_side_views_with_every_capsule_and_the_ground() {
-        for (family, capsules) in [(Family::CheetahVel, 8), (Family::WalkerDyn, 7)] {
+        for (family, capsules) in [(Family::CHEETAH_VEL, 8), (Family::WALKER_DYN, 7)] {
             let frames = frames_of(family, 2);
             let svg = frame_to_svg(&frames[2]);
             assert_eq!(frames[2].view, View::Side);
@@ -264,7 +264,7 @@ mod tests {
 
     #[test]
     fn animated_svg_has_one_group_per_frame_and_frames_are_written_to_disk() {
-        let frames = frames_of(Family::PointGoal, 4);
+        let frames = frames_of(Family::POINT_GOAL, 4);
         let svg = episode_to_animated_svg(&frames, 0.1);
         assert_eq!(svg.matches("<animate ").count(), frames.len());
         assert!(svg.contains("dur=\"0.500s\""));

@@ -57,7 +57,7 @@ mod tests {
 
     #[test]
     fn every_rate_names_a_measured_position_of_the_same_observation() {
-        for family in Family::ALL {
+        for family in Family::BUILTIN {
             let components = family.obs_components();
             assert_eq!(components.len(), family.obs_dim(), "{family}");
             for (i, c) in components.iter().enumerate() {
@@ -123,13 +123,13 @@ mod tests {
         // the control step is the step's mean velocity, not the final one (measured 0.07 to
         // 0.44 relative; an entry paired with the wrong position is above 1).
         for (family, task, bound) in [
-            (Family::PointGoal, Task::point_goal(0.5), 1e-3),
-            (Family::CheetahVel, Task::cheetah_vel(1.0), 0.5),
-            (Family::WalkerDyn, Family::WalkerDyn.test_tasks()[0], 0.5),
-            (Family::AntGoal, Family::AntGoal.test_tasks()[0], 0.5),
+            (Family::POINT_GOAL, Task::point_goal(0.5), 1e-3),
+            (Family::CHEETAH_VEL, Task::cheetah_vel(1.0), 0.5),
+            (Family::WALKER_DYN, Family::WALKER_DYN.test_tasks()[0], 0.5),
+            (Family::ANT_GOAL, Family::ANT_GOAL.test_tasks()[0], 0.5),
             (
-                Family::AntLinClass,
-                Family::AntLinClass.test_tasks()[0],
+                Family::ANT_LINCLASS,
+                Family::ANT_LINCLASS.test_tasks()[0],
                 0.5,
             ),
         ] {

@@ -14,9 +14,10 @@ use crate::sensing::ObsComponent;
 use crate::task::MetricKind;
 
 /// What the workspace knows about one family. Plain data and plain functions: read a field,
-/// never match on the family.
+/// never match on the family. A family's module writes it as one struct literal, every field
+/// named (the five built in, as `cheetah_vel.rs`, and a family of another crate alike), and
+/// [`Family::of`](crate::Family::of) makes it a family.
 #[derive(Debug)]
-#[non_exhaustive]
 pub struct FamilySpec {
     /// The CLI name (`cheetah-vel`, ...).
     pub name: &'static str,
@@ -47,9 +48,10 @@ pub struct FamilySpec {
     /// A task from one finite number (goal angle, velocity, seed); `Err` says why the number
     /// names none.
     pub task_from_value: fn(f64) -> Result<Task, &'static str>,
-    /// A task outside both splits that the family's normalised metric refers to (walker-dyn's
-    /// unmodified walker); `None` where the family has no such metric.
-    pub nominal_task: Option<Task>,
+    /// The value of a task outside both splits that the family's normalised metric refers to
+    /// (walker-dyn's unmodified walker, [`crate::Family::nominal_task`]); `None` where the
+    /// family has no such metric.
+    pub nominal_value: Option<f64>,
     /// Per observation index, what the entry physically is (position-only sensing).
     pub obs_components: &'static [ObsComponent],
     /// The reference evaluation protocol (§5).
@@ -66,7 +68,6 @@ pub struct FamilySpec {
 /// A family's reference evaluation protocol: which context sizes, how many context draws per
 /// size and rollouts per draw.
 #[derive(Debug, Clone, Copy, PartialEq)]
-#[non_exhaustive]
 pub struct EvalDefaults {
     /// Context sizes (demos per context) evaluated.
     pub context_sizes: &'static [usize],

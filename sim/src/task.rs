@@ -3,9 +3,7 @@
 use std::fmt;
 use std::str::FromStr;
 
-use crate::dynamics::WalkerDynamics;
 use crate::error::SimError;
-use crate::hyperplane as linclass;
 use crate::kinds::{Family, Task};
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
@@ -53,7 +51,7 @@ pub const WALKER_TRAIN_SEED_BASE: u64 = 0;
 /// Walker dynamics seeds of the meta-test split are `WALKER_TEST_SEED_BASE + i`, i in 0..25.
 pub const WALKER_TEST_SEED_BASE: u64 = 10_000;
 /// The dynamics seed reserved for the *unmodified* walker: `Task::walker_dyn(WALKER_NOMINAL_SEED)`
-/// (also [`Task::walker_nominal`]) has every factor 1 ([`WalkerDynamics::nominal`]), so its
+/// (also [`Task::walker_nominal`]) has every factor 1 ([`crate::WalkerDynamics::nominal`]), so its
 /// task parameter is all zeros. It is `u32::MAX`, the largest seed
 /// [`Family::task_from_value`] accepts, far outside both splits' seed ranges; the walker-dyn
 /// normalised metric's "base" policy is trained on it (`smile expert --env walker-dyn --nominal`).
@@ -161,11 +159,18 @@ impl Family {
     pub fn task_named(self, value: f64) -> Result<Task, SimError> {
         let mut known = self.train_tasks();
         known.extend(self.test_tasks());
-        known.extend(self.spec().nominal_task);
+        known.extend(self.nominal_task());
         match self.find_task(value, &known) {
             Ok(i) => Ok(known[i]),
             Err(_) => self.task_from_value(value),
         }
+    }
+
+    /// The task outside both splits that the family's normalised metric refers to (walker-dyn's
+    /// unmodified walker); `None` where the family has none.
+    pub fn nominal_task(self) -> Option<Task> {
+        let value = self.spec().nominal_value?;
+        Some(Task::new(self, value))
     }
 
     /// Dimension of the learner-facing observation.
@@ -225,17 +230,6 @@ impl<'de> serde::Deserialize<'de> for Family {
     }
 }
 
-impl FromStr for Family {
-    type Err = SimError;
-
-    fn from_str(s: &str) -> Result<Self, Self::Err> {
-        Family::ALL
-            .into_iter()
-            .find(|family| family.name() == s)
-            .ok_or_else(|| SimError::UnknownFamily(s.to_string()))
-    }
-}
-
 impl fmt::Display for Split {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
@@ -261,69 +255,16 @@ impl FromStr for Split {
 pub const GOAL_RADIUS: f32 = 2.0;
 
 impl Task {
-    /// A point-goal task with its goal at `goal_angle` radians on the radius-2 circle.
-    pub fn point_goal(goal_angle: f32) -> Task {
-        Task::PointGoal { goal_angle }
-    }
-
-    /// An ant-goal task with its goal at `goal_angle` radians on the radius-2 circle.
-    pub fn ant_goal(goal_angle: f32) -> Task {
-        Task::AntGoal { goal_angle }
-    }
-
-    /// A cheetah-vel task with target velocity `target_velocity` m/s.
-    pub fn cheetah_vel(target_velocity: f32) -> Task {
-        Task::CheetahVel { target_velocity }
-    }
-
-    /// A walker-dyn task whose dynamics are drawn from `dynamics_seed` (except the reserved
-    /// [`WALKER_NOMINAL_SEED`], the unmodified robot).
-    pub fn walker_dyn(dynamics_seed: u64) -> Task {
-        Task::WalkerDyn { dynamics_seed }
-    }
-
-    /// An ant-linclass task whose hyperplane is drawn from `hyperplane_seed`.
-    pub fn ant_linclass(hyperplane_seed: u64) -> Task {
-        Task::AntLinClass { hyperplane_seed }
-    }
-
-    /// The unit normal of an ant-linclass task's hyperplane (`None` for other families).
-    pub fn linclass_normal(&self) -> Option<[f32; linclass::POINT_DIM]> {
-        match *self {
-            Task::AntLinClass { hyperplane_seed } => {
-                Some(linclass::hyperplane_normal(hyperplane_seed))
-            }
-            _ => None,
-        }
-    }
-
-    /// The walker-dyn task with the unmodified dynamics (seed [`WALKER_NOMINAL_SEED`]); in
-    /// neither split.
-    pub fn walker_nominal() -> Task {
-        Task::walker_dyn(WALKER_NOMINAL_SEED)
-    }
-
-    /// The dynamics of a walker-dyn task (`None` for other families): the one place a seed
-    /// becomes factors, so the environment and the task parameter always agree.
-    pub fn walker_dynamics(&self) -> Option<WalkerDynamics> {
-        match *self {
-            Task::WalkerDyn {
-                dynamics_seed: WALKER_NOMINAL_SEED,
-            } => Some(WalkerDynamics::nominal()),
-            Task::WalkerDyn { dynamics_seed } => Some(WalkerDynamics::from_seed(dynamics_seed)),
-            _ => None,
-        }
-    }
-
     /// The goal position of a point-goal or ant-goal task.
     pub fn goal(&self) -> Option<[f32; 2]> {
-        match *self {
-            Task::PointGoal { goal_angle } | Task::AntGoal { goal_angle } => Some([
+        let goal_family = [Family::POINT_GOAL, Family::ANT_GOAL].contains(&self.family());
+        goal_family.then(|| {
+            let goal_angle = self.value() as f32;
+            [
                 GOAL_RADIUS * goal_angle.cos(),
                 GOAL_RADIUS * goal_angle.sin(),
-            ]),
-            _ => None,
-        }
+            ]
+        })
     }
 
     /// Whether `value` names this task: within [`Family::value_tolerance`] of [`Task::value`].
@@ -370,7 +311,7 @@ impl Task {
     /// unmodified walker) says so.
     pub fn label(&self) -> String {
         let spec = self.family().spec();
-        let nominal = if spec.nominal_task == Some(*self) {
+        let nominal = if self.family().nominal_task() == Some(*self) {
             " (nominal)"
         } else {
             ""

@@ -2,7 +2,7 @@
 //! through `legged.rs`) under randomised body dynamics ([`WalkerDynamics`]).
 
 use crate::dynamics::WalkerDynamics;
-use crate::kinds::Task;
+use crate::kinds::{Family, Task};
 use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView, seed_of};
 use crate::task::MetricKind;
 use crate::task::{WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE};
@@ -39,9 +39,7 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
             .map(Task::walker_dyn)
             .ok_or("a dynamics seed must be a non-negative integer")
     },
-    nominal_task: Some(Task::WalkerDyn {
-        dynamics_seed: WALKER_NOMINAL_SEED,
-    }),
+    nominal_value: Some(WALKER_NOMINAL_SEED as f64),
     obs_components: &crate::planar::OBS_COMPONENTS,
     eval: EvalDefaults {
         context_sizes: &[1],
@@ -53,3 +51,34 @@ pub(crate) const SPEC: FamilySpec = FamilySpec {
     view: RunView::Velocity { target: false },
     make_env: |config| Ok(Box::new(crate::legged::PlanarLeggedEnv::walker(config)?)),
 };
+
+impl Family {
+    /// walker-dyn, declared by this module's `SPEC`.
+    pub const WALKER_DYN: Family = Family::of(&SPEC);
+}
+
+impl Task {
+    /// A walker-dyn task whose dynamics are drawn from `dynamics_seed` (except the reserved
+    /// [`WALKER_NOMINAL_SEED`], the unmodified robot).
+    pub fn walker_dyn(dynamics_seed: u64) -> Task {
+        Task::new(Family::WALKER_DYN, dynamics_seed as f64)
+    }
+
+    /// The walker-dyn task with the unmodified dynamics (seed [`WALKER_NOMINAL_SEED`]); in
+    /// neither split.
+    pub fn walker_nominal() -> Task {
+        Task::walker_dyn(WALKER_NOMINAL_SEED)
+    }
+
+    /// The dynamics of a walker-dyn task (`None` for other families): the one place a seed
+    /// becomes factors, so the environment and the task parameter always agree.
+    pub fn walker_dynamics(&self) -> Option<WalkerDynamics> {
+        if self.family() != Family::WALKER_DYN {
+            return None;
+        }
+        Some(match self.value() as u64 {
+            WALKER_NOMINAL_SEED => WalkerDynamics::nominal(),
+            dynamics_seed => WalkerDynamics::from_seed(dynamics_seed),
+        })
+    }
+}

@@ -45,10 +45,10 @@ fn trace(family: Family, task: Task, seed: u64, steps: usize) -> Vec<u32> {
 #[test]
 fn every_legged_family_runs_on_mujoco_with_the_rapier_layout_and_is_deterministic() {
     for family in [
-        Family::CheetahVel,
-        Family::WalkerDyn,
-        Family::AntGoal,
-        Family::AntLinClass,
+        Family::CHEETAH_VEL,
+        Family::WALKER_DYN,
+        Family::ANT_GOAL,
+        Family::ANT_LINCLASS,
     ] {
         let rapier = make_env(family, EnvConfig::default()).unwrap();
         let env = make_env(family, mujoco(20)).unwrap();
@@ -76,7 +76,7 @@ fn every_legged_family_runs_on_mujoco_with_the_rapier_layout_and_is_deterministi
 
 #[test]
 fn point_goal_has_no_mujoco_robot_and_says_so() {
-    let err = make_env(Family::PointGoal, mujoco(5)).err().unwrap();
+    let err = make_env(Family::POINT_GOAL, mujoco(5)).err().unwrap();
     assert!(matches!(
         err,
         SimError::PhysicsUnavailable {
@@ -90,7 +90,7 @@ fn point_goal_has_no_mujoco_robot_and_says_so() {
 #[test]
 fn the_trot_moves_mujocos_cheetah_forward_and_its_metric_is_the_velocity_error() {
     // Section 9 of the reference: on Gymnasium's cheetah this trot moves at +0.51 m/s.
-    let mut env = make_env(Family::CheetahVel, mujoco(200)).unwrap();
+    let mut env = make_env(Family::CHEETAH_VEL, mujoco(200)).unwrap();
     let dt = env.control_dt();
     assert!((dt - 0.05).abs() < 1e-6, "control dt {dt}");
     let mut velocity = 0.0;
@@ -109,8 +109,8 @@ fn the_trot_moves_mujocos_cheetah_forward_and_its_metric_is_the_velocity_error()
 
 #[test]
 fn a_passive_walker_falls_and_the_episode_ends_there() {
-    let mut env = make_env(Family::WalkerDyn, mujoco(1000)).unwrap();
-    let obs = env.reset(&Family::WalkerDyn.train_tasks()[0], 0).unwrap();
+    let mut env = make_env(Family::WALKER_DYN, mujoco(1000)).unwrap();
+    let obs = env.reset(&Family::WALKER_DYN.train_tasks()[0], 0).unwrap();
     assert!(
         (obs[0] - 1.25).abs() < 0.02,
         "walker starts at height {}",
@@ -130,12 +130,12 @@ fn a_passive_walker_falls_and_the_episode_ends_there() {
 
 #[test]
 fn walker_dyn_tasks_change_mujocos_dynamics() {
-    let tasks = Family::WalkerDyn.train_tasks();
-    let a = trace(Family::WalkerDyn, tasks[0], 1, 30);
-    let b = trace(Family::WalkerDyn, tasks[1], 1, 30);
+    let tasks = Family::WALKER_DYN.train_tasks();
+    let a = trace(Family::WALKER_DYN, tasks[0], 1, 30);
+    let b = trace(Family::WALKER_DYN, tasks[1], 1, 30);
     assert_ne!(a, b, "two dynamics gave the same trajectory");
     // Back to the first dynamics on the same environment: the model is restored, not drifted.
-    let mut env = make_env(Family::WalkerDyn, mujoco(30)).unwrap();
+    let mut env = make_env(Family::WALKER_DYN, mujoco(30)).unwrap();
     let run = |env: &mut Box<dyn sim::Environment>, task: &Task| {
         env.reset(task, 1).unwrap();
         (0..10)
@@ -149,6 +149,6 @@ fn walker_dyn_tasks_change_mujocos_dynamics() {
 
 #[test]
 fn mujoco_leaves_no_log_file_behind() {
-    let _ = make_env(Family::CheetahVel, mujoco(5)).unwrap();
+    let _ = make_env(Family::CHEETAH_VEL, mujoco(5)).unwrap();
     assert!(!std::path::Path::new("MUJOCO_LOG.TXT").exists());
 }

@@ -14,7 +14,7 @@ fn demos_from_the_trainer_teach_a_device_through_a_file() {
     let dir = tempfile::tempdir().unwrap();
     export_scripted_pd(dir.path()).unwrap();
     let expert = Expert::load(dir.path()).unwrap();
-    let tasks: Vec<_> = Family::PointGoal
+    let tasks: Vec<_> = Family::POINT_GOAL
         .test_tasks()
         .into_iter()
         .step_by(4)
@@ -54,7 +54,7 @@ fn demos_from_the_trainer_teach_a_device_through_a_file() {
             2,
         )
         .unwrap();
-        let mut plant = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+        let mut plant = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
         let report = run(
             &mut controller,
             plant.as_mut(),

@@ -13,7 +13,7 @@
 //!   flags in a `cargo` build instruction aside).
 //!
 //! * **A family is named where ARCHITECTURE.md says**: the non-test files of sim, trainer,
-//!   firmware-sim and app that name one family in code (`Family::AntGoal`, `Task::AntGoal`)
+//!   firmware-sim and app that name one family in code (`Family::ANT_GOAL`)
 //!   are all among the files its "A family." paragraph names, and every file it names exists,
 //!   so its "what adding a family touches" stays true.
 //!
@@ -309,13 +309,13 @@ fn the_libraries_name_no_flag() {
     );
 }
 
-/// The families' variant names, as code spells them after `Family::` or `Task::`.
+/// The built-in families' constants, as code spells them after `Family::`.
 const FAMILY_VARIANTS: [&str; 5] = [
-    "PointGoal",
-    "CheetahVel",
-    "WalkerDyn",
-    "AntGoal",
-    "AntLinClass",
+    "POINT_GOAL",
+    "CHEETAH_VEL",
+    "WALKER_DYN",
+    "ANT_GOAL",
+    "ANT_LINCLASS",
 ];
 
 const ALGO_VARIANTS: [&str; 4] = ["Smile", "SmileStateOnly", "MetaBc", "MetaDagger"];
@@ -335,7 +335,7 @@ fn names_a_variant(code: &str, types: &[&str], variants: &[&str]) -> bool {
 
 /// Whether a line of code names one family's variant.
 fn names_a_family(code: &str) -> bool {
-    names_a_variant(code, &["Family::", "Task::"], &FAMILY_VARIANTS)
+    names_a_variant(code, &["Family::"], &FAMILY_VARIANTS)
 }
 
 /// Whether a line of code names one algorithm's variant.
@@ -419,9 +419,9 @@ fn an_algorithm_is_named_only_where_architecture_says() {
 
 #[test]
 fn the_checks_see_what_they_look_for() {
-    assert!(names_a_family("if family == Family::PointGoal {"));
-    assert!(names_a_family("Task::WalkerDyn { dynamics_seed } => x,"));
-    assert!(!names_a_family("Family::PointGoals"));
+    assert!(names_a_family("if family == Family::POINT_GOAL {"));
+    assert!(names_a_family("let goal = Family::ANT_GOAL;"));
+    assert!(!names_a_family("Family::POINT_GOALS"));
     assert!(!names_a_family("Task::point_goal(0.5)"));
     assert!(names_an_algorithm("cfg.dagger = algo == Algo::MetaDagger;"));
     assert!(!names_an_algorithm("Algo::ALL"));
@@ -442,8 +442,8 @@ fn the_checks_see_what_they_look_for() {
     );
     let found = through_root("use crate::{Family, kinds::Physics};", &names);
     assert_eq!(found, ["Family"]);
-    assert!(through_root("crate::kinds::Family::PointGoal", &names).is_empty());
-    assert_eq!(through_root("crate::Family::ALL", &names), ["Family"]);
+    assert!(through_root("crate::kinds::Family::POINT_GOAL", &names).is_empty());
+    assert_eq!(through_root("crate::Family::BUILTIN", &names), ["Family"]);
     let fns = functions(&root().join("infer-core/src/error.rs"));
     assert!(
         fns.iter()

@@ -20,8 +20,8 @@ fn mujoco() -> EnvConfig {
 
 /// Demos of a velocity-dependent trot on MuJoCo's cheetah.
 fn demos(split: Split, tasks: Vec<sim::Task>) -> DemoDataset {
-    let mut env = make_env(Family::CheetahVel, mujoco()).unwrap();
-    let mut ds = DemoDataset::new(Family::CheetahVel, split, "trot");
+    let mut env = make_env(Family::CHEETAH_VEL, mujoco()).unwrap();
+    let mut ds = DemoDataset::new(Family::CHEETAH_VEL, split, "trot");
     ds.physics = Physics::Mujoco;
     for task in tasks {
         let mut step = 0usize;
@@ -44,7 +44,7 @@ fn demos(split: Split, tasks: Vec<sim::Task>) -> DemoDataset {
 #[test]
 fn a_blob_trained_on_mujoco_runs_on_the_device_against_the_mujoco_plant() {
     let dir = tempfile::tempdir().unwrap();
-    let fam = Family::CheetahVel;
+    let fam = Family::CHEETAH_VEL;
     let train = demos(Split::Train, fam.train_tasks()[..6].to_vec());
     let test = demos(Split::Test, fam.test_tasks()[..1].to_vec());
     let cfg = MetaBcConfig {

@@ -21,23 +21,23 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
     // The expert can record more demos later.
     assert_eq!(
         Expert::load(&out.join("expert")).unwrap().family(),
-        Family::PointGoal
+        Family::POINT_GOAL
     );
     let train = DemoDataset::read(out.join("demos-train.safetensors")).unwrap();
     let test = DemoDataset::read(out.join("demos-test.safetensors")).unwrap();
     assert_eq!((train.split, test.split), (Split::Train, Split::Test));
-    assert_eq!(train.tasks.len(), Family::PointGoal.train_tasks().len());
-    assert_eq!(test.tasks.len(), Family::PointGoal.test_tasks().len());
+    assert_eq!(train.tasks.len(), Family::POINT_GOAL.train_tasks().len());
+    assert_eq!(test.tasks.len(), Family::POINT_GOAL.test_tasks().len());
     assert!(
         train
             .tasks
             .iter()
-            .all(|t| !Family::PointGoal.test_tasks().contains(&t.task))
+            .all(|t| !Family::POINT_GOAL.test_tasks().contains(&t.task))
     );
 
     for policy in ["smile", "meta-bc"] {
         let mp = MetaPolicy::load(&out.join(policy)).unwrap();
-        assert_eq!(mp.family, Family::PointGoal);
+        assert_eq!(mp.family, Family::POINT_GOAL);
         assert!(
             out.join(policy).join("metrics.jsonl").exists(),
             "{policy} has no metrics log"
@@ -71,7 +71,7 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
             .unwrap();
     assert_eq!(
         export["per_task_candle"].as_array().unwrap().len(),
-        Family::PointGoal.test_tasks().len()
+        Family::POINT_GOAL.test_tasks().len()
     );
     assert_eq!(export["bytes"].as_u64().unwrap() as usize, blob.len());
 
@@ -88,7 +88,7 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
         assert!((m["mean"].as_f64().unwrap() as f32 - mean).abs() < 1e-6);
         assert_eq!(
             m["tasks"].as_array().unwrap().len(),
-            Family::PointGoal.test_tasks().len()
+            Family::POINT_GOAL.test_tasks().len()
         );
     }
 
@@ -125,7 +125,7 @@ fn a_tiny_quickstart_leaves_consistent_artefacts() {
 /// family, splits, sizes and horizon, and that the blob computes what its float policy does.
 #[test]
 fn a_slow_family_is_refused_at_the_short_budget_and_its_tiny_run_has_cheetah_artefacts() {
-    let fam = Family::CheetahVel;
+    let fam = Family::CHEETAH_VEL;
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("cv");
     // Without shipped assets (the repository's assets/experts/cheetah-vel lets the default
@@ -152,7 +152,7 @@ fn a_slow_family_is_refused_at_the_short_budget_and_its_tiny_run_has_cheetah_art
         ..short
     };
     let summary = run(&tiny).unwrap();
-    assert_eq!(summary.env, sim::Family::CheetahVel);
+    assert_eq!(summary.env, sim::Family::CHEETAH_VEL);
     assert!(
         summary.expert.starts_with("SAC expert"),
         "{}",

@@ -105,7 +105,7 @@ fn device_and_training_read_alike(
 
 #[test]
 fn a_training_rollout_reads_the_plant_as_the_device_does() {
-    for (family, adc_range) in [(Family::PointGoal, 4.0), (Family::CheetahVel, 10.0)] {
+    for (family, adc_range) in [(Family::POINT_GOAL, 4.0), (Family::CHEETAH_VEL, 10.0)] {
         let config = LoopConfig {
             noise_std: 0.01,
             adc_bits: Some(12),
@@ -130,9 +130,9 @@ fn a_training_rollout_reads_the_plant_as_the_device_does() {
 #[test]
 fn a_training_rollout_estimates_the_state_as_the_device_does() {
     for (family, adc_range, noise_std) in [
-        (Family::PointGoal, 4.0, 0.01),
-        (Family::CheetahVel, 10.0, 0.0),
-        (Family::AntGoal, 30.0, 0.01),
+        (Family::POINT_GOAL, 4.0, 0.01),
+        (Family::CHEETAH_VEL, 10.0, 0.0),
+        (Family::ANT_GOAL, 30.0, 0.01),
     ] {
         let config = LoopConfig {
             noise_std,
@@ -176,5 +176,5 @@ fn another_seed_reads_otherwise() {
         positions: true,
         ..Sensing::default()
     };
-    device_and_training_read_alike(Family::PointGoal, &config, &sensing, 12);
+    device_and_training_read_alike(Family::POINT_GOAL, &config, &sensing, 12);
 }

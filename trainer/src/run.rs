@@ -474,7 +474,7 @@ impl Run<'_> {
                     .map_err(|e| Error::Usage(format!("loading expert {}: {e}", p.display())))?;
                 Ok(Some(set))
             }
-            _ if family == Family::PointGoal => {
+            _ if family == Family::POINT_GOAL => {
                 on(RunEvent::Note(format!(
                     "{algo}: relabelling with the scripted point-goal PD expert"
                 )));

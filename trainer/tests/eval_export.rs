@@ -14,7 +14,7 @@ use common::pd_demos as demos;
 #[test]
 fn eval_report_and_blob_parity() {
     trainer::threads::set_compute_threads(1);
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let dir = std::env::temp_dir().join(format!("smile-evalexp-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     // All 32 train goals: the w8a8 activation scales are calibrated on the train demos, and
@@ -72,7 +72,7 @@ fn eval_report_and_blob_parity() {
     let r2 = evaluate_test(&mut mp);
     assert_eq!(r, r2);
     let report = EvalReport {
-        env: sim::Family::PointGoal,
+        env: sim::Family::POINT_GOAL,
         split: "test".into(),
         metric: "min distance to goal".into(),
         lower_is_better: true,

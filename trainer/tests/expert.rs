@@ -90,7 +90,7 @@ fn keep_best_ships_the_better_of_the_best_evaluation_and_the_final_weights() {
             horizon: cfg.horizon,
             ..EnvConfig::default()
         };
-        expert::evaluate(&ex, &Family::PointGoal.test_tasks(), 1, env)
+        expert::evaluate(&ex, &Family::POINT_GOAL.test_tasks(), 1, env)
             .unwrap()
             .mean
     };
@@ -230,7 +230,7 @@ fn demos_round_trip_and_are_deterministic() {
     let ex = Expert::load(&d).unwrap();
     assert_eq!(ex.name(), "scripted-pd");
     let spec = DemoSpec {
-        tasks: Family::PointGoal.test_tasks()[..2].to_vec(),
+        tasks: Family::POINT_GOAL.test_tasks()[..2].to_vec(),
         split: Split::Test,
         per_task: 2,
         subsample: 5,
@@ -255,18 +255,18 @@ fn demos_round_trip_and_are_deterministic() {
 fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
     trainer::threads::set_compute_threads(1);
     let cfg = ExpertConfig {
-        env: Family::AntGoal,
+        env: Family::ANT_GOAL,
         ..tiny(60)
     };
     let d = tmp("ant-goal");
     trained(cfg.clone(), &d);
     let ex = Expert::load(&d).unwrap();
-    assert_eq!(ex.family(), Family::AntGoal);
+    assert_eq!(ex.family(), Family::ANT_GOAL);
     let env = EnvConfig {
         horizon: cfg.horizon,
         ..EnvConfig::default()
     };
-    let tasks = Family::AntGoal.test_tasks()[..2].to_vec();
+    let tasks = Family::ANT_GOAL.test_tasks()[..2].to_vec();
     let eval = expert::evaluate(&ex, &tasks, 1, env).unwrap();
     // Min distance to a goal 2 m away after 20 steps of an untrained policy.
     assert!(eval.mean.is_finite() && eval.mean > 0.5, "{}", eval.mean);
@@ -279,7 +279,7 @@ fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
         env,
     };
     let ds = record(&ex, &spec).unwrap();
-    assert_eq!(ds.family, Family::AntGoal);
+    assert_eq!(ds.family, Family::ANT_GOAL);
     assert_eq!((ds.obs_dim, ds.act_dim), (29, 8));
     assert_eq!(ds.transition_count(), 2 * 20);
     std::fs::remove_dir_all(&d).ok();
@@ -294,9 +294,9 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
     let ex = Expert::load(&d).unwrap();
     assert_eq!(
         (ex.family(), ex.name()),
-        (Family::AntLinClass, "scripted-linclass")
+        (Family::ANT_LINCLASS, "scripted-linclass")
     );
-    let tasks = Family::AntLinClass.test_tasks()[..4].to_vec();
+    let tasks = Family::ANT_LINCLASS.test_tasks()[..4].to_vec();
     let eval = expert::evaluate(&ex, &tasks, 2, EnvConfig::default()).unwrap();
     // Measured 0.92 over 32 tasks x 10 episodes; a failure is a no-op (last sample 0), never
     // the wrong target (last sample -1), so the mean last sample equals the success.
@@ -321,9 +321,9 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
     expert::export_scripted_linclass(&assets.join("ant-goal"), 2.0, &far).unwrap();
     let far_expert = Expert::load(&far).unwrap();
     let task = tasks[0];
-    let mut env = sim::make_env(Family::AntLinClass, EnvConfig::default()).unwrap();
+    let mut env = sim::make_env(Family::ANT_LINCLASS, EnvConfig::default()).unwrap();
     env.reset(&task, 0).unwrap();
-    let mut oracle = vec![0.0; Family::AntLinClass.oracle_obs_dim()];
+    let mut oracle = vec![0.0; Family::ANT_LINCLASS.oracle_obs_dim()];
     env.oracle_observation(&mut oracle).unwrap();
     let (mut near_action, mut far_action) = ([0.0f32; 8], [0.0f32; 8]);
     ex.act(&oracle, &mut near_action).unwrap();

@@ -32,7 +32,7 @@ fn test_metric(mp: &mut MetaPolicy, contexts: &DemoDataset) -> f32 {
     eval::evaluate(
         mp,
         "policy",
-        Family::PointGoal,
+        Family::POINT_GOAL,
         Split::Test,
         contexts,
         &proto,
@@ -71,7 +71,7 @@ fn check(algo: &str, untrained: f32, trained: f32, wrong: f32) {
 }
 
 fn demos() -> (DemoDataset, DemoDataset, MetaData) {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let train = common::pd_demos(Split::Train, fam.train_tasks(), 2, HORIZON);
     let test = common::pd_demos(Split::Test, fam.test_tasks(), 1, HORIZON);
     let data = MetaData::from_dataset(&train, fam, 8).unwrap();

@@ -42,7 +42,7 @@ fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
     trainer::threads::set_compute_threads(1);
     let dir = std::env::temp_dir().join(format!("smile-bc-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
     let mut run = MetaBc::new(tiny(false), data, None).unwrap();
     let v0 = run.val_mse().unwrap();
     let mut vals = Vec::new();
@@ -68,7 +68,7 @@ fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
 }
 
 fn run_data() -> MetaData {
-    MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap()
+    MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap()
 }
 
 #[test]
@@ -253,7 +253,7 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
 #[test]
 fn the_pre_tanh_loss_is_the_original_codes_and_off_by_default() {
     trainer::threads::set_compute_threads(1);
-    let data = || MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let data = || MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
     let cfg = MetaBcConfig {
         total_steps: 40,
         eval_every: 0,

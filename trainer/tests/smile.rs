@@ -51,7 +51,7 @@ fn discriminator_separates_expert_from_random_policy() {
     trainer::threads::set_compute_threads(1);
     for state_only in [false, true] {
         let ds = demos(8, 2, 30);
-        let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+        let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
         let mut run = Smile::new(tiny(state_only), data).unwrap();
         // State-only: the discriminator reads [norm(s), norm(s'), z] = 4 + 4 + 4.
         let want = if state_only { 12 } else { 10 };
@@ -90,7 +90,7 @@ fn short_run_checkpoints_resumes_and_exports() {
     let dir = std::env::temp_dir().join(format!("smile-run-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let mut run = Smile::new(tiny(false), data.clone()).unwrap();
     let mut evals = 0;
     trainer::fit(&mut run, &dir, &mut |e| {
@@ -121,7 +121,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     let dir = std::env::temp_dir().join(format!("smile-budget-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let cfg = SmileConfig {
         total_updates: 1_000_000,
         eval_every: 1000,
@@ -183,7 +183,7 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
     );
     // A damaged count is refused, not silently reset to zero.
     std::fs::write(dir.join("compute.json"), "{\"cpu_s\": \"lots\"}").unwrap();
-    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
     let Err(e) = Smile::resume(&dir, data, Some(40)) else {
         panic!("a damaged compute.json was accepted")
     };
@@ -193,9 +193,9 @@ fn a_cpu_budget_stops_the_run_at_an_iteration_end_and_it_resumes() {
 
 #[test]
 fn demos_of_another_family_are_a_typed_error() {
-    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
     let cfg = SmileConfig {
-        env: Family::CheetahVel,
+        env: Family::CHEETAH_VEL,
         ..tiny(false)
     };
     let Err(e) = Smile::new(cfg, data) else {
@@ -204,11 +204,8 @@ fn demos_of_another_family_are_a_typed_error() {
     assert!(
         matches!(
             e,
-            trainer::Error::WrongFamily {
-                found: Family::PointGoal,
-                expected: Family::CheetahVel,
-                ..
-            }
+            trainer::Error::WrongFamily { found, expected, .. }
+                if found == Family::POINT_GOAL && expected == Family::CHEETAH_VEL
         ),
         "{e}"
     );
@@ -223,7 +220,7 @@ fn demos_of_another_family_are_a_typed_error() {
 fn learner_threads_are_deterministic_on_any_count_and_use_the_older_reward() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let weights = |threads: usize| {
         // Widths and batches at which the pool splits products (>= 4 MFLOP each): the
         // discriminator's 2 x 4 x 32 rows through 192 x 192, SAC's 4 x 64 rows through 128 x 128.
@@ -293,16 +290,16 @@ fn learner_threads_are_deterministic_on_any_count_and_use_the_older_reward() {
 #[test]
 fn walker_training_rollouts_run_to_the_horizon_unless_termination_is_asked_for() {
     trainer::threads::set_compute_threads(1);
-    let tasks: Vec<_> = Family::WalkerDyn
+    let tasks: Vec<_> = Family::WALKER_DYN
         .train_tasks()
         .into_iter()
         .take(4)
         .collect();
-    let ds = common::open_loop_demos(Family::WalkerDyn, sim::Split::Train, tasks, 60);
-    let data = MetaData::from_dataset(&ds, Family::WalkerDyn, 0).unwrap();
+    let ds = common::open_loop_demos(Family::WALKER_DYN, sim::Split::Train, tasks, 60);
+    let data = MetaData::from_dataset(&ds, Family::WALKER_DYN, 0).unwrap();
     let steps = |rollout_termination: bool| {
         let cfg = SmileConfig {
-            env: Family::WalkerDyn,
+            env: Family::WALKER_DYN,
             rollout_termination,
             horizon: Some(300),
             ..tiny(false)
@@ -323,7 +320,7 @@ fn clone_error(run: &Smile) -> f32 {
     let mp = run.meta_policy();
     let mut rng = <rand_chacha::ChaCha8Rng as rand::SeedableRng>::seed_from_u64(0);
     let (mut sum, mut rows) = (0.0f32, 0usize);
-    let (od, ad) = (Family::PointGoal.obs_dim(), Family::PointGoal.act_dim());
+    let (od, ad) = (Family::POINT_GOAL.obs_dim(), Family::POINT_GOAL.act_dim());
     for td in &run.data().train {
         let ctx: Vec<_> = td.trajectories.iter().collect();
         let z = mp.latent(&ctx).unwrap();
@@ -347,7 +344,7 @@ fn clone_error(run: &Smile) -> f32 {
 fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let train = |bc_weight: f32, bc_decay_updates: u64, pairs: usize| {
         let cfg = SmileConfig {
             bc_weight,
@@ -442,7 +439,7 @@ fn bc_term_pulls_the_policy_toward_the_demos_and_weight_zero_is_smile() {
 fn sensing_is_deterministic_and_an_ideal_sensor_is_smile() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let train = |sensing: Option<trainer::Sensing>| {
         let cfg = SmileConfig {
             bc_weight: 2.0,
@@ -493,7 +490,7 @@ fn sensing_is_deterministic_and_an_ideal_sensor_is_smile() {
 fn position_sensing_trains_on_the_estimators_views_and_resumes() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let positions = trainer::Sensing {
         noise_std: 0.01,
         adc_bits: Some(12),
@@ -567,7 +564,7 @@ fn position_sensing_trains_on_the_estimators_views_and_resumes() {
 fn distilling_through_the_sensors_closes_the_action_gap() {
     trainer::threads::set_compute_threads(1);
     let ds = demos(8, 2, 30);
-    let data = MetaData::from_dataset(&ds, Family::PointGoal, 4).unwrap();
+    let data = MetaData::from_dataset(&ds, Family::POINT_GOAL, 4).unwrap();
     let mut run = Smile::new(tiny(false), data).unwrap();
     run.warm_start().unwrap();
     for _ in 0..20 {

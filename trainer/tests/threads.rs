@@ -57,7 +57,7 @@ fn an_expert_trains_the_same_weights_on_one_and_on_three_threads() {
 fn meta_bc_trains_the_same_weights_on_one_and_on_two_threads() {
     trainer::threads::set_compute_threads(1);
     let data =
-        MetaData::from_dataset(&common::train_demos(8, 2, 30), Family::PointGoal, 4).unwrap();
+        MetaData::from_dataset(&common::train_demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
     let weights = |threads: usize| {
         // 4 tasks x 64 rows through 256 x 256: 33 MFLOP products
         let mut cfg = MetaBcConfig {

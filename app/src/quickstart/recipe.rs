@@ -1,7 +1,7 @@
 //! What the quickstart runs on each family, one block per family: where its expert comes from,
 //! which shipped demo files it starts from, and which configuration files (the ones behind the
 //! family's rows in docs/RESULTS.md) it trains SMILe and Meta-BC with. Everything else in the
-//! quickstart reads the family's [`Recipe`]; a new family adds its block to [`recipe`].
+//! quickstart reads the family's [`Recipe`]; a new built-in family adds its block to [`RECIPES`].
 
 use sim::Family;
 
@@ -59,38 +59,57 @@ const DEMOS_4X_SUB20: (&str, &str) = (
     "demos-test-4x-sub20.safetensors",
 );
 
-/// The quickstart's recipe for `family`.
-pub(crate) fn recipe(family: Family) -> Recipe {
-    match family {
-        Family::PointGoal => Recipe {
+/// The quickstart's recipe for `family`; `None` for a family registered from another crate,
+/// which has no shipped files (train it through the library, GUIDE.md "Your own task family").
+pub(crate) fn recipe(family: Family) -> Option<Recipe> {
+    RECIPES.iter().find(|(f, _)| *f == family).map(|(_, r)| *r)
+}
+
+/// One block per built-in family.
+const RECIPES: [(Family, Recipe); 5] = [
+    (
+        Family::POINT_GOAL,
+        Recipe {
             expert: ExpertSource::Scripted,
             shipped_demos: DEMOS_4X_SUB20,
             presets: [preset!("pg-smile-2threads.toml"), ("defaults", "")],
             own_expert: None,
             long_updates: 2,
         },
-        Family::CheetahVel => Recipe {
+    ),
+    (
+        Family::CHEETAH_VEL,
+        Recipe {
             expert: ExpertSource::Sac,
             shipped_demos: DEMOS_4X_SUB20,
             presets: [preset!("cv1000-smile.toml"), preset!("cv1000-bc-roll.toml")],
             own_expert: Some((200, [preset!("cv-smile.toml"), preset!("cv-bc-roll.toml")])),
             long_updates: 1,
         },
-        Family::WalkerDyn => Recipe {
+    ),
+    (
+        Family::WALKER_DYN,
+        Recipe {
             expert: ExpertSource::Sac,
             shipped_demos: DEMOS_4X_SUB20,
             presets: [preset!("wd-smile.toml"), preset!("wd-bc-roll.toml")],
             own_expert: None,
             long_updates: 1,
         },
-        Family::AntGoal => Recipe {
+    ),
+    (
+        Family::ANT_GOAL,
+        Recipe {
             expert: ExpertSource::Sac,
             shipped_demos: DEMOS_4X_SUB20,
             presets: [preset!("ag-smile-rs1.toml"), preset!("ag-bc-roll.toml")],
             own_expert: None,
             long_updates: 1,
         },
-        Family::AntLinClass => Recipe {
+    ),
+    (
+        Family::ANT_LINCLASS,
+        Recipe {
             expert: ExpertSource::ScriptedOver {
                 make: "make it with `smile expert --kind scripted-linclass --goal-expert \
                        assets/experts/ant-goal` and use `smile demos` / `smile train`",
@@ -104,5 +123,5 @@ pub(crate) fn recipe(family: Family) -> Recipe {
             own_expert: None,
             long_updates: 1,
         },
-    }
-}
+    ),
+];

@@ -5,19 +5,20 @@ use super::*;
 #[test]
 fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
     let cheetah = QuickstartConfig {
-        env: Family::CheetahVel,
+        env: Family::CHEETAH_VEL,
         ..QuickstartConfig::default()
     };
     let dir = Quickstart::resolve(&cheetah)
+        .unwrap()
         .shipped
         .expect("assets/experts/cheetah-vel is in the repository");
     assert!(dir.ends_with("assets/experts/cheetah-vel"));
     assert_eq!(
-        Quickstart::resolve(&cheetah).horizon(),
+        Quickstart::resolve(&cheetah).unwrap().horizon(),
         None,
         "the family's 1000 steps"
     );
-    check_budget(&Quickstart::resolve(&cheetah)).unwrap();
+    check_budget(&Quickstart::resolve(&cheetah).unwrap()).unwrap();
     // Elsewhere, or at the tiny budget, it trains its own expert on 200-step episodes.
     for other in [
         QuickstartConfig {
@@ -29,7 +30,7 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
             ..cheetah.clone()
         },
     ] {
-        let other = Quickstart::resolve(&other);
+        let other = Quickstart::resolve(&other).unwrap();
         assert_eq!(other.shipped, None);
         assert_eq!(other.horizon(), Some(200));
         let presets = other.presets().map(|(file, _)| file);
@@ -43,12 +44,14 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
         assets: Some(PathBuf::from("/nonexistent")),
         ..cheetah
     };
-    let err = check_budget(&Quickstart::resolve(&no_assets))
+    let err = check_budget(&Quickstart::resolve(&no_assets).unwrap())
         .unwrap_err()
         .to_string();
     assert!(err.contains("no shipped one"), "{err}");
     assert_eq!(
-        Quickstart::resolve(&QuickstartConfig::default()).shipped,
+        Quickstart::resolve(&QuickstartConfig::default())
+            .unwrap()
+            .shipped,
         None,
         "point-goal is scripted"
     );
@@ -57,16 +60,16 @@ fn cheetah_starts_from_the_shipped_expert_at_the_papers_horizon() {
 #[test]
 fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
     let args = QuickstartConfig {
-        env: Family::AntLinClass,
+        env: Family::ANT_LINCLASS,
         ..QuickstartConfig::default()
     };
-    let resolved = Quickstart::resolve(&args);
+    let resolved = Quickstart::resolve(&args).unwrap();
     let dir = resolved
         .shipped
         .clone()
         .expect("assets/experts/ant-linclass is in the repository");
     assert!(dir.ends_with("assets/experts/ant-linclass"));
-    let (train, test) = recipe(Family::AntLinClass).shipped_demos;
+    let (train, test) = recipe(Family::ANT_LINCLASS).unwrap().shipped_demos;
     assert!(dir.join(train).exists() && dir.join(test).exists());
     let cfg = smile_config(&resolved).unwrap();
     assert_eq!((cfg.max_context, cfg.eval_context_size), (8, 4));
@@ -81,7 +84,7 @@ fn ant_linclass_starts_from_its_shipped_scripted_expert_and_16_demo_files() {
         budget: Budget::Long,
         ..args
     };
-    let err = check_budget(&Quickstart::resolve(&bare))
+    let err = check_budget(&Quickstart::resolve(&bare).unwrap())
         .unwrap_err()
         .to_string();
     assert!(err.contains("scripted-linclass"), "{err}");
@@ -96,20 +99,20 @@ fn its_configs_are_the_documented_files() {
     let docs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/configs");
     let read = |file: &str| std::fs::read_to_string(docs.join(file)).unwrap();
     for (family, smile_file, bc_file) in [
-        (Family::PointGoal, "pg-smile-2threads.toml", None),
+        (Family::POINT_GOAL, "pg-smile-2threads.toml", None),
         (
-            Family::CheetahVel,
+            Family::CHEETAH_VEL,
             "cv1000-smile.toml",
             Some("cv1000-bc-roll.toml"),
         ),
-        (Family::WalkerDyn, "wd-smile.toml", Some("wd-bc-roll.toml")),
+        (Family::WALKER_DYN, "wd-smile.toml", Some("wd-bc-roll.toml")),
         (
-            Family::AntGoal,
+            Family::ANT_GOAL,
             "ag-smile-rs1.toml",
             Some("ag-bc-roll.toml"),
         ),
         (
-            Family::AntLinClass,
+            Family::ANT_LINCLASS,
             "alc-smile.toml",
             Some("alc-bc-roll.toml"),
         ),
@@ -119,7 +122,7 @@ fn its_configs_are_the_documented_files() {
             seed: 5,
             ..QuickstartConfig::default()
         };
-        let q = Quickstart::resolve(&args);
+        let q = Quickstart::resolve(&args).unwrap();
         let mut want: SmileConfig = trainer::from_toml_over_defaults(&read(smile_file)).unwrap();
         (want.env, want.seed, want.learner_threads) = (family, 5, 2);
         assert_eq!(smile_config(&q).unwrap(), want, "{family} vs {smile_file}");
@@ -132,11 +135,11 @@ fn its_configs_are_the_documented_files() {
     }
     // The tiny budget shrinks what the file says, and nothing else.
     let tiny = QuickstartConfig {
-        env: Family::AntGoal,
+        env: Family::ANT_GOAL,
         budget: Budget::Tiny,
         ..QuickstartConfig::default()
     };
-    let cfg = smile_config(&Quickstart::resolve(&tiny)).unwrap();
+    let cfg = smile_config(&Quickstart::resolve(&tiny).unwrap()).unwrap();
     assert_eq!(
         (cfg.total_updates, cfg.sac.hidden.clone()),
         (200, vec![32, 32])
@@ -144,14 +147,14 @@ fn its_configs_are_the_documented_files() {
     assert_eq!(cfg.sac.reward_scale, 1.0, "ag-smile-rs1.toml's scale stays");
     // Point-goal's long budget doubles its file's update pairs; the other families' long
     // budget pays for their own expert, not for more SMILe.
-    for (family, factor) in [(Family::PointGoal, 2), (Family::AntGoal, 1)] {
+    for (family, factor) in [(Family::POINT_GOAL, 2), (Family::ANT_GOAL, 1)] {
         let [short, long] = [Budget::Short, Budget::Long].map(|budget| {
             let args = QuickstartConfig {
                 env: family,
                 budget,
                 ..QuickstartConfig::default()
             };
-            smile_config(&Quickstart::resolve(&args))
+            smile_config(&Quickstart::resolve(&args).unwrap())
                 .unwrap()
                 .total_updates
         });

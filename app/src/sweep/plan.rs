@@ -349,7 +349,7 @@ impl PlanText<'_> {
                 "[eval] `base` and `experts` go together (the walker-dyn normalised metric)".into(),
             ));
         }
-        if plan.eval.base.is_some() && family.spec().nominal_task.is_none() {
+        if plan.eval.base.is_some() && family.nominal_task().is_none() {
             return Err(self.err(
                 Some("base"),
                 format!(
@@ -396,7 +396,7 @@ impl PlanText<'_> {
                 format!("{algo} takes no `expert` (only meta-dagger relabels with one)"),
             ));
         }
-        if kind.needs_expert() && m.expert.is_none() && family != Family::PointGoal {
+        if kind.needs_expert() && m.expert.is_none() && family != Family::POINT_GOAL {
             return Err(self.err(Some(&at), format!("meta-dagger on {family} needs `expert`")));
         }
         Ok((algo, kind))

@@ -53,7 +53,7 @@ pub fn ok(out: &Output) -> String {
 /// Point-goal PD demo files in `dir`: `train.safetensors` (8 meta-train tasks x 2 demos of 20
 /// steps) and `test.safetensors` (every meta-test task x 1); returns (train, test).
 pub fn point_goal_demo_files(dir: &std::path::Path) -> (std::path::PathBuf, std::path::PathBuf) {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let (train, test) = (dir.join("train.safetensors"), dir.join("test.safetensors"));
     pd_demos(Split::Train, fam.train_tasks()[..8].to_vec(), 2, 20)
         .write(&train)

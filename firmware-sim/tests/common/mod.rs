@@ -38,7 +38,7 @@ pub fn firmware_sim(args: &[&str]) -> Output {
 
 /// One point-goal demo of `task` by the scripted PD expert from reset seed `seed`.
 pub fn pd_demo(task: &Task, seed: u64) -> Trajectory {
-    let mut env = make_env(Family::PointGoal, EnvConfig::default()).unwrap();
+    let mut env = make_env(Family::POINT_GOAL, EnvConfig::default()).unwrap();
     let expert = PointGoalPdExpert::default();
     record_trajectory(env.as_mut(), task, seed, |oracle, action| {
         expert.act(oracle, action).unwrap()

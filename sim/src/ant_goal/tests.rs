@@ -25,19 +25,19 @@ fn trace(task: &Task, seed: u64, steps: usize) -> Vec<u32> {
 
 #[test]
 fn same_task_and_seed_give_bit_identical_observations_and_seeds_differ() {
-    let task = Family::AntGoal.test_tasks()[3];
+    let task = Family::ANT_GOAL.test_tasks()[3];
     assert_eq!(trace(&task, 7, 50), trace(&task, 7, 50));
     assert_ne!(trace(&task, 7, 50), trace(&task, 8, 50));
 }
 
 #[test]
 fn splits_are_point_goals_angles_32_train_16_test_disjoint() {
-    let train = Family::AntGoal.train_tasks();
-    let test = Family::AntGoal.test_tasks();
+    let train = Family::ANT_GOAL.train_tasks();
+    let test = Family::ANT_GOAL.test_tasks();
     assert_eq!((train.len(), test.len()), (32, 16));
     for (k, task) in train.iter().enumerate() {
         assert_eq!(*task, Task::ant_goal(k as f32 * PI / 16.0));
-        assert_eq!(task.value(), Family::PointGoal.train_tasks()[k].value());
+        assert_eq!(task.value(), Family::POINT_GOAL.train_tasks()[k].value());
     }
     for (n, task) in test.iter().enumerate() {
         assert_eq!(
@@ -45,18 +45,18 @@ fn splits_are_point_goals_angles_32_train_16_test_disjoint() {
             Task::ant_goal(2.0 * n as f32 * PI / 16.0 + PI / 32.0)
         );
         assert!(!train.contains(task));
-        assert_eq!(task.goal(), Family::PointGoal.test_tasks()[n].goal());
+        assert_eq!(task.goal(), Family::POINT_GOAL.test_tasks()[n].goal());
     }
     // The tolerant lookup and labels work as for point-goal.
-    assert_eq!(Family::AntGoal.task_named(0.4909), Ok(test[1]));
+    assert_eq!(Family::ANT_GOAL.task_named(0.4909), Ok(test[1]));
     assert_eq!(test[1].label(), "goal_angle=0.4909");
     assert_eq!(test[1].parameter(), test[1].goal().unwrap().to_vec());
-    assert_eq!(test[1].family(), Family::AntGoal);
+    assert_eq!(test[1].family(), Family::ANT_GOAL);
 }
 
 #[test]
 fn zero_action_stands_and_a_gait_moves_the_torso() {
-    let task = Family::AntGoal.train_tasks()[0];
+    let task = Family::ANT_GOAL.train_tasks()[0];
     let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     for seed in 0..3 {
         let start = env.reset(&task, seed).unwrap().to_vec();
@@ -87,11 +87,11 @@ fn zero_action_stands_and_a_gait_moves_the_torso() {
 
 #[test]
 fn reward_is_minus_distance_minus_action_cost_and_the_metric_is_the_minimum_distance() {
-    let task = Family::AntGoal.test_tasks()[5];
+    let task = Family::ANT_GOAL.test_tasks()[5];
     let goal = task.goal().unwrap();
-    let mut env = make_env(Family::AntGoal, EnvConfig::default()).unwrap();
+    let mut env = make_env(Family::ANT_GOAL, EnvConfig::default()).unwrap();
     env.reset(&task, 2).unwrap();
-    let mut metric = EpisodeMetric::new(Family::AntGoal);
+    let mut metric = EpisodeMetric::new(Family::ANT_GOAL);
     let mut min_distance = f32::INFINITY;
     for step in 0.. {
         // Out-of-range components are clipped before the cost.
@@ -122,7 +122,7 @@ fn reward_is_minus_distance_minus_action_cost_and_the_metric_is_the_minimum_dist
 
 #[test]
 fn observation_layout_and_oracle_parameter() {
-    let task = Family::AntGoal.test_tasks()[0];
+    let task = Family::ANT_GOAL.test_tasks()[0];
     let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
     env.reset(&task, 1).unwrap();
     for step in 0..20 {
@@ -130,7 +130,7 @@ fn observation_layout_and_oracle_parameter() {
     }
     let o = env.observation().to_vec();
     assert_eq!(o.len(), OBS_DIM);
-    assert_eq!(Family::AntGoal.obs_dim(), OBS_DIM);
+    assert_eq!(Family::ANT_GOAL.obs_dim(), OBS_DIM);
     let q = &o[obs::QUATERNION..obs::QUATERNION + 4];
     assert!((q.iter().map(|c| c * c).sum::<f32>() - 1.0).abs() < 1e-4);
     assert!(q[0] >= 0.0);
@@ -172,13 +172,13 @@ fn bad_actions_and_tasks_are_typed_errors() {
         env.reset(&Task::ant_goal(f32::NAN), 0),
         Err(SimError::InvalidTask { .. })
     ));
-    assert!(Family::AntGoal.task_from_value(f64::INFINITY).is_err());
+    assert!(Family::ANT_GOAL.task_from_value(f64::INFINITY).is_err());
 }
 
 #[test]
 fn frames_are_top_views_with_goal_path_torso_and_twelve_capsules() {
     let mut env = AntGoalEnv::new(EnvConfig::default()).unwrap();
-    let task = Family::AntGoal.test_tasks()[2];
+    let task = Family::ANT_GOAL.test_tasks()[2];
     env.reset(&task, 0).unwrap();
     for step in 0..5 {
         env.step(&gait(step)).unwrap();

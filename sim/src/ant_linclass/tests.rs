@@ -13,8 +13,8 @@ fn gait(step: usize) -> [f32; ACT_DIM] {
 
 #[test]
 fn splits_are_64_train_and_32_test_hyperplanes_disjoint_with_unit_normals() {
-    let train = Family::AntLinClass.train_tasks();
-    let test = Family::AntLinClass.test_tasks();
+    let train = Family::ANT_LINCLASS.train_tasks();
+    let test = Family::ANT_LINCLASS.test_tasks();
     assert_eq!((train.len(), test.len()), (64, 32));
     assert_eq!(train[5], Task::ant_linclass(5));
     assert_eq!(test[2], Task::ant_linclass(10_002));
@@ -33,16 +33,16 @@ fn splits_are_64_train_and_32_test_hyperplanes_disjoint_with_unit_normals() {
     assert!(test.iter().all(|t| !train.contains(t)));
     assert_eq!(test[2].parameter(), test[2].linclass_normal().unwrap());
     assert_eq!(test[2].label(), "hyperplane_seed=10002");
-    assert_eq!(Family::AntLinClass.task_named(10_002.0), Ok(test[2]));
-    assert!(Family::AntLinClass.task_from_value(2.5).is_err());
-    assert!(Family::AntLinClass.task_from_value(-1.0).is_err());
-    assert_eq!(Family::AntLinClass.value_tolerance(), 0.0);
-    assert_eq!("ant-linclass".parse::<Family>(), Ok(Family::AntLinClass));
+    assert_eq!(Family::ANT_LINCLASS.task_named(10_002.0), Ok(test[2]));
+    assert!(Family::ANT_LINCLASS.task_from_value(2.5).is_err());
+    assert!(Family::ANT_LINCLASS.task_from_value(-1.0).is_err());
+    assert_eq!(Family::ANT_LINCLASS.value_tolerance(), 0.0);
+    assert_eq!("ant-linclass".parse::<Family>(), Ok(Family::ANT_LINCLASS));
 }
 
 #[test]
 fn each_episode_shows_one_point_per_side_in_random_order_constant_over_the_episode() {
-    let task = Family::AntLinClass.test_tasks()[0];
+    let task = Family::ANT_LINCLASS.test_tasks()[0];
     let w = task.linclass_normal().unwrap();
     let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     let mut first_positive = 0;
@@ -74,7 +74,7 @@ fn same_task_and_seed_give_bit_identical_episodes() {
     let trace = |seed: u64| {
         let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
         let mut out = env
-            .reset(&Family::AntLinClass.train_tasks()[3], seed)
+            .reset(&Family::ANT_LINCLASS.train_tasks()[3], seed)
             .unwrap()
             .to_vec();
         for step in 0..30 {
@@ -92,8 +92,8 @@ fn same_task_and_seed_give_bit_identical_episodes() {
 fn the_scripted_target_is_the_episodes_correct_target_and_feeds_an_ant_goal_expert() {
     let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
     let mut oracle = vec![0.0; env.oracle_obs_dim()];
-    let mut goal_input = vec![0.0; Family::AntGoal.oracle_obs_dim()];
-    for (i, task) in Family::AntLinClass.test_tasks().iter().enumerate() {
+    let mut goal_input = vec![0.0; Family::ANT_GOAL.oracle_obs_dim()];
+    for (i, task) in Family::ANT_LINCLASS.test_tasks().iter().enumerate() {
         env.reset(task, i as u64).unwrap();
         env.oracle_observation(&mut oracle).unwrap();
         assert_eq!(&oracle[OBS_DIM..], &task.linclass_normal().unwrap());
@@ -118,11 +118,11 @@ fn the_scripted_target_is_the_episodes_correct_target_and_feeds_an_ant_goal_expe
 
 #[test]
 fn standing_still_decides_nothing_earns_nothing_and_is_a_no_op() {
-    let task = Family::AntLinClass.test_tasks()[1];
-    let mut env = make_env(Family::AntLinClass, EnvConfig::default()).unwrap();
+    let task = Family::ANT_LINCLASS.test_tasks()[1];
+    let mut env = make_env(Family::ANT_LINCLASS, EnvConfig::default()).unwrap();
     assert_eq!(env.horizon(), HORIZON);
     env.reset(&task, 0).unwrap();
-    let mut metric = EpisodeMetric::new(Family::AntLinClass);
+    let mut metric = EpisodeMetric::new(Family::ANT_LINCLASS);
     assert_eq!(metric.kind(), MetricKind::ClassificationSuccess);
     loop {
         let t = env.step(&[0.0; ACT_DIM]).unwrap();
@@ -140,7 +140,7 @@ fn standing_still_decides_nothing_earns_nothing_and_is_a_no_op() {
 #[test]
 fn the_metric_reads_the_latched_decision() {
     let run = |samples: &[f32]| {
-        let mut m = EpisodeMetric::new(Family::AntLinClass);
+        let mut m = EpisodeMetric::new(Family::ANT_LINCLASS);
         for &s in samples {
             m.record(&StepInfo {
                 metric_sample: s,
@@ -156,10 +156,10 @@ fn the_metric_reads_the_latched_decision() {
     assert_eq!(run(&[]).1, None, "no decision can be judged before a step");
     // Fresh accumulators compare equal (no NaN inside).
     assert_eq!(
-        EpisodeMetric::new(Family::AntLinClass),
-        EpisodeMetric::new(Family::AntLinClass)
+        EpisodeMetric::new(Family::ANT_LINCLASS),
+        EpisodeMetric::new(Family::ANT_LINCLASS)
     );
-    assert_eq!(EpisodeMetric::new(Family::AntGoal).no_op(), None);
+    assert_eq!(EpisodeMetric::new(Family::ANT_GOAL).no_op(), None);
     for d in [Decision::Undecided, Decision::Correct, Decision::Wrong] {
         assert_eq!(Decision::from_sample(d.sample()), d);
     }
@@ -185,7 +185,7 @@ fn bad_actions_and_tasks_are_typed_errors() {
 #[test]
 fn frames_show_both_targets_the_correct_one_filled() {
     let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
-    env.reset(&Family::AntLinClass.test_tasks()[0], 1).unwrap();
+    env.reset(&Family::ANT_LINCLASS.test_tasks()[0], 1).unwrap();
     for step in 0..3 {
         env.step(&gait(step)).unwrap();
     }
@@ -211,7 +211,7 @@ fn frames_show_both_targets_the_correct_one_filled() {
 fn tasks_draw_their_own_points_for_the_same_reset_seed() {
     // Demos of different tasks recorded with the same reset seeds must not share their points.
     let mut env = AntLinClassEnv::new(EnvConfig::default()).unwrap();
-    let tasks = Family::AntLinClass.train_tasks();
+    let tasks = Family::ANT_LINCLASS.train_tasks();
     let mut firsts: Vec<Vec<u32>> = tasks
         .iter()
         .map(|t| {

@@ -8,10 +8,10 @@ pub(super) fn point_goal_demos(tasks: usize, per_task: usize, horizon: usize) ->
         horizon: Some(horizon),
         ..EnvConfig::default()
     };
-    let mut env = make_env(Family::PointGoal, config).unwrap();
+    let mut env = make_env(Family::POINT_GOAL, config).unwrap();
     let expert = PointGoalPdExpert::default();
-    let mut dataset = DemoDataset::new(Family::PointGoal, Split::Train, "scripted-pd");
-    for task in Family::PointGoal.train_tasks().into_iter().take(tasks) {
+    let mut dataset = DemoDataset::new(Family::POINT_GOAL, Split::Train, "scripted-pd");
+    for task in Family::POINT_GOAL.train_tasks().into_iter().take(tasks) {
         let trajectories = (0..per_task as u64)
             .map(|seed| {
                 record_trajectory(env.as_mut(), &task, seed, |oracle, action| {
@@ -125,7 +125,7 @@ fn corrupt_and_foreign_files_give_named_errors() {
 fn mismatched_metadata_and_families_are_rejected() {
     let dataset = point_goal_demos(1, 1, 10);
     assert!(matches!(
-        dataset.ensure_family(Family::CheetahVel),
+        dataset.ensure_family(Family::CHEETAH_VEL),
         Err(DatasetError::FamilyMismatch { .. })
     ));
     // Rewrite the header claiming another family: its dimensions no longer match.

@@ -1,36 +1,37 @@
 //! The splits, names and the tolerant task lookup.
 
 use super::*;
+use crate::dynamics::WalkerDynamics;
 use std::f32::consts::PI;
 
 #[test]
 fn splits_match_the_reference() {
-    let train = Family::PointGoal.train_tasks();
+    let train = Family::POINT_GOAL.train_tasks();
     assert_eq!(train.len(), 32);
     assert!((train[3].value() - 3.0 * std::f64::consts::PI / 16.0).abs() < 1e-6);
-    let test = Family::PointGoal.test_tasks();
+    let test = Family::POINT_GOAL.test_tasks();
     assert_eq!(test.len(), 16);
     assert!((test[1].value() - (2.0 * PI / 16.0 + PI / 32.0) as f64).abs() < 1e-6);
-    let train = Family::CheetahVel.train_tasks();
+    let train = Family::CHEETAH_VEL.train_tasks();
     assert_eq!(train.len(), 31);
     assert!((train[30].value() - 3.0).abs() < 1e-5);
-    let test = Family::CheetahVel.test_tasks();
+    let test = Family::CHEETAH_VEL.test_tasks();
     assert_eq!(test.len(), 30);
     assert!((test[0].value() - 0.05).abs() < 1e-6);
     assert!((test[29].value() - 2.95).abs() < 1e-5);
-    assert_eq!(Family::AntGoal.train_tasks().len(), 32);
-    assert_eq!(Family::AntGoal.test_tasks().len(), 16);
+    assert_eq!(Family::ANT_GOAL.train_tasks().len(), 32);
+    assert_eq!(Family::ANT_GOAL.test_tasks().len(), 16);
     assert_eq!(
-        Family::AntGoal.tasks(Split::Test)[1].value(),
-        Family::PointGoal.test_tasks()[1].value()
+        Family::ANT_GOAL.tasks(Split::Test)[1].value(),
+        Family::POINT_GOAL.test_tasks()[1].value()
     );
-    assert_eq!(Family::WalkerDyn.train_tasks().len(), 50);
-    assert_eq!(Family::WalkerDyn.test_tasks().len(), 25);
+    assert_eq!(Family::WALKER_DYN.train_tasks().len(), 50);
+    assert_eq!(Family::WALKER_DYN.test_tasks().len(), 25);
 }
 
 #[test]
 fn train_and_test_tasks_are_disjoint() {
-    for family in Family::ALL {
+    for family in Family::BUILTIN {
         let train = family.train_tasks();
         for task in family.test_tasks() {
             assert!(!train.contains(&task), "{task} is in both splits");
@@ -40,16 +41,17 @@ fn train_and_test_tasks_are_disjoint() {
 
 #[test]
 fn family_names_round_trip_and_unknown_names_fail() {
-    for family in Family::ALL {
+    for family in Family::BUILTIN {
         assert_eq!(family.to_string().parse::<Family>(), Ok(family));
     }
-    assert_eq!(
-        "ant".parse::<Family>(),
-        Err(SimError::UnknownFamily("ant".into()))
+    let err = "ant".parse::<Family>().unwrap_err();
+    assert!(
+        matches!(&err, SimError::UnknownFamily { name, .. } if name == "ant"),
+        "{err:?}"
     );
     // The message lists every family the parser accepts.
-    let msg = SimError::UnknownFamily("ant".into()).to_string();
-    for family in Family::ALL {
+    let msg = err.to_string();
+    for family in Family::all() {
         assert!(msg.contains(family.name()), "{msg}");
     }
     assert_eq!("test".parse::<Split>(), Ok(Split::Test));
@@ -61,56 +63,59 @@ fn family_names_round_trip_and_unknown_names_fail() {
 
 #[test]
 fn task_from_value_round_trips() {
-    for family in Family::ALL {
+    for family in Family::BUILTIN {
         for task in family.test_tasks() {
             assert_eq!(family.task_from_value(task.value()), Ok(task));
         }
     }
-    assert!(Family::WalkerDyn.task_from_value(1.5).is_err());
-    assert!(Family::CheetahVel.task_from_value(f64::NAN).is_err());
+    assert!(Family::WALKER_DYN.task_from_value(1.5).is_err());
+    assert!(Family::CHEETAH_VEL.task_from_value(f64::NAN).is_err());
 }
 
 #[test]
 fn a_value_read_off_a_label_names_its_task_and_a_far_value_lists_the_tasks() {
-    let tests = Family::PointGoal.test_tasks();
+    let tests = Family::POINT_GOAL.test_tasks();
     // test goal 1 is 0.490874 rad; its label prints 0.4909.
     assert_eq!(tests[1].label(), "goal_angle=0.4909");
-    assert_eq!(Family::PointGoal.find_task(0.4909, &tests), Ok(1));
+    assert_eq!(Family::POINT_GOAL.find_task(0.4909, &tests), Ok(1));
     assert!(tests[1].is_named_by(0.4909));
     assert!(!tests[1].is_named_by(0.4909 + 2.0 * TASK_VALUE_TOLERANCE));
-    assert_eq!(Family::PointGoal.task_named(0.4909), Ok(tests[1]));
+    assert_eq!(Family::POINT_GOAL.task_named(0.4909), Ok(tests[1]));
     // A value far from every task is a new task with exactly that value.
-    assert_eq!(Family::PointGoal.task_named(0.3), Ok(Task::point_goal(0.3)));
-    let err = Family::PointGoal.find_task(0.5, &tests).unwrap_err();
+    assert_eq!(
+        Family::POINT_GOAL.task_named(0.3),
+        Ok(Task::point_goal(0.3))
+    );
+    let err = Family::POINT_GOAL.find_task(0.5, &tests).unwrap_err();
     let message = err.to_string();
     assert!(matches!(err, SimError::NoTaskNear { .. }), "{err:?}");
     assert!(message.contains("within 0.001 of 0.5"), "{message}");
     assert!(message.contains("0.0982, 0.4909, 0.8836"), "{message}");
     // f32 0.35 is 0.3499999940395355 as f64, which an exact comparison missed.
-    let cheetah = Family::CheetahVel.test_tasks();
-    assert_eq!(Family::CheetahVel.find_task(0.35, &cheetah), Ok(3));
-    assert_eq!(Family::CheetahVel.find_task(0.25, &cheetah), Ok(2));
+    let cheetah = Family::CHEETAH_VEL.test_tasks();
+    assert_eq!(Family::CHEETAH_VEL.find_task(0.35, &cheetah), Ok(3));
+    assert_eq!(Family::CHEETAH_VEL.find_task(0.25, &cheetah), Ok(2));
     assert_eq!(
-        Family::CheetahVel.task_named(0.35),
+        Family::CHEETAH_VEL.task_named(0.35),
         Ok(Task::cheetah_vel(0.05 + 3.0 * 0.1))
     );
     // Seeds are integers: exact, and the nominal walker is known.
-    let walker = Family::WalkerDyn.test_tasks();
-    assert_eq!(Family::WalkerDyn.find_task(10_003.0, &walker), Ok(3));
-    let err = Family::WalkerDyn.find_task(3.0, &walker).unwrap_err();
+    let walker = Family::WALKER_DYN.test_tasks();
+    assert_eq!(Family::WALKER_DYN.find_task(10_003.0, &walker), Ok(3));
+    let err = Family::WALKER_DYN.find_task(3.0, &walker).unwrap_err();
     assert!(err.to_string().contains("equal to 3;"), "{err}");
     assert_eq!(
-        Family::WalkerDyn.task_named(WALKER_NOMINAL_SEED as f64),
+        Family::WALKER_DYN.task_named(WALKER_NOMINAL_SEED as f64),
         Ok(Task::walker_nominal())
     );
     // Tasks of another family are never matched; an empty list says "none".
-    let err = Family::PointGoal.find_task(0.05, &cheetah).unwrap_err();
+    let err = Family::POINT_GOAL.find_task(0.05, &cheetah).unwrap_err();
     assert!(err.to_string().ends_with("available: none"), "{err}");
 }
 
 #[test]
 fn no_value_names_two_tasks_of_a_family() {
-    for family in Family::ALL {
+    for family in Family::BUILTIN {
         let mut all = family.train_tasks();
         all.extend(family.test_tasks());
         for (i, a) in all.iter().enumerate() {
@@ -127,11 +132,11 @@ fn no_value_names_two_tasks_of_a_family() {
 fn the_nominal_walker_seed_is_the_unmodified_robot_in_neither_split() {
     let nominal = Task::walker_nominal();
     assert_eq!(
-        Family::WalkerDyn.task_from_value(WALKER_NOMINAL_SEED as f64),
+        Family::WALKER_DYN.task_from_value(WALKER_NOMINAL_SEED as f64),
         Ok(nominal)
     );
     assert_eq!(
-        Family::WalkerDyn.task_from_value(nominal.value()),
+        Family::WALKER_DYN.task_from_value(nominal.value()),
         Ok(nominal)
     );
     assert_eq!(nominal.walker_dynamics(), Some(WalkerDynamics::nominal()));
@@ -144,7 +149,7 @@ fn the_nominal_walker_seed_is_the_unmodified_robot_in_neither_split() {
     assert_eq!(parameter.len(), WalkerDynamics::VECTOR_DIM);
     assert!(parameter.iter().all(|p| *p == 0.0), "{parameter:?}");
     for split in [Split::Train, Split::Test] {
-        let tasks = Family::WalkerDyn.tasks(split);
+        let tasks = Family::WALKER_DYN.tasks(split);
         assert!(
             !tasks.contains(&nominal),
             "nominal walker in the {split} split"

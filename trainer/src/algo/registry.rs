@@ -130,7 +130,7 @@ mod tests {
 
     #[test]
     fn configs_are_checked_against_their_algorithm() {
-        let pg = Family::PointGoal;
+        let pg = Family::POINT_GOAL;
         Algo::Smile.check_config("gp_weight = 10.0", pg).unwrap();
         // Counts a flag refuses are refused from a file too (issue 57, item 7), and so is a
         // family the plan does not run.

@@ -177,9 +177,9 @@ mod tests {
     use sim::{EnvConfig, Task};
 
     fn dataset(split: Split, tasks: Vec<Task>) -> DemoDataset {
-        let mut ds = DemoDataset::new(Family::PointGoal, split, "scripted-pd");
+        let mut ds = DemoDataset::new(Family::POINT_GOAL, split, "scripted-pd");
         let mut env = sim::make_env(
-            Family::PointGoal,
+            Family::POINT_GOAL,
             EnvConfig {
                 horizon: Some(5),
                 ..EnvConfig::default()
@@ -200,7 +200,7 @@ mod tests {
 
     #[test]
     fn refuses_meta_test_data() {
-        let fam = Family::PointGoal;
+        let fam = Family::POINT_GOAL;
         let test = dataset(Split::Test, fam.test_tasks()[..2].to_vec());
         let e = MetaData::from_dataset(&test, fam, 0)
             .unwrap_err()
@@ -224,7 +224,7 @@ mod tests {
     #[test]
     fn context_draws_cap_the_steps_of_unmasked_trajectories() {
         use rand::SeedableRng;
-        let fam = Family::PointGoal;
+        let fam = Family::POINT_GOAL;
         let mut ds = dataset(Split::Train, fam.train_tasks()[..1].to_vec());
         let tr = ds.tasks[0].trajectories[0].clone();
         ds.tasks[0].trajectories = vec![tr.clone(), tr.clone(), tr];

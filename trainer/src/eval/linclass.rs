@@ -78,8 +78,8 @@ fn sub(a: &Point, b: &Point) -> Point {
 
 /// The ant-linclass task's hyperplane seed and normal; an error for any other task.
 fn hyperplane(task: &Task) -> Result<(u64, [f32; POINT_DIM])> {
-    match (*task, task.linclass_normal()) {
-        (Task::AntLinClass { hyperplane_seed }, Some(normal)) => Ok((hyperplane_seed, normal)),
+    match (task.hyperplane_seed(), task.linclass_normal()) {
+        (Some(hyperplane_seed), Some(normal)) => Ok((hyperplane_seed, normal)),
         _ => Err(Error::Data(format!(
             "{} is not an ant-linclass task",
             task.label()
@@ -118,10 +118,10 @@ impl DemoLabel {
 
 /// The label of demo `tr` of a task with unit normal `normal`, in a dataset of `obs_dim`.
 pub fn demo_label(tr: &Trajectory, normal: &[f32; POINT_DIM], obs_dim: usize) -> Result<DemoLabel> {
-    if obs_dim != Family::AntLinClass.obs_dim() {
+    if obs_dim != Family::ANT_LINCLASS.obs_dim() {
         return Err(Error::Shape(format!(
             "ant-linclass observations have {} entries, the demos {obs_dim}",
-            Family::AntLinClass.obs_dim()
+            Family::ANT_LINCLASS.obs_dim()
         )));
     }
     let n = tr.len();
@@ -146,7 +146,7 @@ pub fn demo_label(tr: &Trajectory, normal: &[f32; POINT_DIM], obs_dim: usize) ->
 
 /// Every demo's label, per task of `ds` (in its order).
 pub fn dataset_labels(ds: &DemoDataset) -> Result<Vec<Vec<DemoLabel>>> {
-    ds.ensure_family(Family::AntLinClass)?;
+    ds.ensure_family(Family::ANT_LINCLASS)?;
     ds.tasks
         .iter()
         .map(|td| {
@@ -231,7 +231,7 @@ fn nearest_centroid(rows: &[(bool, &[f32])]) -> (f64, f64) {
 /// Per time step, how visible the correct side is in `ds`'s demos, and the fraction of all
 /// kept transitions that show it clearly.
 pub fn visibility(ds: &DemoDataset) -> Result<(Vec<StepVisibility>, f64)> {
-    ds.ensure_family(Family::AntLinClass)?;
+    ds.ensure_family(Family::ANT_LINCLASS)?;
     let d = ds.obs_dim;
     let a = ds.act_dim;
     let mut by_step: std::collections::BTreeMap<u32, Vec<f64>> = Default::default();
@@ -462,7 +462,7 @@ pub fn information_bound(
     setup: &BoundSetup,
     prior: &PriorSamples,
 ) -> Result<Vec<BoundRow>> {
-    let family = Family::AntLinClass;
+    let family = Family::ANT_LINCLASS;
     let tasks = family.tasks(split);
     let demos = contexts_for(contexts, family, &tasks)?;
     let mut rows = Vec::with_capacity(setup.sizes.len());
@@ -583,7 +583,7 @@ pub fn probe_decisions(rows: &[LatentRow], rollouts: usize) -> Result<Vec<ProbeR
             } else {
                 0.0
             });
-            let task = Family::AntLinClass
+            let task = Family::ANT_LINCLASS
                 .task_from_value(r.value)
                 .map_err(|e| Error::Data(format!("latent row of task {}: {e}", r.task)))?;
             let (hseed, normal) = hyperplane(&task)?;
@@ -666,7 +666,7 @@ pub fn trace_episodes(
     setup: &BoundSetup,
     env_config: EnvConfig,
 ) -> Result<Vec<EpisodeTrace>> {
-    let family = Family::AntLinClass;
+    let family = Family::ANT_LINCLASS;
     let tasks = family.tasks(split);
     let demos = contexts_for(contexts, family, &tasks)?;
     let mut env = sim::make_env(family, env_config)?;

@@ -38,7 +38,7 @@ impl References {
     /// walker-dyn has it), a policy of another family or with the wrong observation width, a
     /// base not trained on the unmodified dynamics.
     pub fn load(family: Family, base: &Path, experts: &[impl AsRef<Path>]) -> Result<Self> {
-        let Some(nominal) = family.spec().nominal_task else {
+        let Some(nominal) = family.nominal_task() else {
             return Err(Error::input(
                 crate::error::Input::Base,
                 format!(
@@ -180,7 +180,7 @@ mod tests {
     /// test loading rules).
     fn walker_policy(dir: &Path, task_value: Option<f64>) {
         let cfg = ExpertConfig {
-            env: sim::Family::WalkerDyn,
+            env: sim::Family::WALKER_DYN,
             task_value,
             buffer_capacity: 10,
             sac: SacConfig {
@@ -199,7 +199,7 @@ mod tests {
         let (base, general) = (d.join("base"), d.join("general"));
         walker_policy(&base, Some(sim::WALKER_NOMINAL_SEED as f64));
         walker_policy(&general, None);
-        let refs = References::load(Family::WalkerDyn, &base, &[&general]).unwrap();
+        let refs = References::load(Family::WALKER_DYN, &base, &[&general]).unwrap();
         assert!(refs.base_name.contains("base") && refs.expert_name.contains("general"));
         let config_err = |r: Result<References>, needle: &str| match r {
             Err(Error::Data(m) | Error::Input { problem: m, .. }) => {
@@ -209,18 +209,18 @@ mod tests {
         };
         // Only walker-dyn has the metric.
         config_err(
-            References::load(Family::CheetahVel, &base, &[&general]),
+            References::load(Family::CHEETAH_VEL, &base, &[&general]),
             "walker-dyn only",
         );
         // A base trained on all train tasks, or on a test task, is not the base.
         config_err(
-            References::load(Family::WalkerDyn, &general, &[&general]),
+            References::load(Family::WALKER_DYN, &general, &[&general]),
             "nominal task",
         );
         let seeded = d.join("seeded");
         walker_policy(&seeded, Some(sim::WALKER_TEST_SEED_BASE as f64));
         config_err(
-            References::load(Family::WalkerDyn, &seeded, &[&general]),
+            References::load(Family::WALKER_DYN, &seeded, &[&general]),
             "task 10000",
         );
         // Another family's policy, as base or as expert.
@@ -228,8 +228,8 @@ mod tests {
         std::fs::create_dir_all(&pd).unwrap();
         crate::algo::expert::export_scripted_pd(&pd).unwrap();
         for r in [
-            References::load(Family::WalkerDyn, &pd, &[&general]),
-            References::load(Family::WalkerDyn, &base, &[&pd]),
+            References::load(Family::WALKER_DYN, &pd, &[&general]),
+            References::load(Family::WALKER_DYN, &base, &[&pd]),
         ] {
             match r {
                 Err(
@@ -237,7 +237,7 @@ mod tests {
                         found, expected, ..
                     },
                 ) => {
-                    assert_eq!((found, expected), (Family::PointGoal, Family::WalkerDyn));
+                    assert_eq!((found, expected), (Family::POINT_GOAL, Family::WALKER_DYN));
                     assert!(
                         e.to_string()
                             .contains("pd: family point-goal, expected walker-dyn"),
@@ -257,12 +257,12 @@ mod tests {
         crate::io::checkpoint::save(&narrow, &[], &meta).unwrap();
         let narrow_file = narrow.join(crate::io::checkpoint::CHECKPOINT_FILE);
         assert!(matches!(
-            References::load(Family::WalkerDyn, &narrow_file, &[&general]),
+            References::load(Family::WALKER_DYN, &narrow_file, &[&general]),
             Err(Error::Checkpoint { .. })
         ));
         // A per-task expert set that misses a test task fails before any rollout.
-        let only_one = References::load(Family::WalkerDyn, &base, &[&seeded]).unwrap();
-        let protocol = Protocol::for_family(Family::WalkerDyn);
+        let only_one = References::load(Family::WALKER_DYN, &base, &[&seeded]).unwrap();
+        let protocol = Protocol::for_family(Family::WALKER_DYN);
         assert!(matches!(
             only_one.returns(Split::Test, &protocol, &mut |_, _| {}),
             Err(Error::Input { input: crate::error::Input::Expert, problem })

@@ -62,9 +62,9 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
         normalised: None,
     };
     let plain = EvalReport::new(
-        Family::WalkerDyn,
+        Family::WALKER_DYN,
         Split::Test,
-        Protocol::for_family(Family::WalkerDyn),
+        Protocol::for_family(Family::WALKER_DYN),
         vec![method],
     );
     let old_json = serde_json::to_string(&plain).unwrap();
@@ -108,10 +108,10 @@ fn reports_with_references_score_every_method_and_old_reports_still_parse() {
 
 #[test]
 fn ant_goal_is_evaluated_with_the_papers_figure_2_protocol_and_metric() {
-    let p = Protocol::for_family(Family::AntGoal);
+    let p = Protocol::for_family(Family::ANT_GOAL);
     assert_eq!((p.context_sizes, p.draws, p.rollouts), (vec![1], 3, 10));
     assert_eq!(
-        metric_name(Family::AntGoal.metric_kind()),
+        metric_name(Family::ANT_GOAL.metric_kind()),
         "min distance to goal"
     );
 }
@@ -145,7 +145,7 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
         run_through_falls: false,
         physics: Default::default(),
     };
-    let family = Family::AntLinClass;
+    let family = Family::ANT_LINCLASS;
     let m = evaluate(
         &mut StandStill,
         "still",
@@ -175,7 +175,7 @@ fn classification_evaluations_report_success_and_the_no_op_rate_per_context_size
     // The JSON carries it for `smile report`.
     let json = serde_json::to_string(&report).unwrap();
     assert!(json.contains("no_op_rate"));
-    let p = Protocol::for_family(Family::AntLinClass);
+    let p = Protocol::for_family(Family::ANT_LINCLASS);
     assert_eq!(p.context_sizes, vec![1, 2, 4, 8]);
 }
 
@@ -199,7 +199,7 @@ fn action_noise_perturbs_every_episode_reproducibly_and_zero_changes_nothing() {
         evaluate(
             &mut StandStill,
             "still",
-            Family::PointGoal,
+            Family::POINT_GOAL,
             Split::Test,
             &contexts,
             &protocol,
@@ -233,12 +233,12 @@ fn the_authors_walker_protocol_runs_through_falls() {
             horizon: Some(300),
             run_through_falls,
             physics: Default::default(),
-            ..Protocol::for_family(Family::WalkerDyn)
+            ..Protocol::for_family(Family::WALKER_DYN)
         };
         evaluate(
             &mut StandStill,
             "still",
-            Family::WalkerDyn,
+            Family::WALKER_DYN,
             Split::Test,
             &contexts,
             &protocol,
@@ -265,7 +265,7 @@ fn the_authors_walker_protocol_runs_through_falls() {
     let assets = Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts/point-goal");
     let mut req = super::request::EvalRequest::new(
         vec![assets.join("no-policy-needed")],
-        Family::PointGoal,
+        Family::POINT_GOAL,
         Split::Test,
         assets.join("demos-test-4x-sub20.safetensors"),
         std::env::temp_dir().join("never-written"),
@@ -291,7 +291,7 @@ fn report_with_mean(mean: f32) -> EvalReport {
         no_op_by_context_size: None,
         normalised: None,
     };
-    let family = Family::WalkerDyn;
+    let family = Family::WALKER_DYN;
     EvalReport::new(
         family,
         Split::Test,

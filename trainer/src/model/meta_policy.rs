@@ -179,7 +179,7 @@ mod tests {
             let mut rng = ChaCha8Rng::seed_from_u64(3);
             let policy = TanhGaussianPolicy::new(8, 2, &[16, 16], (-20.0, 2.0), &mut rng).unwrap();
             let mp = MetaPolicy {
-                family: Family::PointGoal,
+                family: Family::POINT_GOAL,
                 physics: sim::Physics::Rapier,
                 algo: "test".into(),
                 norm,
@@ -242,7 +242,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(4);
         let policy = TanhGaussianPolicy::new(8, 2, &[16], (-20.0, 2.0), &mut rng).unwrap();
         let mp = MetaPolicy {
-            family: Family::PointGoal,
+            family: Family::POINT_GOAL,
             physics: sim::Physics::Rapier,
             algo: "meta-bc".into(),
             norm,

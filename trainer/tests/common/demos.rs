@@ -7,7 +7,7 @@ use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 /// `per_task` scripted-PD point-goal demos of `horizon` steps for each of `tasks` (reset seeds
 /// 0, 1, ...), labelled `split`.
 pub fn pd_demos(split: Split, tasks: Vec<Task>, per_task: usize, horizon: usize) -> DemoDataset {
-    let fam = Family::PointGoal;
+    let fam = Family::POINT_GOAL;
     let mut ds = DemoDataset::new(fam, split, "scripted-pd");
     let env_config = EnvConfig {
         horizon: Some(horizon),
@@ -55,7 +55,7 @@ pub fn open_loop_demos(
 pub fn train_demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     pd_demos(
         Split::Train,
-        Family::PointGoal
+        Family::POINT_GOAL
             .train_tasks()
             .into_iter()
             .take(tasks)

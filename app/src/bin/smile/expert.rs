@@ -147,7 +147,7 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
         bail!("--keep-best needs evaluations: set --eval-every above 0");
     }
     if a.nominal {
-        let Some(nominal) = cfg.env.spec().nominal_task else {
+        let Some(nominal) = cfg.env.nominal_task() else {
             bail!(
                 "--nominal trains on a family's nominal task (walker-dyn's unmodified walker); {} \
                  has none",
@@ -165,8 +165,8 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
 /// Run `smile expert`.
 pub fn run(a: ExpertArgs) -> Result<()> {
     if a.kind == ExpertKind::ScriptedPd {
-        let env = a.env.unwrap_or(Family::PointGoal);
-        if env != Family::PointGoal {
+        let env = a.env.unwrap_or(Family::POINT_GOAL);
+        if env != Family::POINT_GOAL {
             bail!("the scripted PD expert exists only for point-goal, not {env}");
         }
         let dir = a
@@ -179,8 +179,8 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         return finish(&dir, a.eval_episodes, None, EnvConfig::default());
     }
     if a.kind == ExpertKind::ScriptedLinclass {
-        let env = a.env.unwrap_or(Family::AntLinClass);
-        if env != Family::AntLinClass {
+        let env = a.env.unwrap_or(Family::ANT_LINCLASS);
+        if env != Family::ANT_LINCLASS {
             bail!("the scripted classification expert exists only for ant-linclass, not {env}");
         }
         let Some(goal) = &a.goal_expert else {

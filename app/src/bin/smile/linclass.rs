@@ -113,7 +113,7 @@ struct Diagnosis {
 const CHECKPOINTS: [usize; 5] = [5, 10, 15, 25, 50];
 
 fn read(path: &Path, input: trainer::Input, split: Split) -> Result<DemoDataset> {
-    let ds = trainer::run::read_demos_of(path, input, Family::AntLinClass)?;
+    let ds = trainer::run::read_demos_of(path, input, Family::ANT_LINCLASS)?;
     if ds.split != split {
         bail!(
             "{} holds {} demos, expected {split}",
@@ -277,7 +277,7 @@ fn diagnose_policy(
     if let Some(warning) = MetaPolicy::ensure_finished(path, a.allow_unfinished)? {
         eprintln!("{warning}");
     }
-    if policy.family != Family::AntLinClass {
+    if policy.family != Family::ANT_LINCLASS {
         bail!("a {} policy, not an ant-linclass one", policy.family);
     }
     ctx.ensure_physics(policy.physics)
@@ -285,7 +285,7 @@ fn diagnose_policy(
     let mut probe = |ds: &DemoDataset, split: Split| -> Result<Vec<ProbeRow>> {
         let rows = latents::latents(
             &mut policy,
-            Family::AntLinClass,
+            Family::ANT_LINCLASS,
             split,
             ds,
             &setup.sizes,
@@ -318,7 +318,7 @@ fn diagnose_policy(
     }
     let protocol = Protocol {
         physics: policy.physics,
-        ..Protocol::for_family(Family::AntLinClass)
+        ..Protocol::for_family(Family::ANT_LINCLASS)
     };
     let mut timing_of = |ds: &DemoDataset, split: Split| -> Result<Vec<TimingRow>> {
         let traces =

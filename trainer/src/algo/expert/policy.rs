@@ -32,7 +32,7 @@ pub(super) fn write_policy(
 pub fn export_scripted_pd(dir: &Path) -> Result<()> {
     let pd = PointGoalPdExpert::default();
     let meta = serde_json::json!({
-        "kind": "expert-policy", "expert": "scripted-pd", "env": Family::PointGoal.name(),
+        "kind": "expert-policy", "expert": "scripted-pd", "env": Family::POINT_GOAL.name(),
         "kp": pd.kp, "kd": pd.kd,
     });
     write_policy(dir, POLICY_FILE, &[], &meta)
@@ -56,7 +56,7 @@ pub fn export_scripted_linclass(goal_expert: &Path, aim_scale: f32, dir: &Path) 
     };
     let ck = checkpoint::load(&file)?;
     let is_goal_sac = ck.meta.get("expert").and_then(|k| k.as_str()) == Some("sac-oracle")
-        && ck.meta.get("env").and_then(|k| k.as_str()) == Some(Family::AntGoal.name());
+        && ck.meta.get("env").and_then(|k| k.as_str()) == Some(Family::ANT_GOAL.name());
     if ck.meta.get("kind").and_then(|k| k.as_str()) != Some("expert-policy") || !is_goal_sac {
         return Err(Error::Checkpoint {
             path: file,
@@ -66,7 +66,7 @@ pub fn export_scripted_linclass(goal_expert: &Path, aim_scale: f32, dir: &Path) 
         });
     }
     // Loads as the actor it will be (input and output widths checked) before anything is written.
-    let goal = Family::AntGoal;
+    let goal = Family::ANT_GOAL;
     let bad = |r: &str| Error::Checkpoint {
         path: file.clone(),
         reason: r.to_string(),
@@ -79,7 +79,7 @@ pub fn export_scripted_linclass(goal_expert: &Path, aim_scale: f32, dir: &Path) 
         .collect::<Result<Vec<_>>>()?;
     let meta = serde_json::json!({
         "kind": "expert-policy", "expert": "scripted-linclass",
-        "env": Family::AntLinClass.name(), "widths": widths, "log_std_bounds": bounds,
+        "env": Family::ANT_LINCLASS.name(), "widths": widths, "log_std_bounds": bounds,
         "physics": policy_physics(&ck, &file)?.name(),
         "goal_expert": file.display().to_string(), "aim_scale": aim_scale,
     });
@@ -199,8 +199,8 @@ impl Expert {
                     policy,
                 })
             }
-            "scripted-linclass" if family == Family::AntLinClass => {
-                let goal = Family::AntGoal;
+            "scripted-linclass" if family == Family::ANT_LINCLASS => {
+                let goal = Family::ANT_GOAL;
                 let policy = load_actor(&ck, goal.oracle_obs_dim(), goal.act_dim(), &bad)?;
                 let physics = policy_physics(&ck, &file)?;
                 let aim_scale = match ck.meta.get("aim_scale") {
@@ -230,8 +230,8 @@ impl Expert {
     pub fn family(&self) -> Family {
         match self {
             Expert::Sac { family, .. } => *family,
-            Expert::ScriptedPd(_) => Family::PointGoal,
-            Expert::ScriptedLinClass { .. } => Family::AntLinClass,
+            Expert::ScriptedPd(_) => Family::POINT_GOAL,
+            Expert::ScriptedLinClass { .. } => Family::ANT_LINCLASS,
         }
     }
 

@@ -29,8 +29,8 @@ fn demo(first: &[f32; POINT_DIM], second: &[f32; POINT_DIM], x: f32, seed: u64) 
 /// Test-split contexts of 16 demos per task by a perfect expert (ends at x = +-1.5); the
 /// first `flip` demos of every task walk the other way.
 fn contexts(flip: usize) -> DemoDataset {
-    let mut ds = DemoDataset::new(Family::AntLinClass, Split::Test, "synthetic");
-    for task in Family::AntLinClass.test_tasks() {
+    let mut ds = DemoDataset::new(Family::ANT_LINCLASS, Split::Test, "synthetic");
+    for task in Family::ANT_LINCLASS.test_tasks() {
         let (hseed, normal) = hyperplane(&task).unwrap();
         let trajectories = (0..16u64)
             .map(|j| {
@@ -51,7 +51,7 @@ fn contexts(flip: usize) -> DemoDataset {
 
 #[test]
 fn a_demo_shows_the_side_it_walked_to_and_the_truth() {
-    let task = Family::AntLinClass.test_tasks()[0];
+    let task = Family::ANT_LINCLASS.test_tasks()[0];
     let (hseed, normal) = hyperplane(&task).unwrap();
     let (a, b, first_positive) = draw_pair(&normal, hseed, 3);
     let walked = demo(&a, &b, if first_positive { 1.4 } else { -1.4 }, 3);
@@ -147,7 +147,7 @@ fn the_bound_grows_with_the_context_and_counts_what_the_demos_hide() {
     let noisy = information_bound(&contexts(2), Split::Test, &setup, &prior).unwrap();
     assert_eq!(noisy[1].demos_mislabelled, 2 * 32 * 2);
     // Other families' data are refused.
-    let other = DemoDataset::new(Family::PointGoal, Split::Test, "x");
+    let other = DemoDataset::new(Family::POINT_GOAL, Split::Test, "x");
     assert!(information_bound(&other, Split::Test, &setup, &prior).is_err());
     assert!(visibility(&other).is_err());
 }
@@ -185,7 +185,7 @@ fn the_nearest_centroid_tells_separated_actions_apart() {
 #[test]
 fn the_probe_scores_decisions_from_a_latent_that_is_the_normal() {
     let rows_of = |noise: bool| -> Vec<LatentRow> {
-        Family::AntLinClass
+        Family::ANT_LINCLASS
             .test_tasks()
             .iter()
             .flat_map(|task| {
