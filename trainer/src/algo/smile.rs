@@ -43,10 +43,10 @@
 //! This file is the algorithm, read top to bottom: the run, its rollouts and iteration, the
 //! update pair, then the pair's two halves with each loss above its optimiser step (the
 //! discriminator's here; SAC's critic, actor and temperature steps called in order, their
-//! arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term here). Around it: `batch`
-//! draws both halves' batches, `overlap` runs a pair's halves and the rollouts at once on N
-//! learner threads, `persist` checkpoints a run, `fit` puts it in the shared fit loop and
-//! `config` holds its settings.
+//! arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term here). No thread is named in
+//! the math: around it, `batch` draws both halves' batches, `overlap` runs a pair's halves, the
+//! discriminator loss's parts and the rollouts at once on N learner threads, `persist`
+//! checkpoints a run, `fit` puts it in the shared fit loop and `config` holds its settings.
 
 use candle_core::backprop::GradStore;
 use candle_core::{DType, Device, Tensor};
@@ -427,10 +427,9 @@ pub fn disc_update(
 /// reads the same networks for its reward, and steps the optimisers after both are done).
 ///
 /// `L_bce` and `L_gp` share no node but the discriminator's weights (the penalty's `z` is
-/// detached), so their gradients come from separate backward passes, added afterwards: inside
-/// a learner pool they run as the sides of joins ([`crate::threads::join`]), which a free core
-/// can take whole instead of only the blocks of their matrix products. Deterministic for a
-/// thread count; one thread and a pool differ in the last bits (the penalty's split).
+/// detached), so their gradients come from separate backward passes, added afterwards; inside
+/// a learner pool they run at once (`overlap::bce_and_penalty`). Deterministic for a thread
+/// count; one thread and a pool differ in the last bits (the penalty's split).
 fn disc_loss(
     encoder: &ContextEncoder,
     disc: &Discriminator,
@@ -439,40 +438,27 @@ fn disc_loss(
     update: u64,
     rng: &mut impl Rng,
 ) -> Result<(GradStore, DiscStats)> {
-    // z ~ q(z | c) per task, with gradient into the encoder; x~ = u x_E + (1 - u) x_pi
     let rows = batch.tasks * batch.per_task;
-    let z = encoder.z(&batch.context, true, rng)?; // (t, z), gradient into the encoder
+    // z ~ q(z | c) per task, with gradient into the encoder, on each of its task's rows
+    let z = encoder.z(&batch.context, true, rng)?; // (t, z)
     let z_rows = batch.z_rows(&z)?; // (t n, z)
-    // The penalty's mixing weights, drawn before the two halves split (a fixed draw order).
+    // x~ = u x_E + (1 - u) x_pi: the penalty's mixing weights, u ~ U(0, 1) per row
     let u = if gp_weight > 0.0 {
         let u: Vec<f32> = (0..rows).map(|_| rng.random::<f32>()).collect();
         Some(Tensor::from_vec(u, (rows, 1), &Device::Cpu)?)
     } else {
         None
     };
-    // Inside a learner pool the penalty is two halves of the tasks (a mean over rows is the
-    // halves' means weighted by their rows), pieces a free core can take whole: 2% off a
-    // two-thread pair at the authors' shapes. One thread keeps it whole (1% faster there).
-    let half = if crate::threads::in_pool() {
-        (batch.tasks / 2) * batch.per_task
-    } else {
-        rows
-    };
-    let gp_part = |start: usize, len: usize| -> Result<Option<(GradStore, f32)>> {
-        match &u {
-            Some(u) if len > 0 => {
-                gp_grads(disc, batch, &z_rows, u, (start, len), gp_weight, update).map(Some)
-            }
-            _ => Ok(None),
+    let bce = || bce_grads(disc, batch, &z_rows, update);
+    let gp = |(start, len)| match &u {
+        Some(u) if len > 0 => {
+            gp_grads(disc, batch, &z_rows, u, (start, len), gp_weight, update).map(Some)
         }
+        _ => Ok(None),
     };
-    let (bce, (gp_a, gp_b)) = crate::threads::join(
-        || bce_grads(disc, batch, &z_rows, update),
-        || crate::threads::join(|| gp_part(0, half), || gp_part(half, rows - half)),
-    );
-    let (mut grads, bce_v, lg) = bce?;
+    let ((mut grads, bce_v, lg), gp_parts) = overlap::bce_and_penalty(bce, gp, batch)?;
     let mut gp_v = 0.0;
-    for (gp_grads, v) in [gp_a?, gp_b?].into_iter().flatten() {
+    for (gp_grads, v) in gp_parts.into_iter().flatten() {
         // dL_D/dtheta = dL_bce/dtheta + lambda_gp dL_gp/dtheta
         grads.extend(gp_grads)?;
         gp_v += v; // each share was checked finite before its backward
