@@ -13,7 +13,6 @@
 
 use std::time::Instant;
 
-use firmware_sim::estimation::channel;
 use firmware_sim::{LoopConfig, Sensing, SessionConfig, run_session};
 use infer_core::{Channel, Estimator, EstimatorConfig};
 use sim::{DemoDataset, EnvConfig, Family};
@@ -111,12 +110,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
 /// The estimator alone, per tick, on this family's layout: best of 5 timed passes.
 fn estimator_cost(family: Family) -> Result<(), Box<dyn std::error::Error>> {
-    let channels: Vec<Channel> = family
-        .obs_components()
-        .iter()
-        .copied()
-        .map(channel)
-        .collect();
+    let channels: &[Channel] = family.obs_components();
     let config = EstimatorConfig {
         dt: 0.05,
         accel_std: 2.0,
@@ -124,7 +118,7 @@ fn estimator_cost(family: Family) -> Result<(), Box<dyn std::error::Error>> {
         limit: 10.0,
         initial_rate_std: 1.0,
     };
-    let mut estimator = Estimator::<64>::new(&channels, config)?;
+    let mut estimator = Estimator::<64>::new(channels, config)?;
     let readings: Vec<f32> = (0..estimator.readings_len())
         .map(|i| 0.1 * i as f32)
         .collect();

@@ -6,7 +6,6 @@ use sim::{EstimatorTuning, Family, PositionSensing};
 
 pub use crate::config::Sensing;
 use crate::config::{LoopConfig, LoopError};
-pub use sim::channel;
 
 // The device's largest observation fits the filter bank.
 const _: () = assert!(sim::ESTIMATOR_CAPACITY >= crate::link::MAX_DIM);

@@ -5,10 +5,9 @@
 //! and its brain (`--sensing positions`); the learners' `[sensing]` with `positions = true`
 //! runs it between their training rollouts and their policy.
 
-use infer_core::{Channel, Estimator, EstimatorConfig};
+use infer_core::{Estimator, EstimatorConfig};
 
 use crate::kinds::Family;
-use crate::sensing::ObsComponent;
 use crate::sensor::SensorModel;
 
 /// The most observation entries the estimator holds (the device link's largest observation).
@@ -23,16 +22,6 @@ pub struct EstimatorTuning {
     /// Std of a reading's noise as the filter assumes it; `None`: the sensor model's noise
     /// and ADC step, `sqrt(noise^2 + lsb^2 / 12)`.
     pub meas_std: Option<f32>,
-}
-
-/// The estimator's channel for a family's observation component.
-pub fn channel(component: ObsComponent) -> Channel {
-    match component {
-        ObsComponent::Position => Channel::Position,
-        ObsComponent::Angle => Channel::Angle,
-        ObsComponent::Rate { of, scale } => Channel::Rate { of, scale },
-        ObsComponent::Direct => Channel::Direct,
-    }
 }
 
 /// The filter configuration for `family` at `rate_hz` behind sensors of `model`. A reading at
@@ -71,8 +60,7 @@ impl PositionSensing {
     /// The filter bank for `family`'s observation under `config`.
     pub fn new(family: Family, config: EstimatorConfig) -> Result<Self, infer_core::Error> {
         let components = family.obs_components();
-        let channels: Vec<Channel> = components.iter().copied().map(channel).collect();
-        let estimator = Estimator::new(&channels, config)?;
+        let estimator = Estimator::new(components, config)?;
         let measured: Vec<usize> = (0..components.len())
             .filter(|&i| components[i].is_measured())
             .collect();

@@ -68,9 +68,7 @@ pub use dataset::{
 pub use dynamics::WalkerDynamics;
 pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
 pub use error::{SimError, error_line, exit_code};
-pub use estimated::{
-    ESTIMATOR_CAPACITY, EstimatorTuning, PositionSensing, channel, estimator_config,
-};
+pub use estimated::{ESTIMATOR_CAPACITY, EstimatorTuning, PositionSensing, estimator_config};
 pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
 pub use fsio::{
     canonical_safetensors, remove_any, sha256_hex, temp_sibling, write_atomic, write_atomic_with,

@@ -11,35 +11,14 @@
 //! ground-speed or optical-flow sensor) and passed through with the same noise and ADC as the
 //! positions.
 
-/// The physical meaning of one observation entry.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum ObsComponent {
-    /// A position (m), measured.
-    Position,
-    /// An angle (rad, wrapped to (-pi, pi]), measured.
-    Angle,
-    /// `scale` times the time derivative of the entry at index `of` (a
-    /// [`Position`](Self::Position) or [`Angle`](Self::Angle)); not measured in position-only
-    /// sensing but estimated.
-    Rate {
-        /// Index of the position or angle entry this is the derivative of.
-        of: usize,
-        /// Observed rate per unit of the position's derivative over a control step: 1 for
-        /// the legged robots; for point-goal the observed velocity is the one after the
-        /// step's damping, `1 / (1 + LINEAR_DAMPING * CONTROL_DT)` of the velocity that
-        /// moved the point.
-        scale: f32,
-    },
-    /// Neither: measured directly and passed through.
-    Direct,
-}
+use infer_core::Channel;
 
-impl ObsComponent {
-    /// Whether a position-only device receives this entry from its sensors.
-    pub fn is_measured(self) -> bool {
-        !matches!(self, ObsComponent::Rate { .. })
-    }
-}
+/// The physical meaning of one observation entry: the device estimator's own [`Channel`] (a
+/// measured position or angle, the rate of another entry, or a quantity measured directly), so
+/// a family's table is what the filter reads, with no translation between them. For
+/// point-goal a rate's `scale` is `1 / (1 + LINEAR_DAMPING * CONTROL_DT)`: its observed
+/// velocity is the one after the step's damping, not the one that moved the point.
+pub type ObsComponent = Channel;
 
 /// `ObsComponent::Rate { of, scale: 1.0 }`: the rate of entry `of` at the control step's scale.
 pub(crate) const fn rate(of: usize) -> ObsComponent {
@@ -48,11 +27,10 @@ pub(crate) const fn rate(of: usize) -> ObsComponent {
 
 #[cfg(test)]
 mod tests {
-    use super::*;
     use crate::env::{EnvConfig, make_env};
     use crate::kinds::Family;
     use crate::kinds::Task;
-    use ObsComponent::{Angle, Position, Rate};
+    use infer_core::Channel::{Angle, Position, Rate};
     use std::f32::consts::{PI, TAU};
 
     #[test]
