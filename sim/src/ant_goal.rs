@@ -6,14 +6,16 @@
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
-use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
-use crate::kinds::Family;
-use crate::kinds::Task;
+use crate::family::Family;
+use crate::family::MetricKind;
+use crate::family::Task;
+use crate::family::{EnvConfig, Environment, StepInfo, Transition};
+use crate::family::{EvalDefaults, FamilySpec, RunView};
 use crate::render::Frame;
-use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
+use crate::spec::LEGGED_ACCEL_STD;
 use crate::spec::{goal_test_angles, goal_train_angles, write_goal};
-use crate::task::{MetricKind, TASK_VALUE_TOLERANCE};
+use crate::task::TASK_VALUE_TOLERANCE;
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;
@@ -80,7 +82,7 @@ impl Environment for AntGoalEnv {
         check_family(Family::ANT_GOAL, task)?;
         if !task.value().is_finite() {
             return Err(SimError::InvalidTask {
-                family: Family::ANT_GOAL,
+                family: Family::ANT_GOAL.name(),
                 reason: "goal angle is not finite".into(),
             });
         }

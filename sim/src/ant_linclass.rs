@@ -28,14 +28,15 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::ant::AntEpisode;
 use crate::env::check_family;
-use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::error::SimError;
-use crate::kinds::Family;
-use crate::kinds::Task;
+use crate::family::Family;
+use crate::family::MetricKind;
+use crate::family::Task;
+use crate::family::{EnvConfig, Environment, StepInfo, Transition};
+use crate::family::{EvalDefaults, FamilySpec, RunView};
 use crate::render::{Frame, Role, Shape};
 use crate::sensing::ObsComponent;
-use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView, seed_of};
-use crate::task::MetricKind;
+use crate::spec::{LEGGED_ACCEL_STD, seed_of};
 
 /// Default episode length (control steps of 0.05 s), as in the paper.
 pub const HORIZON: usize = 50;
@@ -222,7 +223,7 @@ impl Environment for AntLinClassEnv {
             (task.linclass_normal(), task.hyperplane_seed())
         else {
             return Err(SimError::InvalidTask {
-                family: Family::ANT_LINCLASS,
+                family: Family::ANT_LINCLASS.name(),
                 reason: "not a hyperplane task".into(),
             });
         };

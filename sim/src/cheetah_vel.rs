@@ -1,9 +1,11 @@
 //! cheetah-vel, the family's declaration: the planar cheetah (`planar.rs`, on either plant
 //! through `legged.rs`) running at a target forward velocity.
 
-use crate::kinds::{Family, Task};
-use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView};
-use crate::task::{MetricKind, TASK_VALUE_TOLERANCE};
+use crate::family::MetricKind;
+use crate::family::{EvalDefaults, FamilySpec, RunView};
+use crate::family::{Family, Task};
+use crate::spec::LEGGED_ACCEL_STD;
+use crate::task::TASK_VALUE_TOLERANCE;
 
 /// cheetah-vel: 31 train velocities 0..=3 by 0.1, 30 test velocities 0.05..=2.95; Table 1's
 /// protocol (context sizes 1-4).

@@ -1,44 +1,8 @@
-//! The environment interface shared by every family, and the per-episode metric.
+//! Building a family's environment, the per-episode metric, and the helpers the built-in
+//! environments share (the interface itself, [`Environment`], is in `family.rs`).
 
 use crate::error::SimError;
-use crate::kinds::Family;
-use crate::kinds::Physics;
-use crate::kinds::Task;
-use crate::render::Frame;
-use crate::task::MetricKind;
-
-/// Options of an environment: its episode, and which physics backend simulates it.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct EnvConfig {
-    /// Episode length in control steps; `None` uses the family's default (100 or 1000).
-    pub horizon: Option<usize>,
-    /// walker-dyn only: end the episode when the walker falls (torso too low or tilted).
-    pub healthy_termination: bool,
-    /// The physics backend (default Rapier). point-goal exists on Rapier only.
-    pub physics: Physics,
-}
-
-impl Default for EnvConfig {
-    fn default() -> Self {
-        Self {
-            horizon: None,
-            healthy_termination: true,
-            physics: Physics::Rapier,
-        }
-    }
-}
-
-impl EnvConfig {
-    /// Episodes of `horizon` steps (`None`: the family's) on `physics`, ending as the family
-    /// ends them (a walker's fall among them).
-    pub fn new(horizon: Option<usize>, physics: Physics) -> Self {
-        Self {
-            horizon,
-            physics,
-            ..Self::default()
-        }
-    }
-}
+use crate::family::{EnvConfig, Environment, Family, MetricKind, StepInfo, Task};
 
 /// The latched classification decision of an ant-linclass episode, as the per-step metric
 /// sample encodes it (and [`EpisodeMetric`] decodes it).
@@ -72,90 +36,6 @@ impl Decision {
             Decision::Undecided
         }
     }
-}
-
-/// What one control step reports besides observation, reward and done.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct StepInfo {
-    /// Number of control steps taken in this episode, this one included.
-    pub step: usize,
-    /// The episode ended because of the task (a fallen walker): do not bootstrap.
-    pub terminated: bool,
-    /// The episode ended because the horizon was reached.
-    pub truncated: bool,
-    /// This step's sample of the family's metric (see [`Family::metric_kind`]): distance to
-    /// the goal, |v - v*|, or the reward.
-    pub metric_sample: f32,
-    /// Forward (x) velocity of the robot's torso after the step, m/s (0 for point-goal; the
-    /// world-frame x velocity for ant-goal).
-    pub forward_velocity: f32,
-}
-
-/// The result of one control step. `obs` borrows the environment's internal buffer: copy it
-/// before stepping again.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Transition<'a> {
-    /// Observation after the step (never contains the task parameter).
-    pub obs: &'a [f32],
-    /// Reward of the step.
-    pub reward: f32,
-    /// The episode is over (terminated or truncated); `step` now returns an error.
-    pub done: bool,
-    /// Details, including the metric sample.
-    pub info: StepInfo,
-}
-
-/// A simulated robot and its task. Every family implements it; a 3-D family does too.
-///
-/// Lifecycle: build (already reset to the family's first train task with seed 0), then
-/// `reset(task, seed)`, then `step` until `done`. Same family, task, seed and actions give
-/// bit-identical observations and rewards.
-pub trait Environment: Send {
-    /// The task family.
-    fn family(&self) -> Family;
-    /// The physics backend simulating it.
-    fn physics(&self) -> Physics {
-        Physics::Rapier
-    }
-    /// Learner-facing observation dimension.
-    fn obs_dim(&self) -> usize {
-        self.family().obs_dim()
-    }
-    /// Action dimension; actions are clipped to [-1, 1] per component.
-    fn act_dim(&self) -> usize {
-        self.family().act_dim()
-    }
-    /// Oracle observation dimension (observation followed by the task parameter).
-    fn oracle_obs_dim(&self) -> usize {
-        self.family().oracle_obs_dim()
-    }
-    /// Seconds of simulated time per control step.
-    fn control_dt(&self) -> f32;
-    /// Episode length in control steps.
-    fn horizon(&self) -> usize;
-    /// The current task.
-    fn task(&self) -> &Task;
-    /// Starts an episode of `task` with seeded initial-state noise; returns the observation.
-    fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError>;
-    /// Applies one action (clipped to [-1, 1]) for one control step.
-    fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError>;
-    /// The current observation.
-    fn observation(&self) -> &[f32];
-    /// Writes the oracle observation (observation, then task parameter) into `out`.
-    fn oracle_observation(&self, out: &mut [f32]) -> Result<(), SimError> {
-        let expected = self.oracle_obs_dim();
-        if out.len() != expected {
-            return Err(SimError::BufferLength {
-                expected,
-                got: out.len(),
-            });
-        }
-        let (obs, task) = out.split_at_mut(self.obs_dim());
-        obs.copy_from_slice(self.observation());
-        self.task().write_parameter(task)
-    }
-    /// A drawable snapshot of the current state (top view or side view).
-    fn frame(&self) -> Frame;
 }
 
 /// Builds an environment of `family` on `config.physics`, reset to the family's first train
@@ -236,7 +116,7 @@ pub(crate) fn clip_action(
 ) -> Result<(), SimError> {
     if action.len() != clipped.len() {
         return Err(SimError::ActionLength {
-            family,
+            family: family.name(),
             expected: clipped.len(),
             got: action.len(),
         });
@@ -296,8 +176,8 @@ pub(crate) fn check_family(env_family: Family, task: &Task) -> Result<(), SimErr
         Ok(())
     } else {
         Err(SimError::TaskFamilyMismatch {
-            env_family,
-            task_family: task.family(),
+            env_family: env_family.name(),
+            task_family: task.family().name(),
         })
     }
 }

@@ -1,6 +1,5 @@
-//! Typed errors of the environments.
-
-use crate::kinds::Family;
+//! Typed errors of the environments. A family is named here by its name, not its handle: the
+//! error sits below the family interface (`family.rs`), whose environments return it.
 
 /// A command-line tool's exit: success, or the error as one `error:` line on stderr (the full
 /// chain and a backtrace only when `RUST_BACKTRACE` asks for them) and exit status 1.
@@ -44,7 +43,7 @@ pub enum SimError {
     #[error("action has {got} components, the {family} environment expects {expected}")]
     ActionLength {
         /// Family of the environment that rejected the action.
-        family: Family,
+        family: &'static str,
         /// The environment's action dimension.
         expected: usize,
         /// Length of the action that was passed.
@@ -62,9 +61,9 @@ pub enum SimError {
     #[error("a {task_family} task was given to a {env_family} environment")]
     TaskFamilyMismatch {
         /// Family of the environment.
-        env_family: Family,
+        env_family: &'static str,
         /// Family of the task.
-        task_family: Family,
+        task_family: &'static str,
     },
     /// `step` was called after the episode ended (terminated or reached its horizon).
     #[error("the episode ended at step {step}; call reset before stepping again")]
@@ -107,16 +106,18 @@ pub enum SimError {
     #[error("invalid task parameter for {family}: {reason}")]
     InvalidTask {
         /// Family the parameter was meant for.
-        family: Family,
+        family: &'static str,
         /// What is wrong with it.
         reason: String,
     },
     /// No task of a list is within the family's tolerance of a value
     /// ([`Family::find_task`](crate::Family::find_task)).
-    #[error("{}", no_task_near(*family, *value, *tolerance, available))]
+    #[error("{}", no_task_near(family, value_name, *value, *tolerance, available))]
     NoTaskNear {
         /// Family of the tasks searched.
-        family: Family,
+        family: &'static str,
+        /// What a task value of that family is (`goal angle (rad)`, ...).
+        value_name: &'static str,
         /// The value asked for.
         value: f64,
         /// The family's tolerance ([`Family::value_tolerance`](crate::Family::value_tolerance)).
@@ -128,7 +129,7 @@ pub enum SimError {
     #[error("the {family} physics diverged at step {step} (non-finite state)")]
     PhysicsDiverged {
         /// Family of the environment.
-        family: Family,
+        family: &'static str,
         /// Step at which the state became non-finite.
         step: usize,
     },
@@ -145,14 +146,17 @@ pub enum SimError {
     },
 }
 
-fn no_task_near(family: Family, value: f64, tolerance: f64, available: &str) -> String {
+fn no_task_near(
+    family: &str,
+    value_name: &str,
+    value: f64,
+    tolerance: f64,
+    available: &str,
+) -> String {
     let how = if tolerance > 0.0 {
         format!("within {tolerance} of")
     } else {
         "equal to".into()
     };
-    format!(
-        "no {family} task has a {} {how} {value}; available: {available}",
-        family.value_name()
-    )
+    format!("no {family} task has a {value_name} {how} {value}; available: {available}")
 }

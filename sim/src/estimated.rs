@@ -7,7 +7,7 @@
 
 use infer_core::{Estimator, EstimatorConfig};
 
-use crate::kinds::Family;
+use crate::family::Family;
 use crate::sensor::SensorModel;
 
 /// The most observation entries the estimator holds (the device link's largest observation).

@@ -9,7 +9,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::kinds::Physics;
 
-use crate::kinds::Family;
+use crate::family::Family;
 
 /// One task's result for one method (an evaluation's row; the report's per-task lists).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

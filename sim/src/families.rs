@@ -11,7 +11,7 @@ use std::str::FromStr;
 use std::sync::RwLock;
 
 use crate::error::SimError;
-use crate::kinds::Family;
+use crate::family::Family;
 use crate::sensing::ObsComponent;
 
 /// The families registered from outside this crate, in registration order.

@@ -1,11 +1,11 @@
 //! cheetah-vel and walker-dyn: the planar legged robots as [`Environment`]s.
 
-use crate::env::{EnvConfig, Environment, StepInfo};
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
-use crate::kinds::Family;
+use crate::family::Family;
+use crate::family::Task;
+use crate::family::{EnvConfig, Environment, StepInfo};
 use crate::kinds::Physics;
-use crate::kinds::Task;
 use crate::planar::{ACT_DIM, OBS_DIM};
 use crate::plant::{Plant, Robot, TorsoPose};
 use crate::render::{Frame, Role, Shape, View};
@@ -146,7 +146,7 @@ impl Environment for PlanarLeggedEnv {
             && !target_velocity.is_finite()
         {
             return Err(SimError::InvalidTask {
-                family: self.family,
+                family: self.family.name(),
                 reason: "target velocity is not finite".into(),
             });
         }
@@ -157,7 +157,7 @@ impl Environment for PlanarLeggedEnv {
         Ok(&self.obs)
     }
 
-    fn step(&mut self, action: &[f32]) -> Result<crate::env::Transition<'_>, SimError> {
+    fn step(&mut self, action: &[f32]) -> Result<crate::family::Transition<'_>, SimError> {
         self.clock.ensure_running()?;
         clip_action(self.family, action, &mut self.action)?;
         let x_before = self.torso_x();
@@ -165,7 +165,7 @@ impl Environment for PlanarLeggedEnv {
         if self.plant.diverged() {
             self.clock.over = true;
             return Err(SimError::PhysicsDiverged {
-                family: self.family,
+                family: self.family.name(),
                 step: self.clock.step,
             });
         }
@@ -184,7 +184,7 @@ impl Environment for PlanarLeggedEnv {
             }
         };
         let (terminated, truncated) = self.clock.advance(terminated);
-        Ok(crate::env::Transition {
+        Ok(crate::family::Transition {
             obs: &self.obs,
             reward,
             done: terminated || truncated,

@@ -38,6 +38,7 @@ mod error;
 mod estimated;
 mod export_report;
 mod families;
+mod family;
 pub mod fidelity;
 mod fsio;
 mod hyperplane;
@@ -66,14 +67,18 @@ pub use dataset::{
     record_trajectory,
 };
 pub use dynamics::WalkerDynamics;
-pub use env::{EnvConfig, Environment, EpisodeMetric, StepInfo, Transition, make_env};
+pub use env::{EpisodeMetric, make_env};
 pub use error::{SimError, error_line, exit_code};
 pub use estimated::{ESTIMATOR_CAPACITY, EstimatorTuning, PositionSensing, estimator_config};
 pub use export_report::{ExportReport, Parity, ReportError, TaskResult};
+pub use family::{
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
+    Transition,
+};
 pub use fsio::{
     canonical_safetensors, remove_any, sha256_hex, temp_sibling, write_atomic, write_atomic_with,
 };
-pub use kinds::{Family, Physics, Task};
+pub use kinds::Physics;
 pub use legged::{CheetahVelEnv, PlanarLeggedEnv, WalkerDynEnv};
 pub use physics::MUJOCO_VERSION;
 pub use plant::{Robot, TorsoPose};
@@ -82,10 +87,9 @@ pub use render::Frame;
 pub use sensing::ObsComponent;
 pub use sensor::{Sensor, SensorModel, SensorModelError, adc_lsb};
 pub use shipped::{IntegrityError, SUMS_FILE, check_shipped, check_shipped_bytes, shipped_sha256};
-pub use spec::{EvalDefaults, FamilySpec, RunView};
 pub use task::{
-    GOAL_RADIUS, MetricKind, Split, TASK_VALUE_TOLERANCE, WALKER_NOMINAL_SEED,
-    WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE,
+    GOAL_RADIUS, Split, TASK_VALUE_TOLERANCE, WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE,
+    WALKER_TRAIN_SEED_BASE,
 };
 
 #[cfg(test)]

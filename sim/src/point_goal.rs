@@ -8,18 +8,18 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier2d::prelude::*;
 
-use crate::env::{EnvConfig, Environment, StepInfo, Transition};
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
-use crate::kinds::Family;
+use crate::family::Family;
+use crate::family::MetricKind;
+use crate::family::Task;
+use crate::family::{EnvConfig, Environment, StepInfo, Transition};
+use crate::family::{EvalDefaults, FamilySpec, RunView};
 use crate::kinds::Physics;
-use crate::kinds::Task;
 use crate::render::{Frame, Role, Shape, View};
 use crate::sensing::ObsComponent;
-use crate::spec::{
-    EvalDefaults, FamilySpec, RunView, goal_test_angles, goal_train_angles, write_goal,
-};
-use crate::task::{MetricKind, POINT_GOAL_ACT_DIM, POINT_GOAL_OBS_DIM, TASK_VALUE_TOLERANCE};
+use crate::spec::{goal_test_angles, goal_train_angles, write_goal};
+use crate::task::{POINT_GOAL_ACT_DIM, POINT_GOAL_OBS_DIM, TASK_VALUE_TOLERANCE};
 
 /// What a goal family (point-goal, ant-goal) draws under its robot (top view): the dashed
 /// circle the goals lie on and the goal at `goal`.
@@ -169,7 +169,7 @@ impl Environment for PointGoalEnv {
         self.observe();
         if self.obs.iter().any(|x| !x.is_finite()) {
             return Err(SimError::PhysicsDiverged {
-                family: Family::POINT_GOAL,
+                family: Family::POINT_GOAL.name(),
                 step: self.clock.step,
             });
         }

@@ -228,8 +228,9 @@ pub fn write_animated_svg(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::env::{EnvConfig, make_env};
-    use crate::kinds::Family;
+    use crate::env::make_env;
+    use crate::family::EnvConfig;
+    use crate::family::Family;
 
     fn frames_of(family: Family, steps: usize) -> Vec<Frame> {
         let mut env = make_env(family, EnvConfig::default()).unwrap();

@@ -27,9 +27,10 @@ pub(crate) const fn rate(of: usize) -> ObsComponent {
 
 #[cfg(test)]
 mod tests {
-    use crate::env::{EnvConfig, make_env};
-    use crate::kinds::Family;
-    use crate::kinds::Task;
+    use crate::env::make_env;
+    use crate::family::EnvConfig;
+    use crate::family::Family;
+    use crate::family::Task;
     use infer_core::Channel::{Angle, Position, Rate};
     use std::f32::consts::{PI, TAU};
 

@@ -4,7 +4,7 @@ use std::fmt;
 use std::str::FromStr;
 
 use crate::error::SimError;
-use crate::kinds::{Family, Task};
+use crate::family::{Family, MetricKind, Task};
 
 /// Point-goal's observation width, `[x, y, vx, vy]` (the env, `point_goal.rs`, reads it here).
 pub(crate) const POINT_GOAL_OBS_DIM: usize = 4;
@@ -18,32 +18,6 @@ pub enum Split {
     Train,
     /// Held-out tasks used for evaluation.
     Test,
-}
-
-/// How a family's per-episode metric aggregates the per-step samples in [`crate::StepInfo`].
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum MetricKind {
-    /// Minimum distance to the goal over the episode (lower is better).
-    MinGoalDistance,
-    /// Mean over the episode of |v - v*| (lower is better).
-    MeanVelocityError,
-    /// Sum of rewards (higher is better).
-    Return,
-    /// 1 if the episode's classification decision was correct, else 0 (higher is better); the
-    /// per-step sample is the latched [`crate::ant_linclass::Decision`], and
-    /// [`crate::EpisodeMetric::no_op`] tells whether no decision was made.
-    ClassificationSuccess,
-}
-
-impl MetricKind {
-    /// Whether a smaller value is better (distances and errors) or a larger one (return,
-    /// success).
-    pub fn lower_is_better(self) -> bool {
-        match self {
-            MetricKind::MinGoalDistance | MetricKind::MeanVelocityError => true,
-            MetricKind::Return | MetricKind::ClassificationSuccess => false,
-        }
-    }
 }
 
 /// Walker dynamics seeds of the meta-train split are `WALKER_TRAIN_SEED_BASE + i`, i in 0..50.
@@ -98,7 +72,7 @@ impl Family {
     /// (m/s), dynamics or hyperplane seed (a non-negative integer).
     pub fn task_from_value(self, value: f64) -> Result<Task, SimError> {
         let invalid = |reason: &str| SimError::InvalidTask {
-            family: self,
+            family: self.name(),
             reason: reason.to_string(),
         };
         if !value.is_finite() {
@@ -142,7 +116,8 @@ impl Family {
             }
         }
         best.map(|(i, _)| i).ok_or_else(|| SimError::NoTaskNear {
-            family: self,
+            family: self.name(),
+            value_name: self.value_name(),
             value,
             tolerance,
             available: if available.is_empty() {

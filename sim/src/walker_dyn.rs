@@ -2,9 +2,10 @@
 //! through `legged.rs`) under randomised body dynamics ([`WalkerDynamics`]).
 
 use crate::dynamics::WalkerDynamics;
-use crate::kinds::{Family, Task};
-use crate::spec::{EvalDefaults, FamilySpec, LEGGED_ACCEL_STD, RunView, seed_of};
-use crate::task::MetricKind;
+use crate::family::MetricKind;
+use crate::family::{EvalDefaults, FamilySpec, RunView};
+use crate::family::{Family, Task};
+use crate::spec::{LEGGED_ACCEL_STD, seed_of};
 use crate::task::{WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE};
 
 /// walker-dyn: 50 train and 25 test dynamics seeds; one demo per context, one rollout.

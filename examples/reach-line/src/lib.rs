@@ -157,8 +157,8 @@ impl Environment for ReachLineEnv {
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
         if task.family() != REACH_LINE {
             return Err(SimError::TaskFamilyMismatch {
-                env_family: REACH_LINE,
-                task_family: task.family(),
+                env_family: REACH_LINE.name(),
+                task_family: task.family().name(),
             });
         }
         self.place(task, seed);
@@ -170,7 +170,7 @@ impl Environment for ReachLineEnv {
             return Err(SimError::EpisodeOver { step: self.step });
         }
         let [force] = <[f32; ACT_DIM]>::try_from(action).map_err(|_| SimError::ActionLength {
-            family: REACH_LINE,
+            family: REACH_LINE.name(),
             expected: ACT_DIM,
             got: action.len(),
         })?;

@@ -3,10 +3,10 @@
 //! a pair of points), its reward and its metric around it.
 
 use super::{ACT_DIM, OBS_DIM, obs};
-use crate::env::EnvConfig;
 use crate::env::{EpisodeClock, clip_action};
 use crate::error::SimError;
-use crate::kinds::Family;
+use crate::family::EnvConfig;
+use crate::family::Family;
 use crate::kinds::Physics;
 use crate::plant::{Plant, Robot};
 use crate::render::{Frame, Role, Shape, View};
@@ -94,7 +94,7 @@ impl AntEpisode {
         if self.robot.diverged() {
             self.clock.over = true;
             return Err(SimError::PhysicsDiverged {
-                family: self.family,
+                family: self.family.name(),
                 step: self.clock.step,
             });
         }

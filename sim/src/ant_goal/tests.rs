@@ -112,7 +112,7 @@ fn reward_is_minus_distance_minus_action_cost_and_the_metric_is_the_minimum_dist
             break;
         }
     }
-    assert_eq!(metric.kind(), crate::task::MetricKind::MinGoalDistance);
+    assert_eq!(metric.kind(), crate::family::MetricKind::MinGoalDistance);
     assert_eq!(metric.value(), min_distance);
     assert!(matches!(
         env.step(&[0.0; ACT_DIM]),

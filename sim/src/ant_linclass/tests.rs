@@ -4,8 +4,8 @@
 use super::*;
 use crate::ant::ACT_DIM;
 use crate::env::{EpisodeMetric, make_env};
+use crate::family::MetricKind;
 use crate::render::{View, frame_to_svg};
-use crate::task::MetricKind;
 
 fn gait(step: usize) -> [f32; ACT_DIM] {
     std::array::from_fn(|j| (0.3 * step as f32 + 1.3 * j as f32).sin())

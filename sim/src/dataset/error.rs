@@ -4,7 +4,7 @@ use crate::error::SimError;
 
 use crate::kinds::Physics;
 
-use crate::kinds::Family;
+use crate::family::Family;
 
 use super::FORMAT_NAME;
 

@@ -8,13 +8,13 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
-use crate::env::Environment;
+use crate::family::Environment;
 
 use crate::kinds::Physics;
 
-use crate::kinds::Family;
+use crate::family::Family;
 
-use crate::kinds::Task;
+use crate::family::Task;
 
 use crate::task::Split;
 

@@ -5,7 +5,7 @@ use std::collections::HashMap;
 use safetensors::tensor::{Dtype, SafeTensors};
 
 use super::{DatasetError, DemoDataset, FORMAT_NAME, FORMAT_VERSION, TaskDemos, Trajectory, names};
-use crate::kinds::Family;
+use crate::family::Family;
 use crate::kinds::Physics;
 use crate::task::Split;
 

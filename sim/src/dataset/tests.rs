@@ -1,5 +1,6 @@
 use super::*;
-use crate::env::{EnvConfig, make_env};
+use crate::env::make_env;
+use crate::family::EnvConfig;
 use crate::point_goal::PointGoalPdExpert;
 use proptest::prelude::*;
 
