@@ -90,3 +90,46 @@ impl FromStr for Family {
             })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::family::FamilySpec;
+
+    static RENAMED: FamilySpec = FamilySpec {
+        name: "point-goal-renamed",
+        ..crate::point_goal::SPEC
+    };
+    static NOT_A_WORD: FamilySpec = FamilySpec {
+        name: "Point Goal",
+        ..crate::point_goal::SPEC
+    };
+    static TAKEN: FamilySpec = FamilySpec {
+        name: "cheetah-vel",
+        ..crate::point_goal::SPEC
+    };
+
+    #[test]
+    fn a_registered_family_is_parsed_and_a_bad_or_taken_name_is_refused() {
+        assert!("point-goal-renamed".parse::<Family>().is_err());
+        let family = Family::of(&RENAMED).register().unwrap();
+        assert_eq!("point-goal-renamed".parse::<Family>(), Ok(family));
+        assert_eq!(
+            Family::of(&RENAMED).register(),
+            Ok(family),
+            "registering again is a no-op"
+        );
+        assert!(Family::all().ends_with(&[family]));
+        // An unknown name's message lists the registered families too.
+        let unknown = "nope".parse::<Family>().unwrap_err().to_string();
+        assert!(unknown.contains("point-goal-renamed"), "{unknown}");
+        for (spec, why) in [
+            (&NOT_A_WORD, "lowercase"),
+            (&TAKEN, "another family has it"),
+        ] {
+            let err = Family::of(spec).register().unwrap_err().to_string();
+            assert!(err.contains(spec.name) && err.contains(why), "{err}");
+        }
+        assert_eq!("cheetah-vel".parse::<Family>(), Ok(Family::CHEETAH_VEL));
+    }
+}

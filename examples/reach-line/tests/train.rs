@@ -70,7 +70,7 @@ fn the_name_is_known_once_registered_and_refused_to_another_declaration() {
     // A second declaration under a built-in's name is refused, naming it.
     static CLASH: sim::FamilySpec = sim::FamilySpec {
         name: "cheetah-vel",
-        ..reach_line_spec_copy()
+        ..reach_line::SPEC
     };
     let err = Family::of(&CLASH).register().unwrap_err();
     assert!(err.to_string().contains("cheetah-vel"), "{err}");
@@ -78,32 +78,6 @@ fn the_name_is_known_once_registered_and_refused_to_another_declaration() {
     let dir = tempfile::tempdir().unwrap();
     let (train, _) = demos(dir.path());
     assert_eq!(DemoDataset::read(&train).unwrap().family, family);
-}
-
-/// reach-line's declaration, field for field (a struct update's base must be a value).
-const fn reach_line_spec_copy() -> sim::FamilySpec {
-    let s = &reach_line::SPEC;
-    sim::FamilySpec {
-        name: s.name,
-        obs_dim: s.obs_dim,
-        act_dim: s.act_dim,
-        task_dim: s.task_dim,
-        metric: s.metric,
-        value_name: s.value_name,
-        value_key: s.value_key,
-        value_decimals: s.value_decimals,
-        write_parameter: s.write_parameter,
-        value_tolerance: s.value_tolerance,
-        train_tasks: s.train_tasks,
-        test_tasks: s.test_tasks,
-        task_from_value: s.task_from_value,
-        nominal_value: s.nominal_value,
-        obs_components: s.obs_components,
-        eval: s.eval,
-        estimator_accel_std: s.estimator_accel_std,
-        view: s.view,
-        make_env: s.make_env,
-    }
 }
 
 #[test]
