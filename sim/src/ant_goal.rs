@@ -7,11 +7,10 @@
 use crate::ant::AntEpisode;
 use crate::env::check_family;
 use crate::error::SimError;
-use crate::family::Family;
-use crate::family::MetricKind;
-use crate::family::Task;
-use crate::family::{EnvConfig, Environment, StepInfo, Transition};
-use crate::family::{EvalDefaults, FamilySpec, RunView};
+use crate::family::{
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
+    Transition,
+};
 use crate::render::Frame;
 use crate::spec::LEGGED_ACCEL_STD;
 use crate::spec::{goal_test_angles, goal_train_angles, write_goal};

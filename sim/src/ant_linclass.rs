@@ -29,11 +29,10 @@ use rand_chacha::ChaCha8Rng;
 use crate::ant::AntEpisode;
 use crate::env::check_family;
 use crate::error::SimError;
-use crate::family::Family;
-use crate::family::MetricKind;
-use crate::family::Task;
-use crate::family::{EnvConfig, Environment, StepInfo, Transition};
-use crate::family::{EvalDefaults, FamilySpec, RunView};
+use crate::family::{
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
+    Transition,
+};
 use crate::render::{Frame, Role, Shape};
 use crate::sensing::ObsComponent;
 use crate::spec::{LEGGED_ACCEL_STD, seed_of};

@@ -1,9 +1,7 @@
 //! cheetah-vel, the family's declaration: the planar cheetah (`planar.rs`, on either plant
 //! through `legged.rs`) running at a target forward velocity.
 
-use crate::family::MetricKind;
-use crate::family::{EvalDefaults, FamilySpec, RunView};
-use crate::family::{Family, Task};
+use crate::family::{EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task};
 use crate::spec::LEGGED_ACCEL_STD;
 use crate::task::TASK_VALUE_TOLERANCE;
 

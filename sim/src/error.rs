@@ -87,9 +87,10 @@ pub enum SimError {
         /// The names known: the built-in families, then the registered ones.
         known: String,
     },
-    /// A family that cannot be registered under its name ([`crate::Family::register`]).
+    /// A family that cannot be registered under its name ([`crate::Family::register`]): the
+    /// name is another family's, or not a CLI word.
     #[error("cannot register the task family {name:?}: {reason}")]
-    FamilyNameTaken {
+    FamilyNameRefused {
         /// The family's name.
         name: String,
         /// Why: the name is taken, or not a CLI word.

@@ -40,7 +40,7 @@ impl Family {
     /// Makes `self` known by its name to every parser (configurations, datasets, policy files,
     /// flags), as Gymnasium's `register` does an environment id. Registering the same
     /// declaration again is a no-op; another declaration under a name already taken is refused
-    /// ([`SimError::FamilyNameTaken`]), and so is a name that is not a CLI word.
+    /// ([`SimError::FamilyNameRefused`]), and so is a name that is not a CLI word.
     pub fn register(self) -> Result<Family, SimError> {
         let name = self.name();
         let word = !name.is_empty()
@@ -48,7 +48,7 @@ impl Family {
                 .chars()
                 .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-');
         if !word {
-            return Err(SimError::FamilyNameTaken {
+            return Err(SimError::FamilyNameRefused {
                 name: name.to_string(),
                 reason: "a family's name is lowercase letters, digits and dashes",
             });
@@ -59,7 +59,7 @@ impl Family {
             return Ok(self);
         }
         if Family::BUILTIN.contains(&self) || registered.contains(&self) {
-            return Err(SimError::FamilyNameTaken {
+            return Err(SimError::FamilyNameRefused {
                 name: name.to_string(),
                 reason: "another family has it",
             });

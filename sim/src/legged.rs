@@ -2,9 +2,7 @@
 
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
-use crate::family::Family;
-use crate::family::Task;
-use crate::family::{EnvConfig, Environment, StepInfo};
+use crate::family::{EnvConfig, Environment, Family, StepInfo, Task};
 use crate::kinds::Physics;
 use crate::planar::{ACT_DIM, OBS_DIM};
 use crate::plant::{Plant, Robot, TorsoPose};

@@ -10,11 +10,10 @@ use rapier2d::prelude::*;
 
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
-use crate::family::Family;
-use crate::family::MetricKind;
-use crate::family::Task;
-use crate::family::{EnvConfig, Environment, StepInfo, Transition};
-use crate::family::{EvalDefaults, FamilySpec, RunView};
+use crate::family::{
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
+    Transition,
+};
 use crate::kinds::Physics;
 use crate::render::{Frame, Role, Shape, View};
 use crate::sensing::ObsComponent;

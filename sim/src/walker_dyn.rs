@@ -2,9 +2,7 @@
 //! through `legged.rs`) under randomised body dynamics ([`WalkerDynamics`]).
 
 use crate::dynamics::WalkerDynamics;
-use crate::family::MetricKind;
-use crate::family::{EvalDefaults, FamilySpec, RunView};
-use crate::family::{Family, Task};
+use crate::family::{EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task};
 use crate::spec::{LEGGED_ACCEL_STD, seed_of};
 use crate::task::{WALKER_NOMINAL_SEED, WALKER_TEST_SEED_BASE, WALKER_TRAIN_SEED_BASE};
 

@@ -5,8 +5,7 @@
 use super::{ACT_DIM, OBS_DIM, obs};
 use crate::env::{EpisodeClock, clip_action};
 use crate::error::SimError;
-use crate::family::EnvConfig;
-use crate::family::Family;
+use crate::family::{EnvConfig, Family};
 use crate::kinds::Physics;
 use crate::plant::{Plant, Robot};
 use crate::render::{Frame, Role, Shape, View};

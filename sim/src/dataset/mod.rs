@@ -8,13 +8,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use safetensors::tensor::{Dtype, TensorView};
 
-use crate::family::Environment;
+use crate::family::{Environment, Family, Task};
 
 use crate::kinds::Physics;
-
-use crate::family::Family;
-
-use crate::family::Task;
 
 use crate::task::Split;
 
