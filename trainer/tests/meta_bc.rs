@@ -289,3 +289,50 @@ fn the_pre_tanh_loss_is_the_original_codes_and_off_by_default() {
     };
     assert_ne!(w(&p), w(&q));
 }
+
+#[test]
+fn early_weight_draws_the_first_steps_rows_that_many_times_more_often() {
+    let data = run_data();
+    let early = meta_bc::EarlyWeight {
+        steps: 3,
+        weight: 4,
+    };
+    let cfg = MetaBcConfig {
+        early: Some(early),
+        ..tiny(false)
+    };
+    let plain = MetaBc::new(tiny(false), data.clone(), None).unwrap();
+    let weighted = MetaBc::new(cfg.clone(), data.clone(), None).unwrap();
+    let (od, ad) = (4, 2);
+    for (ti, td) in data.train.iter().enumerate() {
+        let (po, pa) = plain.aggregate(ti);
+        let (wo, wa) = weighted.aggregate(ti);
+        // Every demo row, each of the first 3 steps' 4 times, in order.
+        let (mut want_o, mut want_a) = (Vec::new(), Vec::new());
+        let mut row = 0;
+        for t in &td.trajectories {
+            for &step in &t.time_steps {
+                let copies = if step < 3 { 4 } else { 1 };
+                for _ in 0..copies {
+                    want_o.extend_from_slice(&po[row * od..(row + 1) * od]);
+                    want_a.extend_from_slice(&pa[row * ad..(row + 1) * ad]);
+                }
+                row += 1;
+            }
+        }
+        assert_eq!(row * ad, pa.len(), "task {ti}: every row read");
+        assert!(wa.len() > pa.len(), "task {ti}: no row weighted");
+        assert_eq!((wo, wa), (&want_o[..], &want_a[..]), "task {ti}");
+    }
+    for (steps, weight) in [(0, 4), (3, 0)] {
+        let bad = MetaBcConfig {
+            early: Some(meta_bc::EarlyWeight { steps, weight }),
+            ..tiny(false)
+        };
+        let err = MetaBc::new(bad, data.clone(), None)
+            .err()
+            .unwrap()
+            .to_string();
+        assert!(err.contains("early."), "{err}");
+    }
+}

@@ -42,7 +42,7 @@ use crate::threads::LearnerPool;
 mod config;
 mod fit;
 
-pub use config::{MetaBcConfig, Selection};
+pub use config::{EarlyWeight, MetaBcConfig, Selection};
 
 /// Per-task `(s, a)` pairs: the demos, plus relabelled visits for Meta-DAgger.
 #[derive(Debug, Clone, Default)]
@@ -128,8 +128,17 @@ impl MetaBc {
             .map(|td| {
                 let mut p = Pairs::default();
                 for t in &td.trajectories {
-                    p.obs.extend_from_slice(&t.obs);
-                    p.act.extend_from_slice(&t.actions);
+                    for i in 0..t.actions.len() / ad {
+                        let step = t.time_steps.get(i).copied().unwrap_or(u32::MAX);
+                        let copies = match cfg.early {
+                            Some(e) if step < e.steps => e.weight,
+                            _ => 1,
+                        };
+                        for _ in 0..copies {
+                            p.obs.extend_from_slice(&t.obs[i * od..(i + 1) * od]);
+                            p.act.extend_from_slice(&t.actions[i * ad..(i + 1) * ad]);
+                        }
+                    }
                 }
                 p
             })

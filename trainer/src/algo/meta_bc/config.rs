@@ -97,6 +97,24 @@ pub struct MetaBcConfig {
     /// Preset: `docs/configs/sensing-noise01-adc12.toml`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sensing: Option<crate::data::Sensing>,
+    /// Cloning weight on the episodes' first steps (issue 70 item 3; keyframe-weighted
+    /// imitation, Wen et al. 2021): a demo transition recorded before step `steps` is drawn
+    /// `weight` times as often as a later one. Where the state soon says what the expert
+    /// chose (ant-linclass: the torso's side from step 5-9), only the first steps need the
+    /// context to predict the action, and they are a small share of the rows. Default none
+    /// (every row alike).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub early: Option<EarlyWeight>,
+}
+
+/// The cloning weight of the first steps ([`MetaBcConfig::early`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EarlyWeight {
+    /// Transitions recorded at steps `0..steps` of their episode are weighted. Positive.
+    pub steps: u32,
+    /// How many times as often they are drawn: a whole number, at least 1.
+    pub weight: u32,
 }
 
 impl Default for MetaBcConfig {
@@ -128,6 +146,7 @@ impl Default for MetaBcConfig {
             learner_threads: 1,
             pre_tanh_loss: false,
             sensing: None,
+            early: None,
         }
     }
 }
@@ -188,6 +207,12 @@ impl MetaBcConfig {
                         .into(),
                 ));
             }
+        }
+        if let Some(early) = self.early {
+            crate::io::require_positive(&[
+                ("early.steps", u64::from(early.steps)),
+                ("early.weight", u64::from(early.weight)),
+            ])?;
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
             return Err(Error::Config(
