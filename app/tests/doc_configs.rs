@@ -167,3 +167,22 @@ fn the_position_sensing_preset_is_the_device_tables_position_column() {
     assert!(s.positions && s.model().is_ideal());
     assert_eq!((s.adc_range, s.accel_std, s.meas_std), (10.0, None, None));
 }
+
+/// ant-linclass' first-steps preset (issue 70 item 3) is the table's rollout-stopped Meta-BC
+/// with the weight added and nothing else changed: the ablation in docs/RESULTS.md compares
+/// the two.
+#[test]
+fn the_first_steps_preset_is_the_rollout_stopped_recipe_plus_the_weight() {
+    let roll: MetaBcConfig = toml::from_str(&read("alc-bc-roll.toml")).unwrap();
+    let mut early: MetaBcConfig = toml::from_str(&read("alc-bc-early.toml")).unwrap();
+    early.validate().unwrap();
+    assert_eq!(
+        early.early,
+        Some(trainer::meta_bc::EarlyWeight {
+            steps: 6,
+            weight: 16
+        })
+    );
+    early.early = None;
+    assert_eq!(early, roll);
+}
