@@ -42,7 +42,8 @@ use crate::threads::LearnerPool;
 mod config;
 mod fit;
 
-pub use config::{EarlyWeight, MetaBcConfig, Selection};
+pub use crate::data::EarlyWeight;
+pub use config::{MetaBcConfig, Selection};
 
 /// Per-task `(s, a)` pairs: the demos, plus relabelled visits for Meta-DAgger.
 #[derive(Debug, Clone, Default)]
@@ -130,10 +131,7 @@ impl MetaBc {
                 for t in &td.trajectories {
                     for i in 0..t.actions.len() / ad {
                         let step = t.time_steps.get(i).copied().unwrap_or(u32::MAX);
-                        let copies = match cfg.early {
-                            Some(e) if step < e.steps => e.weight,
-                            _ => 1,
-                        };
+                        let copies = cfg.early.map_or(1, |e| e.copies(step));
                         for _ in 0..copies {
                             p.obs.extend_from_slice(&t.obs[i * od..(i + 1) * od]);
                             p.act.extend_from_slice(&t.actions[i * ad..(i + 1) * ad]);

@@ -1,11 +1,13 @@
 //! Data that flows into the learners: the meta-train /
 //! held-out split with task and context sampling, rollouts, and replay buffers.
 
+mod early;
 mod replay;
 mod rollout;
 mod sensing;
 mod split;
 
+pub use early::EarlyWeight;
 pub use replay::{Batch, BatchVecs, ReplayBuffer, TaskReplay};
 pub use rollout::{ActFn, ActionNoise, Episode, Step, better, quick_eval, run_episode};
 pub use sensing::{Sensing, sensed_episode};

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
-use crate::data::ContextDraw;
+use crate::data::{ContextDraw, EarlyWeight};
 use crate::error::{Error, Result};
 use crate::model::ContextConfig;
 
@@ -107,16 +107,6 @@ pub struct MetaBcConfig {
     pub early: Option<EarlyWeight>,
 }
 
-/// The cloning weight of the first steps ([`MetaBcConfig::early`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct EarlyWeight {
-    /// Transitions recorded at steps `0..steps` of their episode are weighted. Positive.
-    pub steps: u32,
-    /// How many times as often they are drawn: a whole number, at least 1.
-    pub weight: u32,
-}
-
 impl Default for MetaBcConfig {
     fn default() -> Self {
         Self {
@@ -209,10 +199,7 @@ impl MetaBcConfig {
             }
         }
         if let Some(early) = self.early {
-            crate::io::require_positive(&[
-                ("early.steps", u64::from(early.steps)),
-                ("early.weight", u64::from(early.weight)),
-            ])?;
+            early.check("early")?;
         }
         if self.dagger && (self.dagger_every == 0 || self.dagger_rollouts == 0) {
             return Err(Error::Config(

@@ -6,9 +6,12 @@
 use candle_core::{Device, Tensor};
 use rand::Rng;
 use rand_chacha::ChaCha8Rng;
+use sim::TaskDemos;
 
 use super::SmileConfig;
-use crate::data::{Batch, BatchVecs, MetaData, TaskReplay, distinct_tasks, sample_context};
+use crate::data::{
+    Batch, BatchVecs, EarlyWeight, MetaData, TaskReplay, distinct_tasks, sample_context,
+};
 use crate::error::{Error, Result};
 use crate::model::{
     ContextBatch, ContextEncoder, ContextSpec, Discriminator, Input, SharedCols, policy_input,
@@ -66,6 +69,19 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
         j += 1;
     }
     (j, k)
+}
+
+/// Every demo transition of a task as (trajectory, index), each first-steps one `early`'s
+/// weight times: drawing uniformly from it weights the cloning rows.
+fn weighted_rows(demos: &TaskDemos, early: EarlyWeight) -> Vec<(usize, usize)> {
+    let mut rows = Vec::new();
+    for (j, tr) in demos.trajectories.iter().enumerate() {
+        for k in 0..tr.len() {
+            let step = tr.time_steps.get(k).copied().unwrap_or(u32::MAX);
+            rows.extend(std::iter::repeat_n((j, k), early.copies(step) as usize));
+        }
+    }
+    rows
 }
 
 /// The networks, data and replay that both steps' batches are drawn from, borrowed field by
@@ -246,8 +262,12 @@ impl BatchSource<'_> {
         for &ti in tasks {
             let demos = &self.data.train[ti];
             let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
+            let weighted = self.cfg.bc_early.map(|e| weighted_rows(demos, e));
             for _ in 0..self.cfg.sac_per_task {
-                let (j, k) = draw_transition(&lens, rng);
+                let (j, k) = match &weighted {
+                    Some(rows) => rows[rng.random_range(0..rows.len())],
+                    None => draw_transition(&lens, rng),
+                };
                 let tr = &demos.trajectories[j];
                 obs.extend_from_slice(&tr.obs[k * od..(k + 1) * od]);
                 act.extend_from_slice(&tr.actions[k * ad..(k + 1) * ad]);
@@ -276,4 +296,70 @@ pub(super) struct DemoRows {
     pub(super) act: Tensor,
     /// The term's weight at this update, `w(u)` (> 0).
     pub(super) weight: f32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Two 4-step demos: each of the first two steps' rows listed `weight` times, in order.
+    #[test]
+    fn the_first_steps_rows_are_listed_weight_times() {
+        let mut demos = TaskDemos {
+            task: sim::Task::point_goal(0.0),
+            trajectories: Vec::new(),
+        };
+        for _ in 0..2 {
+            let mut t = sim::Trajectory::new(0);
+            for i in 0..4 {
+                let tr = sim::TransitionRef {
+                    obs: &[0.0; 4],
+                    action: &[0.0; 2],
+                    reward: 0.0,
+                    next_obs: &[0.0; 4],
+                    done: false,
+                };
+                t.push(i, tr);
+            }
+            demos.trajectories.push(t);
+        }
+        let rows = weighted_rows(
+            &demos,
+            EarlyWeight {
+                steps: 2,
+                weight: 3,
+            },
+        );
+        let one = |j| {
+            [(j, 0); 3]
+                .into_iter()
+                .chain([(j, 1); 3])
+                .chain([(j, 2), (j, 3)])
+        };
+        assert_eq!(rows, one(0).chain(one(1)).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn a_first_steps_weight_needs_the_cloning_term_and_positive_counts() {
+        let early = |steps, weight| SmileConfig {
+            bc_weight: 1.0,
+            bc_early: Some(EarlyWeight { steps, weight }),
+            ..SmileConfig::default()
+        };
+        early(6, 16).validate().unwrap();
+        for (cfg, key) in [
+            (
+                SmileConfig {
+                    bc_weight: 0.0,
+                    ..early(6, 16)
+                },
+                "bc_weight",
+            ),
+            (early(0, 16), "bc_early.steps"),
+            (early(6, 0), "bc_early.weight"),
+        ] {
+            let err = cfg.validate().unwrap_err().to_string();
+            assert!(err.contains(key), "{key}: {err}");
+        }
+    }
 }

@@ -104,6 +104,11 @@ pub struct SmileConfig {
     /// after that the run is plain SMILe. Default 0.
     #[serde(skip_serializing_if = "is_zero_u64")]
     pub bc_decay_updates: u64,
+    /// SMILe + BC: the cloning rows' weight on the episodes' first steps, as Meta-BC's
+    /// `[early]` (issue 70 item 3): a demo transition recorded before step `steps` is drawn
+    /// `weight` times as often. Needs `bc_weight > 0`. Default none (every row alike).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bc_early: Option<crate::data::EarlyWeight>,
     /// walker-dyn: end the *training* rollouts when the walker falls. AIRL's reward is signed
     /// (log D - log(1 - D)): early in training the policy's transitions score below zero, and
     /// with termination the quickest way to stop losing reward is to fall. Without it a fallen
@@ -176,6 +181,7 @@ impl Default for SmileConfig {
             checkpoint_every: 2000,
             cpu_budget_s: 0.0,
             bc_weight: 0.0,
+            bc_early: None,
             bc_decay_updates: 0,
             rollout_termination: false,
             horizon: None,
@@ -251,6 +257,16 @@ impl SmileConfig {
         }
         if let Some(sensing) = &self.sensing {
             sensing.check()?;
+        }
+        if let Some(early) = self.bc_early {
+            early.check("bc_early")?;
+            if self.bc_weight <= 0.0 {
+                return Err(Error::Config(
+                    "[bc_early] weights SMILe + BC's cloning rows: set bc_weight > 0, or leave \
+                     [bc_early] out"
+                        .into(),
+                ));
+            }
         }
         if self.bc_weight > 0.0 && self.context.state_only {
             return Err(Error::Config(
