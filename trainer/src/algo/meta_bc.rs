@@ -6,8 +6,10 @@
 //! a_hat = tanh(mu_pi([norm(s), z]))          (the action the policy actually outputs)
 //! L = mean over tasks and rows of || a_hat - a_E ||^2 / act_dim      (MSE)
 //! ```
-//! on `tasks_per_batch` tasks x `per_task` expert pairs `(s, a_E)` per step. The original
-//! regressed the pre-tanh mean while evaluating `tanh(mean)`; this regresses what is executed.
+//! on `tasks_per_batch` tasks x `per_task` expert pairs `(s, a_E)` per step (with `[early]`,
+//! pairs recorded in an episode's first steps are drawn `weight` times as often: a weighted
+//! mean). The original regressed the pre-tanh mean while evaluating `tanh(mean)`; this
+//! regresses what is executed.
 //!
 //! **Stopping rule** (Meta-BC overfits the few subsampled demos, reference §7): every
 //! `eval_every` steps the MSE on the held-out *train* tasks' demos (context = their first demo,
