@@ -104,6 +104,8 @@ pub struct Smile {
     rollout_env: Option<Box<dyn Environment>>,
     /// Throughput since this process started training (`charts/sps`).
     clock: crate::algo::throughput::Throughput,
+    /// SMILe + BC's `[bc_early]`: each training task's demo rows, the first steps' repeated.
+    bc_rows: Option<Vec<Vec<(usize, usize)>>>,
 }
 
 /// What one [`Smile::iteration`] did.
@@ -154,6 +156,10 @@ impl Smile {
         if cfg.sensing.is_some_and(|s| s.positions) {
             replay = replay.with_views();
         }
+        let bc_rows = cfg.bc_early.map(|e| {
+            let rows = |td| batch::weighted_rows(td, e);
+            data.train.iter().map(rows).collect()
+        });
         Ok(Self {
             cfg,
             data,
@@ -173,6 +179,7 @@ impl Smile {
             pool: None,
             rollout_env: None,
             clock: crate::algo::throughput::Throughput::since(0),
+            bc_rows,
         })
     }
 
@@ -361,6 +368,7 @@ impl Smile {
             updates,
             sac,
             rng,
+            bc_rows,
             ..
         } = self;
         let source = BatchSource {
@@ -370,6 +378,7 @@ impl Smile {
             disc,
             replay,
             updates: *updates,
+            bc_rows: bc_rows.as_deref(),
         };
         (source, sac, rng)
     }

@@ -72,8 +72,9 @@ fn draw_transition(lens: &[usize], rng: &mut impl Rng) -> (usize, usize) {
 }
 
 /// Every demo transition of a task as (trajectory, index), each first-steps one `early`'s
-/// weight times: drawing uniformly from it weights the cloning rows.
-fn weighted_rows(demos: &TaskDemos, early: EarlyWeight) -> Vec<(usize, usize)> {
+/// weight times: drawing uniformly from it weights the cloning rows. Listed once per run
+/// ([`Smile::new`](super::Smile::new)), not per update pair.
+pub(super) fn weighted_rows(demos: &TaskDemos, early: EarlyWeight) -> Vec<(usize, usize)> {
     let mut rows = Vec::new();
     for (j, tr) in demos.trajectories.iter().enumerate() {
         for k in 0..tr.len() {
@@ -94,6 +95,8 @@ pub(super) struct BatchSource<'a> {
     pub(super) disc: &'a Discriminator,
     pub(super) replay: &'a TaskReplay,
     pub(super) updates: u64,
+    /// SMILe + BC's `[bc_early]`: each training task's weighted demo rows ([`weighted_rows`]).
+    pub(super) bc_rows: Option<&'a [Vec<(usize, usize)>]>,
 }
 
 impl BatchSource<'_> {
@@ -262,9 +265,8 @@ impl BatchSource<'_> {
         for &ti in tasks {
             let demos = &self.data.train[ti];
             let lens: Vec<usize> = demos.trajectories.iter().map(|tr| tr.len()).collect();
-            let weighted = self.cfg.bc_early.map(|e| weighted_rows(demos, e));
             for _ in 0..self.cfg.sac_per_task {
-                let (j, k) = match &weighted {
+                let (j, k) = match self.bc_rows.map(|r| &r[ti]) {
                     Some(rows) => rows[rng.random_range(0..rows.len())],
                     None => draw_transition(&lens, rng),
                 };
