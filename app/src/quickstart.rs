@@ -319,6 +319,7 @@ fn demos(
         per_task,
         subsample: args.subsample,
         seed,
+        distinct_starts: false,
         env: args.env_config(),
     };
     let ds = match &args.shipped {

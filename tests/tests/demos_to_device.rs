@@ -25,6 +25,7 @@ fn demos_from_the_trainer_teach_a_device_through_a_file() {
         per_task: 1,
         subsample: 1,
         seed: 40,
+        distinct_starts: false,
         env: EnvConfig::default(),
     };
     let path = dir.path().join("demos.safetensors");

@@ -235,6 +235,7 @@ fn demos_round_trip_and_are_deterministic() {
         per_task: 2,
         subsample: 5,
         seed: 3,
+        distinct_starts: false,
         env: EnvConfig {
             horizon: Some(30),
             ..Default::default()
@@ -248,6 +249,46 @@ fn demos_round_trip_and_are_deterministic() {
     ds.write(&f).unwrap();
     assert_eq!(sim::DemoDataset::read(&f).unwrap(), ds);
     assert_eq!(record(&ex, &spec).unwrap(), ds);
+    std::fs::remove_dir_all(&d).ok();
+}
+
+#[test]
+fn distinct_starts_give_every_task_its_own_reset_seeds() {
+    let d = tmp("demos-starts");
+    std::fs::create_dir_all(&d).unwrap();
+    expert::export_scripted_pd(&d).unwrap();
+    let ex = Expert::load(&d).unwrap();
+    let spec = |distinct_starts| DemoSpec {
+        tasks: Family::POINT_GOAL.test_tasks()[..3].to_vec(),
+        split: Split::Test,
+        per_task: 2,
+        subsample: 1,
+        seed: 10,
+        distinct_starts,
+        env: EnvConfig {
+            horizon: Some(5),
+            ..Default::default()
+        },
+    };
+    let seeds = |ds: &sim::DemoDataset| -> Vec<Vec<u64>> {
+        ds.tasks
+            .iter()
+            .map(|t| t.trajectories.iter().map(|tr| tr.seed).collect())
+            .collect()
+    };
+    let shared = record(&ex, &spec(false)).unwrap();
+    assert_eq!(seeds(&shared), vec![vec![10, 11]; 3]);
+    let distinct = record(&ex, &spec(true)).unwrap();
+    assert_eq!(seeds(&distinct), [[10, 11], [12, 13], [14, 15]]);
+    // The first task's demos are the shared file's; the next ones start elsewhere (point-goal's
+    // start is drawn from the reset seed).
+    assert_eq!(distinct.tasks[0], shared.tasks[0]);
+    let start = |ds: &sim::DemoDataset| ds.tasks[1].trajectories[0].obs[..2].to_vec();
+    assert_ne!(start(&distinct), start(&shared));
+    assert_eq!(
+        start(&shared),
+        shared.tasks[0].trajectories[0].obs[..2].to_vec()
+    );
     std::fs::remove_dir_all(&d).ok();
 }
 
@@ -276,6 +317,7 @@ fn an_ant_goal_expert_trains_evaluates_and_records_demos_of_the_3d_family() {
         per_task: 1,
         subsample: 1,
         seed: 0,
+        distinct_starts: false,
         env,
     };
     let ds = record(&ex, &spec).unwrap();

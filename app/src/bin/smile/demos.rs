@@ -36,6 +36,12 @@ pub struct DemosArgs {
     /// Base reset seed (trajectory j uses seed + j; also seeds the subsampling offsets).
     #[arg(long, default_value_t = 0)]
     seed: u64,
+    /// Reset each task's demos from seeds no other task uses (trajectory j of task i:
+    /// seed + i * per_task + j), not the same seeds in every task. Where tasks share their
+    /// goals (ant-linclass' two targets) this gives tasks x per_task distinct walks instead of
+    /// per_task.
+    #[arg(long)]
+    distinct_starts: bool,
     /// Physics backend to record on [default: the expert's, from its policy file]; an
     /// expert trained on another plant is refused.
     #[arg(long)]
@@ -94,6 +100,7 @@ pub fn run(a: DemosArgs) -> Result<()> {
         per_task: a.per_task,
         subsample: a.subsample,
         seed: a.seed,
+        distinct_starts: a.distinct_starts,
         env: EnvConfig {
             horizon: a.horizon,
             physics: a.physics.unwrap_or(ex.physics()),

@@ -1,6 +1,7 @@
 //! Demonstrations: deterministic expert rollouts written in `sim`'s dataset format
-//! (`docs/DATASET.md`). Trajectory `j` of every task is reset with seed `seed + j`, so a file is
-//! a pure function of (expert, tasks, per-task count, seed, subsampling).
+//! (`docs/DATASET.md`). Trajectory `j` of every task is reset with seed `seed + j` (with
+//! [`DemoSpec::distinct_starts`], trajectory `j` of task `i` with `seed + i * per_task + j`), so a
+//! file is a pure function of (expert, tasks, per-task count, seed, starts, subsampling).
 
 use sim::{DemoDataset, EnvConfig, Family, Split, Task, TaskDemos};
 
@@ -20,6 +21,13 @@ pub struct DemoSpec {
     pub subsample: usize,
     /// Base reset seed.
     pub seed: u64,
+    /// Reset each task's trajectories from seeds no other task uses (trajectory `j` of task `i`:
+    /// `seed + i * per_task + j`) instead of the same seeds in every task (`seed + j`). Where the
+    /// tasks share their goals (ant-linclass: two fixed targets), shared seeds make every task's
+    /// demo `j` the same walk, so a file of `per_task` demos a task holds `per_task` starts in
+    /// all; distinct ones give `tasks x per_task`, as an environment reset by its own generator
+    /// would. Off: the shipped files.
+    pub distinct_starts: bool,
     /// Episode options (horizon).
     pub env: EnvConfig,
 }
@@ -41,12 +49,17 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
     let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
     ds.physics = spec.env.physics;
-    for task in &spec.tasks {
+    for (i, task) in spec.tasks.iter().enumerate() {
         let expert = experts.for_task(task)?;
         let mut trajectories = Vec::with_capacity(spec.per_task);
+        let first = match spec.distinct_starts {
+            true => spec.seed.wrapping_add((i * spec.per_task) as u64),
+            false => spec.seed,
+        };
         for j in 0..spec.per_task {
             let mut failure = None;
-            let tr = sim::record_trajectory(env.as_mut(), task, spec.seed + j as u64, |o, a| {
+            let seed = first.wrapping_add(j as u64);
+            let tr = sim::record_trajectory(env.as_mut(), task, seed, |o, a| {
                 if let Err(e) = expert.act(o, a) {
                     failure.get_or_insert(e);
                 }
