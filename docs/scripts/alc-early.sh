@@ -4,17 +4,28 @@
 # evaluation (contexts of 1, 2, 4 and 8 test demos, 3 draws x 5 rollouts) and the diagnosis
 # (`smile linclass-diagnose`: the probes of z, where the decision is made). About 3 min a seed
 # on one core of the 2-vCPU Xeon (beside a long run), 20 s its evaluation, 5 min the diagnosis.
+# PER_TASK train demos per hyperplane: 16 as the paper (and the shipped files), 64 or 256 for
+# the larger sets whose clones reach the targets more often; STARTS `distinct` records every
+# task's demos from reset seeds no other task uses (`smile demos --distinct-starts`), `shared`
+# (the shipped files) the same seeds in every task (docs/RESULTS.md).
 #
-#   docs/scripts/alc-early.sh [RUNS_DIR]        # default runs/alc-early
+#   docs/scripts/alc-early.sh [RUNS_DIR] [PER_TASK] [STARTS]   # default runs/alc-early 16 shared
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 R=${1:-runs/alc-early}
+n=${2:-16}
+starts=${3:-shared}
+case $starts in
+  shared) flag=() suffix= ;;
+  distinct) flag=(--distinct-starts) suffix=-distinct ;;
+  *) echo "STARTS is shared or distinct, not $starts" >&2; exit 2 ;;
+esac
 bin=${SMILE_BIN:-target/release/smile}
 E=assets/experts/ant-linclass
 mkdir -p "$R"
-train=$R/demos-train-16x-sub1.safetensors
+train=$R/demos-train-${n}x-sub1$suffix.safetensors
 # The scripted expert's demos, every step kept (seconds; the same seeds as the shipped sub-5 files).
-[ -f "$train" ] || "$bin" demos --env ant-linclass --split train --per-task 16 --subsample 1 \
+[ -f "$train" ] || "$bin" demos --env ant-linclass --split train --per-task "$n" --subsample 1 "${flag[@]}" \
   --seed 0 --expert $E -o "$train"
 policies=()
 for s in 0 1 2; do
