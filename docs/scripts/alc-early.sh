@@ -10,6 +10,9 @@
 # (the shipped files) the same seeds in every task (docs/RESULTS.md).
 #
 #   docs/scripts/alc-early.sh [RUNS_DIR] [PER_TASK] [STARTS]   # default runs/alc-early 16 shared
+#
+# Each RUNS_DIR holds one kind of train demos: finished runs in it are reused, so another
+# PER_TASK or STARTS needs another RUNS_DIR (refused otherwise).
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 R=${1:-runs/alc-early}
@@ -24,8 +27,14 @@ bin=${SMILE_BIN:-target/release/smile}
 E=assets/experts/ant-linclass
 mkdir -p "$R"
 train=$R/demos-train-${n}x-sub1$suffix.safetensors
-# The scripted expert's demos, every step kept (seconds; the same seeds as the shipped sub-5 files).
-[ -f "$train" ] || "$bin" demos --env ant-linclass --split train --per-task "$n" --subsample 1 "${flag[@]}" \
+for other in "$R"/demos-train-*.safetensors; do
+  if [ -e "$other" ] && [ "$other" != "$train" ]; then
+    echo "$R holds runs on $other; give another RUNS_DIR for $n demos a task, $starts starts" >&2
+    exit 2
+  fi
+done
+# The scripted expert's demos, every step kept (seconds; shared starts: the shipped sub-5 files' seeds).
+[ -f "$train" ] || "$bin" demos --env ant-linclass --split train --per-task "$n" --subsample 1 ${flag[@]+"${flag[@]}"} \
   --seed 0 --expert $E -o "$train"
 policies=()
 for s in 0 1 2; do

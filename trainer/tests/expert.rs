@@ -289,6 +289,14 @@ fn distinct_starts_give_every_task_its_own_reset_seeds() {
         start(&shared),
         shared.tasks[0].trajectories[0].obs[..2].to_vec()
     );
+    // Seeds that would wrap past 2^64 (onto ones another demo used) are refused, not wrapped.
+    let near_end = |distinct_starts| DemoSpec {
+        seed: u64::MAX - 4,
+        ..spec(distinct_starts)
+    };
+    assert!(record(&ex, &near_end(false)).is_ok());
+    let e = record(&ex, &near_end(true)).unwrap_err().to_string();
+    assert!(e.contains("smaller seed"), "{e}");
     std::fs::remove_dir_all(&d).ok();
 }
 

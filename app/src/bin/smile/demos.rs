@@ -38,7 +38,7 @@ pub struct DemosArgs {
     seed: u64,
     /// Reset each task's demos from seeds no other task uses (trajectory j of task i:
     /// seed + i * per_task + j), not the same seeds in every task. Where tasks share their
-    /// goals (ant-linclass' two targets) this gives tasks x per_task distinct walks instead of
+    /// goals (ant-linclass' two targets) the file then holds tasks x per_task starts instead of
     /// per_task.
     #[arg(long)]
     distinct_starts: bool,

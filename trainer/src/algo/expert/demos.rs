@@ -24,9 +24,9 @@ pub struct DemoSpec {
     /// Reset each task's trajectories from seeds no other task uses (trajectory `j` of task `i`:
     /// `seed + i * per_task + j`) instead of the same seeds in every task (`seed + j`). Where the
     /// tasks share their goals (ant-linclass: two fixed targets), shared seeds make every task's
-    /// demo `j` the same walk, so a file of `per_task` demos a task holds `per_task` starts in
-    /// all; distinct ones give `tasks x per_task`, as an environment reset by its own generator
-    /// would. Off: the shipped files.
+    /// demo `j` the same walk to the same goal, so the whole file holds `per_task` starts;
+    /// distinct seeds give `tasks x per_task` starts, as an environment reset by its own
+    /// generator would. Off in the shipped files.
     pub distinct_starts: bool,
     /// Episode options (horizon).
     pub env: EnvConfig,
@@ -49,16 +49,14 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
     let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
     ds.physics = spec.env.physics;
+    let starts = reset_seeds(spec)?;
     for (i, task) in spec.tasks.iter().enumerate() {
         let expert = experts.for_task(task)?;
         let mut trajectories = Vec::with_capacity(spec.per_task);
-        let first = match spec.distinct_starts {
-            true => spec.seed.wrapping_add((i * spec.per_task) as u64),
-            false => spec.seed,
-        };
+        let first = starts.first_of(i);
         for j in 0..spec.per_task {
             let mut failure = None;
-            let seed = first.wrapping_add(j as u64);
+            let seed = first + j as u64;
             let tr = sim::record_trajectory(env.as_mut(), task, seed, |o, a| {
                 if let Err(e) = expert.act(o, a) {
                     failure.get_or_insert(e);
@@ -93,4 +91,43 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
         ds = ds.subsample(spec.subsample, spec.seed)?;
     }
     Ok(ds)
+}
+
+/// Where each task's reset seeds begin.
+struct Starts {
+    seed: u64,
+    per_task: Option<u64>,
+}
+
+impl Starts {
+    /// Task `i`'s first seed (its trajectory `j` is reset with this + `j`).
+    fn first_of(&self, i: usize) -> u64 {
+        self.seed + self.per_task.map_or(0, |n| i as u64 * n)
+    }
+}
+
+/// The reset seeds `spec` asks for, refused when the last one would not fit in 64 bits (it would
+/// wrap onto seeds another trajectory used).
+fn reset_seeds(spec: &DemoSpec) -> Result<Starts> {
+    let per_task = spec.per_task as u64;
+    let used = match spec.distinct_starts {
+        true => (spec.tasks.len() as u64).checked_mul(per_task),
+        false => Some(per_task),
+    };
+    if used.and_then(|n| spec.seed.checked_add(n)).is_none() {
+        return Err(Error::Config(format!(
+            "seed {} leaves too few 64-bit seeds for {} demos a task{}: give a smaller seed",
+            spec.seed,
+            spec.per_task,
+            if spec.distinct_starts {
+                format!(" in {} tasks from distinct starts", spec.tasks.len())
+            } else {
+                String::new()
+            }
+        )));
+    }
+    Ok(Starts {
+        seed: spec.seed,
+        per_task: spec.distinct_starts.then_some(per_task),
+    })
 }
