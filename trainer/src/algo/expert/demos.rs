@@ -49,11 +49,11 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
     let mut env = sim::make_env(family, spec.env)?;
     let mut ds = DemoDataset::new(family, spec.split, experts.name());
     ds.physics = spec.env.physics;
-    let starts = reset_seeds(spec)?;
+    let stride = seed_stride(spec)?;
     for (i, task) in spec.tasks.iter().enumerate() {
         let expert = experts.for_task(task)?;
         let mut trajectories = Vec::with_capacity(spec.per_task);
-        let first = starts.first_of(i);
+        let first = spec.seed + i as u64 * stride;
         for j in 0..spec.per_task {
             let mut failure = None;
             let seed = first + j as u64;
@@ -93,41 +93,23 @@ pub fn record_with(experts: &ExpertSet, spec: &DemoSpec) -> Result<DemoDataset> 
     Ok(ds)
 }
 
-/// Where each task's reset seeds begin.
-struct Starts {
-    seed: u64,
-    per_task: Option<u64>,
-}
-
-impl Starts {
-    /// Task `i`'s first seed (its trajectory `j` is reset with this + `j`).
-    fn first_of(&self, i: usize) -> u64 {
-        self.seed + self.per_task.map_or(0, |n| i as u64 * n)
-    }
-}
-
-/// The reset seeds `spec` asks for, refused when the last one would not fit in 64 bits (it would
-/// wrap onto seeds another trajectory used).
-fn reset_seeds(spec: &DemoSpec) -> Result<Starts> {
+/// How far apart consecutive tasks' first reset seeds are: `per_task` with distinct starts, 0
+/// with shared ones. Refused when the last seed would not fit in 64 bits (it would wrap onto
+/// seeds another trajectory used).
+fn seed_stride(spec: &DemoSpec) -> Result<u64> {
     let per_task = spec.per_task as u64;
-    let used = match spec.distinct_starts {
-        true => (spec.tasks.len() as u64).checked_mul(per_task),
-        false => Some(per_task),
+    let (stride, used) = match spec.distinct_starts {
+        true => (per_task, (spec.tasks.len() as u64).checked_mul(per_task)),
+        false => (0, Some(per_task)),
     };
     if used.and_then(|n| spec.seed.checked_add(n)).is_none() {
         return Err(Error::Config(format!(
-            "seed {} leaves too few 64-bit seeds for {} demos a task{}: give a smaller seed",
+            "seed {} leaves too few 64-bit seeds for {} demos a task in {} tasks: give a \
+             smaller seed",
             spec.seed,
             spec.per_task,
-            if spec.distinct_starts {
-                format!(" in {} tasks from distinct starts", spec.tasks.len())
-            } else {
-                String::new()
-            }
+            spec.tasks.len()
         )));
     }
-    Ok(Starts {
-        seed: spec.seed,
-        per_task: spec.distinct_starts.then_some(per_task),
-    })
+    Ok(stride)
 }
