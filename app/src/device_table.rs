@@ -226,7 +226,7 @@ fn cell(family: Family, float_tasks: &[f32], tasks: &[f32]) -> Cell {
 /// Reads the demo file given as `input` in the manifest (relative to its directory).
 fn demos_at(dir: &Path, file: &Path, input: trainer::Input) -> Result<DemoDataset> {
     let path = dir.join(file);
-    trainer::run::read_demos(&path, input).map_err(|e| {
+    trainer::read_demos(&path, input).map_err(|e| {
         Error::Data(format!(
             "{e} (named in {})",
             dir.join(MANIFEST_FILE).display()
@@ -250,7 +250,7 @@ fn tasks_measured(
     };
     // As `demos_at`: a data error naming the file, where an input error would point the
     // user at a flag this table does not have.
-    let demos = trainer::run::read_demos_of(path, trainer::Input::Contexts, family)
+    let demos = trainer::read_demos_of(path, trainer::Input::Contexts, family)
         .map_err(|e| Error::Data(format!("{e} (the demos of the new tasks to measure on)")))?;
     if demos.tasks.is_empty() {
         return Err(Error::Data(format!(

@@ -79,8 +79,9 @@ pub enum Error {
         run: PathBuf,
         /// The configuration's top-level key that differs.
         key: String,
-        /// The settings that set that key (none: only a configuration file sets it).
-        settings: Box<[crate::setting::Setting]>,
+        /// The settings the caller gave beyond the budget (none: the change is in the run's
+        /// `config.toml`).
+        given: Box<[crate::setting::Setting]>,
         /// Its value in the run.
         was: String,
         /// The value asked for (`missing` if absent).

@@ -16,12 +16,11 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Family, Physics};
 
-use crate::algo::expert::{Expert, ExpertSet};
+use crate::algo::expert::ExpertSet;
 use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, WithLearner, fit};
-use crate::data::MetaData;
+use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
-use crate::setting::Setting;
 
 mod expert;
 pub use expert::{ExpertRequest, train_expert};
@@ -56,46 +55,15 @@ pub struct RunInfo {
 }
 
 impl RunInfo {
-    /// The record of the run in `dir`: its [`RUN_FILE`], or for runs older than that file,
-    /// what its `config.toml` says (the algorithm; no expert, no demo checksum).
+    /// The record of the run in `dir` (its [`RUN_FILE`]).
     pub fn read(dir: &Path) -> Result<RunInfo> {
         let info = dir.join(RUN_FILE);
-        if let Ok(text) = std::fs::read_to_string(&info) {
-            return serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
-                path: info.clone(),
-                reason: format!("not a run record: {e}"),
-            });
-        }
-        let cfg = dir.join("config.toml");
-        let text = std::fs::read_to_string(&cfg).map_err(|_| {
-            Error::Usage(format!(
-                "{} holds no run to resume (no {RUN_FILE} or config.toml)",
-                dir.display()
-            ))
+        let text = std::fs::read_to_string(&info).map_err(|_| {
+            Error::Usage(format!("{} holds no run to resume (no {RUN_FILE})", dir.display()))
         })?;
-        let table: toml::Table = toml::from_str(&text)
-            .map_err(|e| Error::Config(format!("parsing {}: {}", cfg.display(), e.message())))?;
-        let algo = match table.get("dagger").and_then(toml::Value::as_bool) {
-            Some(true) => Algo::MetaDagger,
-            Some(false) => Algo::MetaBc,
-            None => {
-                let state_only = table
-                    .get("context")
-                    .and_then(|c| c.get("state_only"))
-                    .and_then(toml::Value::as_bool);
-                if state_only == Some(true) {
-                    Algo::SmileStateOnly
-                } else {
-                    Algo::Smile
-                }
-            }
-        };
-        Ok(RunInfo {
-            algo: algo.name().into(),
-            expert: None,
-            expert_os: None,
-            demos_sha256: None,
-            physics: Physics::Rapier,
+        serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
+            path: info.clone(),
+            reason: format!("not a run record: {e}"),
         })
     }
 
@@ -165,53 +133,6 @@ pub enum RunEvent {
     Progress(Progress, &'static str),
 }
 
-impl RunEvent {
-    /// The line a log shows for this event; none for step counts and checkpoints.
-    pub fn log_line(&self) -> Option<String> {
-        match self {
-            RunEvent::Note(text) => Some(text.clone()),
-            RunEvent::Started {
-                what,
-                total,
-                done,
-                unit,
-                word,
-                resumed,
-            } => {
-                let head = if *resumed {
-                    format!("resuming from {word} {done}\n")
-                } else {
-                    String::new()
-                };
-                Some(format!("{head}{what}; {total} {unit}"))
-            }
-            RunEvent::Progress(
-                Progress::Eval {
-                    step,
-                    metric,
-                    best,
-                    val_mse,
-                },
-                word,
-            ) => Some(match val_mse {
-                Some(mse) => {
-                    format!("{word} {step}: val mse {mse:.5}, held-out metric {metric:.4}")
-                }
-                None => format!(
-                    "{word} {step}: held-out train-task metric {metric:.4} (best {best:.4})"
-                ),
-            }),
-            RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
-                "early stop at {word} {s}: the held-out selection metric stopped improving"
-            )),
-            RunEvent::Progress(
-                Progress::Steps(_) | Progress::Episode { .. } | Progress::Checkpoint(_),
-                _,
-            ) => None,
-        }
-    }
-}
-
 /// The algorithm a request runs: the recorded one for a resume (a different `req.algo` is
 /// refused), else `req.algo` or SMILe.
 pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
@@ -231,43 +152,6 @@ pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
         ));
     }
     Ok(algo)
-}
-
-/// Reads the demo file given as `input` (any family); errors are [`Error::Input`]s naming it
-/// and the path.
-pub fn read_demos(path: &Path, input: Input) -> Result<DemoDataset> {
-    let at = |e: &dyn std::fmt::Display| {
-        Error::input(input, format!("{} {}: {e}", input.noun(), path.display()))
-    };
-    DemoDataset::read(path).map_err(|e| match e {
-        // Its message names the path already.
-        sim::DatasetError::Io { source, .. } => at(&source),
-        e => at(&e),
-    })
-}
-
-/// Reads the demo file given as `input`, checking it holds demos of `family`: a mismatch names
-/// the file and the family that fits it (an [`Input::Family`] error: choosing the family is
-/// the first remedy).
-pub fn read_demos_of(path: &Path, input: Input, family: Family) -> Result<DemoDataset> {
-    let demos = read_demos(path, input)?;
-    if demos.family != family {
-        return Err(Error::input(
-            Input::Family,
-            format!(
-                "{} {} hold {} demos, but the family is {family}; choose the family {} or a \
-                 file of {family} demos",
-                input.noun(),
-                path.display(),
-                demos.family,
-                demos.family
-            ),
-        ));
-    }
-    demos
-        .ensure_family(family)
-        .map_err(|e| Error::input(input, format!("{} {}: {e}", input.noun(), path.display())))?;
-    Ok(demos)
 }
 
 /// Starts or resumes the run `req` describes and trains it to its budget or stopping rule.
@@ -447,44 +331,25 @@ impl Run<'_> {
         Ok(cfg)
     }
 
-    /// Meta-DAgger's relabelling expert (and its recorded name); none for the others.
+    /// Meta-DAgger's relabelling expert; none for the others, which refuse one.
     fn relabelling_expert(&self, on: &mut dyn FnMut(RunEvent)) -> Result<Option<ExpertSet>> {
-        let (algo, family) = (self.algo, self.family);
-        if !algo.needs_expert() {
-            if let Some(p) = &self.expert {
-                return Err(Error::input(
-                    Input::Expert,
-                    format!(
-                        "the expert {} would relabel Meta-DAgger's rollouts; {algo} learns \
-                         from the demos alone (drop the expert, or train meta-dagger)",
-                        p.display()
-                    ),
-                ));
-            }
-            return Ok(None);
+        let algo = self.algo;
+        if algo.needs_expert() {
+            let scripted = Path::new(SCRIPTED_PD);
+            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), scripted, self.family)?;
+            on(RunEvent::Note(format!("{algo}: {note}")));
+            return Ok(Some(set));
         }
-        let scripted = self.expert.as_deref() == Some(Path::new(SCRIPTED_PD));
         match &self.expert {
-            Some(p) if !scripted => {
-                on(RunEvent::Note(format!(
-                    "{algo}: relabelling with the expert {}",
-                    p.display()
-                )));
-                let set = ExpertSet::load(&[p])
-                    .map_err(|e| Error::Usage(format!("loading expert {}: {e}", p.display())))?;
-                Ok(Some(set))
-            }
-            _ if family == Family::POINT_GOAL => {
-                on(RunEvent::Note(format!(
-                    "{algo}: relabelling with the scripted point-goal PD expert"
-                )));
-                let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
-                Ok(Some(pd.into()))
-            }
-            _ => Err(Error::input(
+            Some(p) => Err(Error::input(
                 Input::Expert,
-                format!("{algo} on {family} needs an expert to relabel with (an expert run)"),
+                format!(
+                    "the expert {} would relabel Meta-DAgger's rollouts; {algo} learns from the \
+                     demos alone (drop the expert, or train meta-dagger)",
+                    p.display()
+                ),
             )),
+            None => Ok(None),
         }
     }
 
@@ -558,7 +423,7 @@ impl Run<'_> {
         let inputs = MetaInputs { data, expert };
         let run = if self.resumes() {
             let run = L::resume(&req.out, inputs, &cfg)?;
-            check_resume(&req.out, &cfg, run.config())?;
+            check_resume(req, &cfg, run.config())?;
             run
         } else {
             L::start(cfg, inputs)?
@@ -642,7 +507,7 @@ fn write_config<T: Serialize>(out: &Path, cfg: &T) -> Result<()> {
 /// On a resume: the configuration asked for must agree with the one the run continues (its
 /// checkpoint's, with the budget asked for), and so must its `config.toml` (a reader trusts
 /// that file to describe the run).
-fn check_resume<T: Serialize>(out: &Path, given: &T, running: &T) -> Result<()> {
+fn check_resume<T: Serialize>(req: &TrainRequest, given: &T, running: &T) -> Result<()> {
     let table = |c: &T| -> Result<toml::Table> {
         toml::Table::try_from(c).map_err(|e| Error::Serialise {
             what: "the configuration",
@@ -654,9 +519,9 @@ fn check_resume<T: Serialize>(out: &Path, given: &T, running: &T) -> Result<()> 
         let ours = g.get(key);
         if ours != Some(theirs) {
             return Err(Error::ResumeChanges {
-                run: out.to_path_buf(),
+                run: req.out.clone(),
                 key: key.clone(),
-                settings: Setting::of_key(key).into(),
+                given: req.settings.given_beyond_budget(),
                 was: theirs.to_string(),
                 now: ours.map_or("missing".into(), ToString::to_string),
             });

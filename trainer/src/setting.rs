@@ -31,51 +31,22 @@ pub enum Setting {
     Sensing,
 }
 
-impl Setting {
-    /// Every setting.
-    pub const ALL: [Setting; 11] = [
-        Setting::Updates,
-        Setting::CpuBudget,
-        Setting::Seed,
-        Setting::LearnerThreads,
-        Setting::EvalEvery,
-        Setting::Hidden,
-        Setting::GpWeight,
-        Setting::RewardScale,
-        Setting::BcWeight,
-        Setting::Physics,
-        Setting::Sensing,
-    ];
-
-    /// The configuration keys it sets (top-level, as `config.toml` has them; SMILe's first).
-    pub fn keys(self) -> &'static [&'static str] {
-        match self {
-            Setting::Updates => &["total_updates", "total_steps"],
-            Setting::CpuBudget => &["cpu_budget_s"],
-            Setting::Seed => &["seed"],
-            Setting::LearnerThreads => &["learner_threads"],
-            Setting::EvalEvery => &["eval_every"],
-            Setting::Hidden => &["sac", "disc_hidden", "policy_hidden"],
-            Setting::GpWeight => &["gp_weight"],
-            Setting::RewardScale => &["sac"],
-            Setting::BcWeight => &["bc_weight"],
-            Setting::Physics => &["physics"],
-            Setting::Sensing => &["sensing"],
-        }
-    }
-
-    /// The settings that set top-level configuration `key` (a resume's difference names a
-    /// key): none for a key only a configuration file sets.
-    pub fn of_key(key: &str) -> Vec<Setting> {
-        Setting::ALL
-            .into_iter()
-            .filter(|s| s.keys().contains(&key))
-            .collect()
-    }
-}
-
 impl std::fmt::Display for Setting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(self.keys()[0])
+        // The field's name in `Overrides`.
+        let name = match self {
+            Setting::Updates => "updates",
+            Setting::CpuBudget => "cpu_budget_s",
+            Setting::Seed => "seed",
+            Setting::LearnerThreads => "learner_threads",
+            Setting::EvalEvery => "eval_every",
+            Setting::Hidden => "hidden",
+            Setting::GpWeight => "gp_weight",
+            Setting::RewardScale => "reward_scale",
+            Setting::BcWeight => "bc_weight",
+            Setting::Physics => "physics",
+            Setting::Sensing => "sensing",
+        };
+        f.write_str(name)
     }
 }

@@ -53,26 +53,3 @@ fn a_setting_the_algorithm_lacks_is_refused_by_name_and_changes_nothing() {
     c.apply(Algo::MetaBc, &o).unwrap();
     assert_eq!(c.total_steps, 5);
 }
-
-/// The keys a setting names are keys of the learners' configurations (what a resume's
-/// difference names), so an error about one can say which flag gives it.
-#[test]
-fn every_setting_names_keys_the_configurations_have() {
-    // Every optional key given, so that the tables hold them all.
-    let smile = SmileConfig {
-        cpu_budget_s: 1.0,
-        bc_weight: 1.0,
-        sensing: Some(trainer::Sensing::default()),
-        ..SmileConfig::default()
-    };
-    let smile = toml::Table::try_from(smile).unwrap();
-    let bc = toml::Table::try_from(MetaBcConfig::default()).unwrap();
-    for setting in trainer::Setting::ALL {
-        for key in setting.keys() {
-            let known = smile.contains_key(*key) || bc.contains_key(*key);
-            assert!(known, "{setting:?}: `{key}` is no configuration's key");
-            assert!(trainer::Setting::of_key(key).contains(&setting), "{key}");
-        }
-    }
-    assert!(trainer::Setting::of_key("disc_lr").is_empty());
-}

@@ -320,7 +320,7 @@ fn train_and_eval(sweep: &Sweep, cell: &Cell, dir: &Path, extend: bool) -> Resul
                 log.line(&format!("train: {} on {}", cell.algo, cell.demos.display()));
             }
             trainer::run::train(&req, &mut |e| {
-                if let Some(line) = e.log_line() {
+                if let Some(line) = crate::progress::log_line(&e) {
                     log.line(&line);
                 }
             })?;

@@ -42,6 +42,37 @@ pub struct Overrides {
 }
 
 impl Overrides {
+    /// The settings given (`Some`) other than the budget: what a resume may not change.
+    pub(crate) fn given_beyond_budget(&self) -> Box<[Setting]> {
+        let Overrides {
+            updates: _,
+            cpu_budget_s: _,
+            seed,
+            learner_threads,
+            eval_every,
+            hidden,
+            gp_weight,
+            reward_scale,
+            bc_weight,
+            physics,
+            sensing,
+        } = self;
+        [
+            (seed.is_some(), Setting::Seed),
+            (learner_threads.is_some(), Setting::LearnerThreads),
+            (eval_every.is_some(), Setting::EvalEvery),
+            (hidden.is_some(), Setting::Hidden),
+            (gp_weight.is_some(), Setting::GpWeight),
+            (reward_scale.is_some(), Setting::RewardScale),
+            (bc_weight.is_some(), Setting::BcWeight),
+            (physics.is_some(), Setting::Physics),
+            (sensing.is_some(), Setting::Sensing),
+        ]
+        .into_iter()
+        .filter_map(|(given, s)| given.then_some(s))
+        .collect()
+    }
+
     /// Writes `value` into `field` when it is given.
     pub(crate) fn set<T: Clone>(field: &mut T, value: &Option<T>) {
         if let Some(v) = value {

@@ -100,7 +100,7 @@ pub enum EvalEvent {
 /// checked before any rollout, so a wrong policy, context file, base or expert fails fast.
 pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Result<EvalReport> {
     let family = req.family;
-    let ctx = crate::run::read_demos_of(&req.contexts, Input::Contexts, family)?;
+    let ctx = crate::data::read_demos_of(&req.contexts, Input::Contexts, family)?;
     check_contexts(req, &ctx)?;
     let mut protocol = protocol_of(req, on)?;
     let policies = load_policies(req, on)?;

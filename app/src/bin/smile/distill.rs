@@ -45,7 +45,7 @@ pub struct DistillArgs {
 pub fn run(a: DistillArgs) -> Result<()> {
     let teacher =
         MetaPolicy::load(&a.policy).with_context(|| format!("--policy {}", a.policy.display()))?;
-    let demos = trainer::run::read_demos_of(&a.demos, trainer::Input::Demos, teacher.family)?;
+    let demos = trainer::read_demos_of(&a.demos, trainer::Input::Demos, teacher.family)?;
     let sensings = a
         .sensing
         .iter()

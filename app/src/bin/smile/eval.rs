@@ -85,7 +85,7 @@ pub fn run(a: EvalArgs) -> Result<()> {
     // file must then hold; the library checks it and the policies against it).
     let env = match a.env {
         Some(env) => env,
-        None => trainer::run::read_demos(&a.contexts, trainer::Input::Contexts)?.family,
+        None => trainer::read_demos(&a.contexts, trainer::Input::Contexts)?.family,
     };
     let mut req = EvalRequest::new(
         a.policy.clone(),

@@ -267,7 +267,7 @@ fn train(req: &ExpertRequest, quiet: bool) -> Result<ExpertConfig> {
             .iter()
             .for_each(|b| b.println(format!("checkpoint at step {s}"))),
         e => {
-            if let Some(line) = e.log_line() {
+            if let Some(line) = smile_app::progress::log_line(e) {
                 eprintln!("{line}");
             }
         }

@@ -83,7 +83,7 @@ enum Format {
 
 /// Reads the demo file given as `input` and checks that it fits the policy (one-line errors).
 fn read_demos(path: &Path, input: Input, mp: &MetaPolicy) -> Result<DemoDataset> {
-    let demos = trainer::run::read_demos(path, input)?;
+    let demos = trainer::read_demos(path, input)?;
     export::check_demos_fit(mp, &demos, &format!("{} {}", input.noun(), path.display()))?;
     Ok(demos)
 }

@@ -41,7 +41,7 @@ pub struct LatentsArgs {
 /// Run `smile latents`.
 pub fn run(a: LatentsArgs) -> Result<()> {
     let family = a.env;
-    let ctx = trainer::run::read_demos_of(&a.contexts, trainer::Input::Contexts, family)?;
+    let ctx = trainer::read_demos_of(&a.contexts, trainer::Input::Contexts, family)?;
     if ctx.split != a.split {
         bail!(
             "--contexts {} holds {} demos but --split is {}",

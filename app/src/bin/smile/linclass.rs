@@ -113,7 +113,7 @@ struct Diagnosis {
 const CHECKPOINTS: [usize; 5] = [5, 10, 15, 25, 50];
 
 fn read(path: &Path, input: trainer::Input, split: Split) -> Result<DemoDataset> {
-    let ds = trainer::run::read_demos_of(path, input, Family::ANT_LINCLASS)?;
+    let ds = trainer::read_demos_of(path, input, Family::ANT_LINCLASS)?;
     if ds.split != split {
         bail!(
             "{} holds {} demos, expected {split}",

@@ -124,7 +124,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
             }
             RunEvent::Progress(Progress::Eval { .. }, _) => {
                 // The bar shows the latest evaluation; a quiet run prints each one.
-                if let (Some(bar), Some(line)) = (&pb, e.log_line()) {
+                if let (Some(bar), Some(line)) = (&pb, smile_app::progress::log_line(&e)) {
                     if a.quiet {
                         eprintln!("{line}");
                     }
@@ -135,7 +135,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
             }
             _ => {}
         }
-        if let Some(line) = e.log_line() {
+        if let Some(line) = smile_app::progress::log_line(&e) {
             eprintln!("{line}");
         }
     });
@@ -208,15 +208,14 @@ fn with_flags(e: trainer::Error) -> anyhow::Error {
         trainer::Error::ResumeChanges {
             run,
             key,
-            settings,
+            given,
             was,
             now,
         } => {
-            let flags: Vec<&str> = settings.iter().copied().map(flag_of).collect();
-            let flag = if flags.is_empty() {
-                "config.toml".to_string()
-            } else {
-                flags.join(" / ")
+            let flags: Vec<&str> = given.iter().copied().map(flag_of).collect();
+            let flag = match flags.is_empty() {
+                true => "config.toml".to_string(),
+                false => flags.join(" / "),
             };
             anyhow::anyhow!(
                 "--resume continues {} with the configuration it started with, but {flag} \

@@ -48,6 +48,31 @@ impl From<Expert> for ExpertSet {
 }
 
 impl ExpertSet {
+    /// Meta-DAgger's relabelling expert: the one `given` (a run, a policy file or a folder
+    /// of per-task experts), else on point-goal its scripted PD controller (also named by
+    /// `given` = `scripted`); returns it with a line saying which it is.
+    pub(crate) fn relabelling(
+        given: Option<&Path>,
+        scripted: &Path,
+        family: Family,
+    ) -> Result<(Self, String)> {
+        match given {
+            Some(p) if p != scripted => {
+                let set = Self::load(&[p])
+                    .map_err(|e| Error::Usage(format!("loading expert {}: {e}", p.display())))?;
+                Ok((set, format!("relabelling with the expert {}", p.display())))
+            }
+            _ if family == Family::POINT_GOAL => {
+                let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+                Ok((pd.into(), "relabelling with the scripted point-goal PD expert".into()))
+            }
+            _ => Err(Error::input(
+                crate::error::Input::Expert,
+                format!("meta-dagger on {family} needs an expert to relabel with (an expert run)"),
+            )),
+        }
+    }
+
     /// Load every path (run directories or policy files) as in [`Expert::load`]. A directory
     /// without a policy file of its own stands for every expert in it (its `*.safetensors`
     /// policy files and run directories, in name order): a folder of per-task experts, e.g.
