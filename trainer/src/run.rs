@@ -59,7 +59,10 @@ impl RunInfo {
     pub fn read(dir: &Path) -> Result<RunInfo> {
         let info = dir.join(RUN_FILE);
         let text = std::fs::read_to_string(&info).map_err(|_| {
-            Error::Usage(format!("{} holds no run to resume (no {RUN_FILE})", dir.display()))
+            Error::Usage(format!(
+                "{} holds no run to resume (no {RUN_FILE})",
+                dir.display()
+            ))
         })?;
         serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
             path: info.clone(),
@@ -336,7 +339,8 @@ impl Run<'_> {
         let algo = self.algo;
         if algo.needs_expert() {
             let scripted = Path::new(SCRIPTED_PD);
-            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), scripted, self.family)?;
+            let (set, note) =
+                ExpertSet::relabelling(self.expert.as_deref(), scripted, self.family)?;
             on(RunEvent::Note(format!("{algo}: {note}")));
             return Ok(Some(set));
         }
@@ -449,7 +453,7 @@ fn drive<L: Learner>(
     let unit = L::UNIT;
     on(RunEvent::Started {
         what,
-        total: run.total(),
+        total: run.cadence().total,
         done: run.done(),
         unit: unit.plural,
         word: unit.word,

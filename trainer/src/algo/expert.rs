@@ -307,11 +307,6 @@ impl ExpertTrainer {
         self.env_steps
     }
 
-    /// True once `total_steps` env steps are done.
-    pub fn finished(&self) -> bool {
-        self.env_steps >= self.cfg.total_steps
-    }
-
     /// Run one episode (acting, storing, updating). `on_step` is called after every env step
     /// with the env step count (for progress bars).
     pub fn run_episode(&mut self, on_step: &mut dyn FnMut(u64)) -> Result<EpisodeReport> {

@@ -64,6 +64,8 @@ pub struct Evaluation {
 /// When a learner wants its evaluations and checkpoints, in its own units of work.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Cadence {
+    /// The budget: units of work to do.
+    pub total: u64,
     /// An evaluation once the work done reaches each multiple of this; 0: never.
     pub eval_every: u64,
     /// Also evaluate when training ends (when `eval_every` > 0).

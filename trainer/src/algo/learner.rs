@@ -153,13 +153,10 @@ pub trait Learner: Sized {
     /// The configuration it runs with.
     fn config(&self) -> &Self::Config;
 
-    /// The budget, in [`Self::UNIT`]s.
-    fn total(&self) -> u64;
-
     /// Units of work done.
     fn done(&self) -> u64;
 
-    /// When evaluations and checkpoints are due.
+    /// Its budget, and when evaluations and checkpoints are due.
     fn cadence(&self) -> Cadence;
 
     /// Before the loop: a warm start, the untrained policy's evaluation, this process's clocks.
@@ -167,8 +164,10 @@ pub trait Learner: Sized {
         Ok(())
     }
 
-    /// Whether training is over by the learner's own budget or stopping rule.
-    fn finished(&self) -> bool;
+    /// Whether training is over: the budget is done (or the learner's stopping rule ended it).
+    fn finished(&self) -> bool {
+        self.done() >= self.cadence().total
+    }
 
     /// CPU-seconds the run's earlier processes used (its checkpoint's); 0 for a learner that
     /// keeps no count.

@@ -3,12 +3,14 @@
 //! A run's configuration is its algorithm's defaults, under a TOML file, under these: each
 //! `Some` replaces the file's value, each `None` keeps it. The command line, a sweep's
 //! extension of a cell and the quickstart fill an [`Overrides`]; each learner applies it to its
-//! own configuration ([`MetaLearner::apply`](crate::MetaLearner::apply)) and refuses a setting
-//! it does not have by name ([`Error::NoSuchSetting`](crate::Error::NoSuchSetting)). No configuration key travels as a
+//! own configuration through its [`Slots`] ([`MetaSettings::apply`](crate::MetaSettings::apply)),
+//! and a setting it has no slot for is refused by name
+//! ([`Error::NoSuchSetting`](crate::Error::NoSuchSetting)). No configuration key travels as a
 //! string between the application and this library.
 
 use sim::Physics;
 
+use crate::error::{Error, Result};
 use crate::setting::Setting;
 
 /// Typed settings over a configuration file; `None` keeps the file's value.
@@ -41,12 +43,41 @@ pub struct Overrides {
     pub sensing: Option<crate::data::Sensing>,
 }
 
+/// Where each setting of [`Overrides`] lands in one learner's configuration: a field to
+/// write, or `None` where the learner has no such setting (given one, it is refused by name).
+pub struct Slots<'a> {
+    /// The training budget's count.
+    pub updates: &'a mut u64,
+    /// The compute budget in CPU-seconds.
+    pub cpu_budget_s: Option<&'a mut f64>,
+    /// The seed.
+    pub seed: &'a mut u64,
+    /// The learner's threads.
+    pub learner_threads: &'a mut usize,
+    /// The held-out evaluation's period.
+    pub eval_every: &'a mut u64,
+    /// Every network's hidden widths.
+    pub hidden: Vec<&'a mut Vec<usize>>,
+    /// The gradient-penalty weight.
+    pub gp_weight: Option<&'a mut f32>,
+    /// SAC's reward scale.
+    pub reward_scale: Option<&'a mut f32>,
+    /// SMILe + BC's cloning weight.
+    pub bc_weight: Option<&'a mut f32>,
+    /// The plant.
+    pub physics: &'a mut Physics,
+    /// The device's senses.
+    pub sensing: &'a mut Option<crate::data::Sensing>,
+}
+
 impl Overrides {
-    /// The settings given (`Some`) other than the budget: what a resume may not change.
-    pub(crate) fn given_beyond_budget(&self) -> Box<[Setting]> {
+    /// Lays these settings over a configuration through its `slots`; a setting given to a
+    /// learner without its slot is refused by name (for `algo`), and then nothing changes.
+    pub(crate) fn apply_to(&self, slots: Slots<'_>, algo: &'static str) -> Result<()> {
+        // Every field named: a setting added to `Overrides` does not compile until it has a slot.
         let Overrides {
-            updates: _,
-            cpu_budget_s: _,
+            updates,
+            cpu_budget_s,
             seed,
             learner_threads,
             eval_every,
@@ -57,38 +88,66 @@ impl Overrides {
             physics,
             sensing,
         } = self;
+        // The optional slots first: a refusal changes nothing.
+        let cpu = optional(slots.cpu_budget_s, cpu_budget_s, Setting::CpuBudget, algo)?;
+        let gp = optional(slots.gp_weight, gp_weight, Setting::GpWeight, algo)?;
+        let rs = optional(slots.reward_scale, reward_scale, Setting::RewardScale, algo)?;
+        let bc = optional(slots.bc_weight, bc_weight, Setting::BcWeight, algo)?;
+        set(cpu, cpu_budget_s);
+        set(Some(slots.updates), updates);
+        set(Some(slots.seed), seed);
+        set(Some(slots.learner_threads), learner_threads);
+        set(Some(slots.eval_every), eval_every);
+        for h in slots.hidden {
+            set(Some(h), hidden);
+        }
+        set(gp, gp_weight);
+        set(rs, reward_scale);
+        set(bc, bc_weight);
+        set(Some(slots.physics), physics);
+        if sensing.is_some() {
+            *slots.sensing = *sensing;
+        }
+        Ok(())
+    }
+
+    /// The settings given (`Some`) other than the budget: what a resume may not change.
+    pub(crate) fn given_beyond_budget(&self) -> Box<[Setting]> {
         [
-            (seed.is_some(), Setting::Seed),
-            (learner_threads.is_some(), Setting::LearnerThreads),
-            (eval_every.is_some(), Setting::EvalEvery),
-            (hidden.is_some(), Setting::Hidden),
-            (gp_weight.is_some(), Setting::GpWeight),
-            (reward_scale.is_some(), Setting::RewardScale),
-            (bc_weight.is_some(), Setting::BcWeight),
-            (physics.is_some(), Setting::Physics),
-            (sensing.is_some(), Setting::Sensing),
+            (self.seed.is_some(), Setting::Seed),
+            (self.learner_threads.is_some(), Setting::LearnerThreads),
+            (self.eval_every.is_some(), Setting::EvalEvery),
+            (self.hidden.is_some(), Setting::Hidden),
+            (self.gp_weight.is_some(), Setting::GpWeight),
+            (self.reward_scale.is_some(), Setting::RewardScale),
+            (self.bc_weight.is_some(), Setting::BcWeight),
+            (self.physics.is_some(), Setting::Physics),
+            (self.sensing.is_some(), Setting::Sensing),
         ]
         .into_iter()
         .filter_map(|(given, s)| given.then_some(s))
         .collect()
     }
+}
 
-    /// Writes `value` into `field` when it is given.
-    pub(crate) fn set<T: Clone>(field: &mut T, value: &Option<T>) {
-        if let Some(v) = value {
-            *field = v.clone();
-        }
+/// The slot for `value`: none when no value is given; a value given to a learner without
+/// the slot is refused ([`Error::NoSuchSetting`]).
+fn optional<'a, T>(
+    slot: Option<&'a mut T>,
+    value: &Option<T>,
+    setting: Setting,
+    algo: &'static str,
+) -> Result<Option<&'a mut T>> {
+    match (slot, value) {
+        (_, None) => Ok(None),
+        (None, Some(_)) => Err(Error::NoSuchSetting { setting, algo }),
+        (slot, Some(_)) => Ok(slot),
     }
+}
 
-    /// Refuses `setting` when it is given (`value` is `Some`): `algo` has no such setting.
-    pub(crate) fn refuse<T>(
-        setting: Setting,
-        value: &Option<T>,
-        algo: &'static str,
-    ) -> crate::error::Result<()> {
-        match value {
-            Some(_) => Err(crate::error::Error::NoSuchSetting { setting, algo }),
-            None => Ok(()),
-        }
+/// Writes `value` into `slot` when both are there.
+fn set<T: Clone>(slot: Option<&mut T>, value: &Option<T>) {
+    if let (Some(slot), Some(v)) = (slot, value) {
+        *slot = v.clone();
     }
 }

@@ -52,16 +52,13 @@ impl Learner for ExpertTrainer {
         &self.cfg
     }
 
-    fn total(&self) -> u64 {
-        self.cfg.total_steps
-    }
-
     fn done(&self) -> u64 {
         self.env_steps
     }
 
     fn cadence(&self) -> Cadence {
         Cadence {
+            total: self.cfg.total_steps,
             eval_every: self.cfg.eval_every,
             eval_at_end: false,
             checkpoint_every: self.cfg.checkpoint_every,
@@ -72,10 +69,6 @@ impl Learner for ExpertTrainer {
     fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
         self.clock = Throughput::since(self.env_steps);
         Ok(())
-    }
-
-    fn finished(&self) -> bool {
-        ExpertTrainer::finished(self)
     }
 
     fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {

@@ -64,7 +64,10 @@ impl ExpertSet {
             }
             _ if family == Family::POINT_GOAL => {
                 let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
-                Ok((pd.into(), "relabelling with the scripted point-goal PD expert".into()))
+                Ok((
+                    pd.into(),
+                    "relabelling with the scripted point-goal PD expert".into(),
+                ))
             }
             _ => Err(Error::input(
                 crate::error::Input::Expert,

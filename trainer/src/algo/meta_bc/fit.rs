@@ -9,12 +9,11 @@ use sim::Family;
 use super::{MetaBc, MetaBcConfig, Selection};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
-use crate::algo::settings::Overrides;
+use crate::algo::settings::{Overrides, Slots};
 use crate::algo::throughput::Throughput;
 use crate::data::{better, quick_eval};
 use crate::error::Result;
 use crate::io::MetricsLog;
-use crate::setting::Setting;
 
 impl Learner for MetaBc {
     type Config = MetaBcConfig;
@@ -36,16 +35,13 @@ impl Learner for MetaBc {
         &self.cfg
     }
 
-    fn total(&self) -> u64 {
-        self.cfg.total_steps
-    }
-
     fn done(&self) -> u64 {
         self.steps
     }
 
     fn cadence(&self) -> Cadence {
         Cadence {
+            total: self.cfg.total_steps,
             eval_every: self.cfg.eval_every,
             eval_at_end: true,
             checkpoint_every: self.cfg.checkpoint_every,
@@ -153,36 +149,20 @@ impl MetaSettings for MetaBcConfig {
     }
 
     fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()> {
-        // Every field named: a setting added to `Overrides` does not compile until each
-        // learner takes or refuses it.
-        let Overrides {
-            updates,
-            cpu_budget_s,
-            seed,
-            learner_threads,
-            eval_every,
-            hidden,
-            gp_weight,
-            reward_scale,
-            bc_weight,
-            physics,
-            sensing,
-        } = o;
-        let name = algo.name();
-        Overrides::refuse(Setting::CpuBudget, cpu_budget_s, name)?;
-        Overrides::refuse(Setting::GpWeight, gp_weight, name)?;
-        Overrides::refuse(Setting::RewardScale, reward_scale, name)?;
-        Overrides::refuse(Setting::BcWeight, bc_weight, name)?;
-        Overrides::set(&mut self.total_steps, updates);
-        Overrides::set(&mut self.seed, seed);
-        Overrides::set(&mut self.learner_threads, learner_threads);
-        Overrides::set(&mut self.eval_every, eval_every);
-        Overrides::set(&mut self.policy_hidden, hidden);
-        Overrides::set(&mut self.physics, physics);
-        if sensing.is_some() {
-            self.sensing = *sensing;
-        }
-        Ok(())
+        let slots = Slots {
+            updates: &mut self.total_steps,
+            cpu_budget_s: None,
+            seed: &mut self.seed,
+            learner_threads: &mut self.learner_threads,
+            eval_every: &mut self.eval_every,
+            hidden: vec![&mut self.policy_hidden],
+            gp_weight: None,
+            reward_scale: None,
+            bc_weight: None,
+            physics: &mut self.physics,
+            sensing: &mut self.sensing,
+        };
+        o.apply_to(slots, algo.name())
     }
 
     fn budget(&self) -> Overrides {

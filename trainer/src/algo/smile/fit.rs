@@ -8,7 +8,7 @@ use sim::Family;
 use super::{Smile, SmileConfig};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
-use crate::algo::settings::Overrides;
+use crate::algo::settings::{Overrides, Slots};
 use crate::algo::throughput::Throughput;
 use crate::data::better;
 use crate::error::{Error, Result};
@@ -39,16 +39,13 @@ impl Learner for Smile {
         &self.cfg
     }
 
-    fn total(&self) -> u64 {
-        self.cfg.total_updates
-    }
-
     fn done(&self) -> u64 {
         self.updates
     }
 
     fn cadence(&self) -> Cadence {
         Cadence {
+            total: self.cfg.total_updates,
             eval_every: self.cfg.eval_every,
             eval_at_end: true,
             checkpoint_every: self.cfg.checkpoint_every,
@@ -67,10 +64,6 @@ impl Learner for Smile {
             log.log(0, &[("eval/val_metric", m as f64)])?;
         }
         Ok(())
-    }
-
-    fn finished(&self) -> bool {
-        self.updates >= self.cfg.total_updates
     }
 
     fn cpu_before(&self) -> f64 {
@@ -159,37 +152,21 @@ impl MetaSettings for SmileConfig {
         self.context.state_only = algo == Algo::SmileStateOnly;
     }
 
-    fn apply(&mut self, _: Algo, o: &Overrides) -> Result<()> {
-        // Every field named: a setting added to `Overrides` does not compile until each
-        // learner takes or refuses it.
-        let Overrides {
-            updates,
-            cpu_budget_s,
-            seed,
-            learner_threads,
-            eval_every,
-            hidden,
-            gp_weight,
-            reward_scale,
-            bc_weight,
-            physics,
-            sensing,
-        } = o;
-        Overrides::set(&mut self.total_updates, updates);
-        Overrides::set(&mut self.cpu_budget_s, cpu_budget_s);
-        Overrides::set(&mut self.seed, seed);
-        Overrides::set(&mut self.learner_threads, learner_threads);
-        Overrides::set(&mut self.eval_every, eval_every);
-        Overrides::set(&mut self.sac.hidden, hidden);
-        Overrides::set(&mut self.disc_hidden, hidden);
-        Overrides::set(&mut self.gp_weight, gp_weight);
-        Overrides::set(&mut self.sac.reward_scale, reward_scale);
-        Overrides::set(&mut self.bc_weight, bc_weight);
-        Overrides::set(&mut self.physics, physics);
-        if sensing.is_some() {
-            self.sensing = *sensing;
-        }
-        Ok(())
+    fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()> {
+        let slots = Slots {
+            updates: &mut self.total_updates,
+            cpu_budget_s: Some(&mut self.cpu_budget_s),
+            seed: &mut self.seed,
+            learner_threads: &mut self.learner_threads,
+            eval_every: &mut self.eval_every,
+            hidden: vec![&mut self.sac.hidden, &mut self.disc_hidden],
+            gp_weight: Some(&mut self.gp_weight),
+            reward_scale: Some(&mut self.sac.reward_scale),
+            bc_weight: Some(&mut self.bc_weight),
+            physics: &mut self.physics,
+            sensing: &mut self.sensing,
+        };
+        o.apply_to(slots, algo.name())
     }
 
     fn budget(&self) -> Overrides {
