@@ -15,8 +15,8 @@
 //!   [`smile`], [`meta_bc`] (Meta-BC and Meta-DAgger). Each implements one interface,
 //!   [`Learner`], and trains through one loop, [`fit`], reporting [`Progress`]; the
 //!   meta-learners are named by [`Algo`], their configurations set through [`MetaSettings`].
-//!   A new algorithm is its file(s), one [`Algo`] variant and one arm in
-//!   [`Algo::with_learner`].
+//!   A new algorithm is its file(s), one [`Algo`] variant and one arm in the run driver's
+//!   map from an algorithm to its learner type (ARCHITECTURE.md, "An algorithm").
 //! * `data`: demos ([`record_demos`]), the meta-train / held-out split ([`MetaData`]),
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
@@ -49,7 +49,7 @@ pub mod threads;
 // `fit`; the meta-learners' configurations are `MetaSettings`, named by `Algo`.
 pub use algo::{
     Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Overrides, Progress,
-    Unit, WithLearner, expert, fit, meta_bc, sac, smile,
+    Unit, expert, fit, meta_bc, sac, smile,
 };
 
 /// Errors and the result alias.

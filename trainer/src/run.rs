@@ -17,12 +17,13 @@ use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::ExpertSet;
-use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, WithLearner, fit};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, fit};
 use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
 
 mod expert;
+mod registry;
 pub use expert::{ExpertRequest, train_expert};
 
 /// File in a run directory recording how the run was started, so that a resume continues it
@@ -232,18 +233,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         demos_sha,
         expert,
     };
-    struct Train<'r, 'o>(&'r Run<'r>, &'o mut dyn FnMut(RunEvent));
-    impl WithLearner for Train<'_, '_> {
-        type Output = Result<()>;
-        fn call<L>(self, _: Algo) -> Result<()>
-        where
-            L: Learner<Inputs = MetaInputs>,
-            L::Config: MetaSettings,
-        {
-            self.0.train::<L>(self.1)
-        }
-    }
-    algo.with_learner(Train(&run, on))
+    (registry::Meta::of(algo).train)(&run, on)
 }
 
 /// A `--resume` of a run whose checkpoint is gone after it finished: there is nothing to
@@ -313,7 +303,7 @@ impl Run<'_> {
         };
         let table = text.parse::<toml::Table>().unwrap_or_default();
         // The family comes from the demos; a file naming another would be silently ignored.
-        if let (Some(env), Some(p)) = (crate::algo::other_env(&table, self.family), &file) {
+        if let (Some(env), Some(p)) = (registry::other_env(&table, self.family), &file) {
             return Err(Error::Config(format!(
                 "{} sets env = {env} but the run is on {} (its demos, {}); remove the key or \
                  give {env} demos",

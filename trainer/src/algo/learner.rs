@@ -10,7 +10,8 @@
 //!
 //! Adding a meta-learner: its file(s) under `algo/` with `impl Learner` for its run type and
 //! `impl MetaSettings` for its configuration, one [`Algo`] variant (with its name in
-//! [`Algo::name`]) and one arm in [`Algo::with_learner`] (ARCHITECTURE.md, "Adding a learner").
+//! [`Algo::name`]) and one arm in the run driver's map to its learner type (ARCHITECTURE.md,
+//! "An algorithm").
 
 use std::fmt;
 use std::path::Path;
@@ -87,19 +88,6 @@ impl FromStr for Algo {
                 ))
             })
     }
-}
-
-/// A computation generic over the learner type, run for an [`Algo`] by
-/// [`Algo::with_learner`]: how code that serves every algorithm (a run directory, a plan
-/// check) reaches the algorithm's learner without naming it.
-pub trait WithLearner {
-    /// What it returns.
-    type Output;
-    /// Runs it with `L`, the learner of `algo`.
-    fn call<L>(self, algo: Algo) -> Self::Output
-    where
-        L: Learner<Inputs = MetaInputs>,
-        L::Config: MetaSettings;
 }
 
 /// What a learner's budget counts, for progress bars and messages.

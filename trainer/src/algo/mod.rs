@@ -16,16 +16,13 @@ pub mod expert;
 mod fit;
 pub mod learner;
 pub mod meta_bc;
-mod registry;
-mod settings;
-mod throughput;
-pub(crate) use registry::other_env;
 pub mod sac;
+mod settings;
 pub mod smile;
+mod throughput;
 
 pub use fit::fit;
 pub use learner::{
     Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Unit,
-    WithLearner,
 };
 pub use settings::Overrides;

@@ -1,21 +1,41 @@
-//! Which learner type runs each [`Algo`], and what is asked of an algorithm's configuration
-//! through it (a plan's check, a sweep's extension of a finished cell).
+//! Which learner type trains each [`Algo`]: the one `match` a new algorithm adds its arm to,
+//! and what the run driver and a sweep plan ask of an algorithm through it (a run, a
+//! configuration's check, the extension of a finished cell).
 
 use sim::Family;
 
-use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, WithLearner};
+use super::{Run, RunEvent};
 use crate::algo::meta_bc::MetaBc;
-use crate::algo::settings::Overrides;
 use crate::algo::smile::Smile;
-use crate::error::Result;
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides};
+use crate::error::{Error, Result};
 
-impl Algo {
-    /// Runs `f` with the learner type of this algorithm: the one place mapping an algorithm to
-    /// the type that trains it (adding an algorithm adds its arm here).
-    pub fn with_learner<F: WithLearner>(self, f: F) -> F::Output {
-        match self {
-            Algo::Smile | Algo::SmileStateOnly => f.call::<Smile>(self),
-            Algo::MetaBc | Algo::MetaDagger => f.call::<MetaBc>(self),
+/// One meta-learner type's part in the driver and in sweeps, as plain functions.
+pub(super) struct Meta {
+    /// Trains a run with this learner type ([`Run::train`]).
+    pub train: fn(&Run<'_>, &mut dyn FnMut(RunEvent)) -> Result<()>,
+    check: fn(Algo, &str, Family) -> Result<()>,
+    extension: fn(Algo, &str, &str) -> Option<Overrides>,
+}
+
+impl Meta {
+    /// The learner type of `algo`: the one map from an algorithm to the type that trains it.
+    pub fn of(algo: Algo) -> Self {
+        match algo {
+            Algo::Smile | Algo::SmileStateOnly => Self::by::<Smile>(),
+            Algo::MetaBc | Algo::MetaDagger => Self::by::<MetaBc>(),
+        }
+    }
+
+    fn by<L>() -> Self
+    where
+        L: Learner<Inputs = MetaInputs>,
+        L::Config: MetaSettings,
+    {
+        Self {
+            train: |run, on| run.train::<L>(on),
+            check: check::<L::Config>,
+            extension: extension::<L::Config>,
         }
     }
 }
@@ -25,69 +45,52 @@ impl Algo {
     /// `family`, with what the algorithm itself sets ([`MetaSettings::configure`]), and
     /// validates it: what a sweep plan checks before it runs anything.
     pub fn check_config(self, text: &str, family: Family) -> Result<()> {
-        struct Check<'a>(&'a str, Family);
-        impl WithLearner for Check<'_> {
-            type Output = Result<()>;
-            fn call<L>(self, algo: Algo) -> Result<()>
-            where
-                L: Learner<Inputs = MetaInputs>,
-                L::Config: MetaSettings,
-            {
-                let table = self.0.parse::<toml::Table>().unwrap_or_default();
-                if let Some(env) = other_env(&table, self.1) {
-                    return Err(crate::error::Error::Config(format!(
-                        "env = {env} contradicts the plan's family {}",
-                        self.1
-                    )));
-                }
-                let mut cfg: L::Config = crate::io::from_toml_over_defaults(self.0)
-                    .map_err(|e| crate::error::Error::Config(e.message().to_string()))?;
-                cfg.configure(algo, self.1);
-                cfg.validate()
-            }
-        }
-        self.with_learner(Check(text, family))
+        (Meta::of(self).check)(self, text, family)
     }
-}
 
-impl Algo {
     /// The settings that extend a run configured by `old` (a configuration's TOML text) to
     /// `new`: `Some` when `new` is `old` but for its budget, no part of the budget lower and
     /// one higher (a CPU-second budget of 0, none, counts as unlimited), else `None`. How a
     /// sweep continues a finished cell whose plan raised its budget.
     pub fn extension(self, old: &str, new: &str) -> Option<Overrides> {
-        struct Extension<'a>(&'a str, &'a str);
-        impl WithLearner for Extension<'_> {
-            type Output = Option<Overrides>;
-            fn call<L>(self, algo: Algo) -> Option<Overrides>
-            where
-                L: Learner<Inputs = MetaInputs>,
-                L::Config: MetaSettings,
-            {
-                if !<L::Config as MetaSettings>::EXTENDS {
-                    return None;
-                }
-                let old: L::Config = toml::from_str(self.0).ok()?;
-                let new: L::Config = toml::from_str(self.1).ok()?;
-                let (was, now) = (old.budget(), new.budget());
-                let mut same = old.clone();
-                same.apply(algo, &now).ok()?;
-                let cpu = |o: &Overrides| match o.cpu_budget_s {
-                    Some(s) if s > 0.0 => s,
-                    _ => f64::INFINITY,
-                };
-                let not_lower = now.updates >= was.updates && cpu(&now) >= cpu(&was);
-                let higher = now.updates > was.updates || cpu(&now) > cpu(&was);
-                (same == new && not_lower && higher).then_some(now)
-            }
-        }
-        self.with_learner(Extension(old, new))
+        (Meta::of(self).extension)(self, old, new)
     }
+}
+
+fn check<C: MetaSettings>(algo: Algo, text: &str, family: Family) -> Result<()> {
+    let table = text.parse::<toml::Table>().unwrap_or_default();
+    if let Some(env) = other_env(&table, family) {
+        return Err(Error::Config(format!(
+            "env = {env} contradicts the plan's family {family}"
+        )));
+    }
+    let mut cfg: C = crate::io::from_toml_over_defaults(text)
+        .map_err(|e| Error::Config(e.message().to_string()))?;
+    cfg.configure(algo, family);
+    cfg.validate()
+}
+
+fn extension<C: MetaSettings>(algo: Algo, old: &str, new: &str) -> Option<Overrides> {
+    if !C::EXTENDS {
+        return None;
+    }
+    let old: C = toml::from_str(old).ok()?;
+    let new: C = toml::from_str(new).ok()?;
+    let (was, now) = (old.budget(), new.budget());
+    let mut same = old.clone();
+    same.apply(algo, &now).ok()?;
+    let cpu = |o: &Overrides| match o.cpu_budget_s {
+        Some(s) if s > 0.0 => s,
+        _ => f64::INFINITY,
+    };
+    let not_lower = now.updates >= was.updates && cpu(&now) >= cpu(&was);
+    let higher = now.updates > was.updates || cpu(&now) > cpu(&was);
+    (same == new && not_lower && higher).then_some(now)
 }
 
 /// The `env` a configuration table names when it is not `family`: the family comes from the
 /// demos (or the plan), and [`MetaSettings::configure`] would overwrite another one silently.
-pub(crate) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Value> {
+pub(super) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Value> {
     table
         .get("env")
         .filter(|env| env.as_str() != Some(family.name()))
@@ -96,7 +99,6 @@ pub(crate) fn other_env(table: &toml::Table, family: Family) -> Option<&toml::Va
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::algo::learner::Algo;
 
     #[test]
     fn all_lists_every_algorithm_once() {
