@@ -8,8 +8,7 @@ use crate::ant::AntEpisode;
 use crate::env::check_family;
 use crate::error::SimError;
 use crate::family::{
-    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
-    Transition,
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task, Transition,
 };
 use crate::render::Frame;
 use crate::spec::LEGGED_ACCEL_STD;
@@ -95,19 +94,10 @@ impl Environment for AntGoalEnv {
         let forward_velocity = self.ant.physics_step(action)?;
         let distance = self.ant.torso_distance(self.goal);
         let reward = -distance - ACTION_COST * self.ant.effort();
-        let (terminated, truncated) = self.ant.clock.advance(false);
-        Ok(Transition {
-            obs: &self.ant.obs,
-            reward,
-            done: terminated || truncated,
-            info: StepInfo {
-                step: self.ant.clock.step,
-                terminated,
-                truncated,
-                metric_sample: distance,
-                forward_velocity,
-            },
-        })
+        let ant = &mut self.ant;
+        Ok(ant
+            .clock
+            .transition(&ant.obs, reward, false, distance, forward_velocity))
     }
 
     fn observation(&self) -> &[f32] {
