@@ -11,9 +11,16 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier3d::prelude::*;
 
+// The 3-D build of what the Rapier robots share (`multibody.rs` says why it is compiled twice).
+use rapier3d as rapier;
+#[allow(clippy::duplicate_mod)] // once per dimension, on purpose
+#[path = "multibody.rs"]
+mod multibody;
+
 use crate::dynamics::WalkerDynamics;
 use crate::planar::Start;
-use crate::plant::{Plant, TorsoPose};
+use crate::plant::TorsoPose;
+use crate::rapier_plant::RapierRobot;
 use crate::render::{Role, Shape};
 use crate::sensing::{ObsComponent, rate};
 
@@ -201,58 +208,6 @@ fn flat(p: [f32; 2]) -> Vector {
     Vector::new(p[0], p[1], 0.0)
 }
 
-/// The ant on Rapier: its spec, rebuilt in a fresh world at every reset.
-pub(crate) struct RapierAnt {
-    spec: AntSpec,
-    robot: AntRobot,
-}
-
-impl RapierAnt {
-    /// Gymnasium's ant ([`ant`]), reset with seed 0.
-    pub fn new() -> Self {
-        let spec = ant();
-        let robot = AntRobot::build(&spec, 0);
-        Self { spec, robot }
-    }
-}
-
-impl Plant for RapierAnt {
-    fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
-    }
-
-    /// The ant's dynamics are not randomised: `dynamics` is ignored.
-    fn reset(&mut self, seed: u64, _dynamics: Option<&WalkerDynamics>) {
-        self.robot = AntRobot::build(&self.spec, seed);
-    }
-
-    fn step(&mut self, action: &[f32]) {
-        self.robot.set_torques(action);
-        self.robot.advance();
-    }
-
-    fn diverged(&self) -> bool {
-        self.robot.diverged()
-    }
-
-    fn observe(&self, out: &mut [f32], velocity_clip: f32) {
-        if let Ok(out) = <&mut [f32; OBS_DIM]>::try_from(out) {
-            self.robot.observe(out, velocity_clip);
-        }
-    }
-
-    fn torso(&self) -> TorsoPose {
-        TorsoPose {
-            position: self.robot.torso_position(),
-            pitch: 0.0,
-        }
-    }
-
-    fn shapes(&self) -> Vec<Shape> {
-        self.robot.top_view_shapes()
-    }
-}
-
 /// A built ant in its own physics world.
 pub(crate) struct AntRobot {
     world: PhysicsWorld,
@@ -265,28 +220,16 @@ pub(crate) struct AntRobot {
 }
 
 impl AntRobot {
-    /// Builds the ant in its rest pose, then adds the seeded initial-state noise.
-    pub fn build(spec: &AntSpec, seed: u64) -> Self {
-        Self::build_with(spec, Start::Noise(seed))
-    }
-
     /// Builds the ant as `start` says.
     pub fn build_with(spec: &AntSpec, start: Start) -> Self {
-        let mut world = PhysicsWorld::new();
-        world.gravity = Vector::new(0.0, 0.0, -9.81);
-        world.integration_parameters.dt = spec.physics_dt;
-        world.integration_parameters.num_solver_iterations = spec.solver_iterations;
-        let [frequency, damping_ratio] = spec.contact_softness;
-        let softness = SpringCoefficients::new(frequency, damping_ratio);
-        world.integration_parameters.contact_softness = softness;
-        world.integration_parameters.static_contact_softness = softness;
-        // MuJoCo combines frictions by taking the larger one.
-        let (_, ground) = world.insert(
-            RigidBodyBuilder::fixed().translation(Vector::new(0.0, 0.0, -0.5)),
-            ColliderBuilder::cuboid(1.0e3, 1.0e3, 0.5)
-                .friction(spec.friction)
-                .friction_combine_rule(CoefficientCombineRule::Max),
+        let (mut world, ground) = multibody::world_on_ground(
+            spec.physics_dt,
+            spec.solver_iterations,
+            spec.contact_softness,
+            multibody::mujoco_friction(ColliderBuilder::cuboid(1.0e3, 1.0e3, 0.5), spec.friction),
+            Vector::new(0.0, 0.0, -0.5),
         );
+        world.gravity = Vector::new(0.0, 0.0, -9.81);
         let lift = match start {
             Start::Welded(height) => height,
             _ => 0.0,
@@ -295,10 +238,8 @@ impl AntRobot {
         let origin = Vector::new(0.0, 0.0, spec.rest_height + lift);
         let r = spec.limb_radius;
         let capsule = |a: Vector, b: Vector| {
-            ColliderBuilder::capsule_from_endpoints(a, b, r)
-                .density(spec.density)
-                .friction(spec.friction)
-                .friction_combine_rule(CoefficientCombineRule::Max)
+            let collider = ColliderBuilder::capsule_from_endpoints(a, b, r).density(spec.density);
+            multibody::mujoco_friction(collider, spec.friction)
         };
         let root = if lift > 0.0 {
             RigidBodyBuilder::fixed()
@@ -306,13 +247,8 @@ impl AntRobot {
             RigidBodyBuilder::dynamic()
         };
         let torso = world.insert_body(root.translation(origin).can_sleep(false));
-        world.insert_collider(
-            ColliderBuilder::ball(spec.torso_radius)
-                .density(spec.density)
-                .friction(spec.friction)
-                .friction_combine_rule(CoefficientCombineRule::Max),
-            Some(torso),
-        );
+        let ball = ColliderBuilder::ball(spec.torso_radius).density(spec.density);
+        world.insert_collider(multibody::mujoco_friction(ball, spec.friction), Some(torso));
         let mut links = [torso; JOINTS];
         for (leg_index, leg) in spec.legs.iter().enumerate() {
             let hip = flat(leg.hip);
@@ -331,13 +267,7 @@ impl AntRobot {
             );
             world.insert_collider(capsule(Vector::ZERO, flat(leg.shin)), Some(shin));
             let hinge = |axis: Vector, anchor: Vector, range: [f32; 2]| {
-                RevoluteJointBuilder::new(axis.normalize())
-                    .local_anchor1(anchor)
-                    .local_anchor2(Vector::ZERO)
-                    .limits(range)
-                    .motor_model(MotorModel::ForceBased)
-                    .motor_velocity(0.0, 0.0)
-                    .motor_max_force(0.0)
+                multibody::motor_hinge(RevoluteJointBuilder::new(axis.normalize()), anchor, range)
             };
             world.insert_multibody_joint(torso, thigh, hinge(Vector::Z, hip, spec.hip_range));
             let ankle_axis = Vector::from_array(leg.ankle_axis);
@@ -359,17 +289,8 @@ impl AntRobot {
         robot
     }
 
-    fn multibody(&self) -> Option<&Multibody> {
-        let handle = MultibodyJointHandle(self.links[0].0);
-        self.world.multibody_joints.get(handle).map(|(mb, _)| mb)
-    }
-
     fn multibody_mut(&mut self) -> Option<&mut Multibody> {
-        let handle = MultibodyJointHandle(self.links[0].0);
-        self.world
-            .multibody_joints
-            .get_mut(handle)
-            .map(|(mb, _)| mb)
+        multibody::multibody_mut(&mut self.world.multibody_joints, self.links[0])
     }
 
     fn configure_joints(&mut self, spec: &AntSpec) {
@@ -377,13 +298,7 @@ impl AntRobot {
         let Some(multibody) = self.multibody_mut() else {
             return;
         };
-        // A welded root turns fixed (0 dofs) only at the first step: count what is there now.
-        let root_dofs = multibody.ndofs() - JOINTS;
-        multibody.set_self_contacts_enabled(false);
-        // ant.xml's free root has no damping; Rapier gives its angular dofs 0.1.
-        for dof in 0..root_dofs {
-            multibody.damping_mut()[dof] = 0.0;
-        }
+        let root_dofs = multibody::undamped_root(multibody, JOINTS);
         for (joint, &body) in links.iter().enumerate() {
             multibody.damping_mut()[root_dofs + joint] = spec.joint_damping;
             multibody.armature_mut()[root_dofs + joint] = spec.joint_armature;
@@ -398,9 +313,9 @@ impl AntRobot {
     /// generalised position and qd * N(0, 1) on every generalised velocity (Gymnasium's reset
     /// noise).
     fn place(&mut self, spec: &AntSpec, start: Start) {
-        let handle = MultibodyJointHandle(self.links[0].0);
         let world = &mut self.world;
-        let Some((multibody, _)) = world.multibody_joints.get_mut(handle) else {
+        let Some(multibody) = multibody::multibody_mut(&mut world.multibody_joints, self.links[0])
+        else {
             return;
         };
         // Also settles the root's type: a welded (fixed) root loses its six dofs here.
@@ -429,16 +344,11 @@ impl AntRobot {
         {
             pair[1] += leg.ankle_rest;
         }
-        multibody.apply_displacements(&displacement);
-        multibody
-            .generalized_velocity_mut()
-            .copy_from_slice(&velocity);
-        multibody.forward_kinematics(&world.bodies, false);
-        multibody.update_rigid_bodies(&mut world.bodies, true);
+        multibody::displace(multibody, &mut world.bodies, &displacement, &velocity);
     }
 
     /// Sets the joint torques `action[i] * gear` (action already clipped).
-    pub fn set_torques(&mut self, action: &[f32]) {
+    fn set_torques(&mut self, action: &[f32]) {
         let gear = self.gear;
         let Some(multibody) = self.multibody_mut() else {
             return;
@@ -446,19 +356,8 @@ impl AntRobot {
         for (joint, &a) in action.iter().enumerate().take(JOINTS) {
             let torque = a * gear;
             if let Some(link) = multibody.link_mut(joint + 1) {
-                let target = if torque >= 0.0 { 1.0e9 } else { -1.0e9 };
-                link.joint
-                    .data
-                    .set_motor_velocity(JointAxis::AngX, target, 0.0)
-                    .set_motor_max_force(JointAxis::AngX, torque.abs());
+                multibody::drive(link, torque);
             }
-        }
-    }
-
-    /// Advances one control step (several physics steps).
-    pub fn advance(&mut self) {
-        for _ in 0..self.substeps {
-            self.world.step();
         }
     }
 
@@ -469,17 +368,34 @@ impl AntRobot {
 
     /// The deepest penetration (m) of any ant collider into the ground right now (0 if none).
     pub fn ground_penetration(&self) -> f32 {
-        self.world
-            .narrow_phase
-            .contact_pairs_with(self.ground)
-            .flat_map(|pair| pair.manifolds().iter())
-            .flat_map(|manifold| manifold.points.iter())
-            .map(|point| -point.dist)
-            .fold(0.0, f32::max)
+        multibody::deepest_penetration(&self.world, self.ground)
+    }
+}
+
+impl RapierRobot for AntRobot {
+    type Spec = AntSpec;
+    const OBS_DIM: usize = OBS_DIM;
+
+    /// The ant's dynamics are not randomised: `dynamics` is ignored.
+    fn build(spec: &AntSpec, seed: u64, _dynamics: Option<&WalkerDynamics>) -> Self {
+        Self::build_with(spec, Start::Noise(seed))
     }
 
-    /// Writes the 29-D observation (layout: [`obs`]); velocities clipped to +-`velocity_clip`.
-    pub fn observe(&self, out: &mut [f32; OBS_DIM], velocity_clip: f32) {
+    fn control_dt(spec: &AntSpec) -> f32 {
+        spec.physics_dt * spec.substeps as f32
+    }
+
+    fn step(&mut self, action: &[f32]) {
+        self.set_torques(action);
+        multibody::advance(&mut self.world, self.substeps);
+    }
+
+    fn diverged(&self) -> bool {
+        multibody::diverged(&self.world)
+    }
+
+    /// The 29-D observation (layout: [`obs`]).
+    fn observe(&self, out: &mut [f32], velocity_clip: f32) {
         let body = &self.world.bodies[self.torso];
         let p = body.translation();
         let rotation = *body.rotation();
@@ -491,7 +407,8 @@ impl AntRobot {
             .copy_from_slice(&[rotation.w, rotation.x, rotation.y, rotation.z].map(|c| sign * c));
         out[obs::XY] = p.x;
         out[obs::XY + 1] = p.y;
-        let Some(multibody) = self.multibody() else {
+        let Some(multibody) = multibody::multibody(&self.world.multibody_joints, self.links[0])
+        else {
             return;
         };
         for joint in 0..JOINTS {
@@ -516,17 +433,15 @@ impl AntRobot {
         }
     }
 
-    /// True if any body's position or velocity is non-finite.
-    pub fn diverged(&self) -> bool {
-        self.world.bodies.iter().any(|(_, body)| {
-            !(body.translation().is_finite()
-                && body.linvel().is_finite()
-                && body.angvel().is_finite())
-        })
+    fn torso(&self) -> TorsoPose {
+        TorsoPose {
+            position: self.torso_position(),
+            pitch: 0.0,
+        }
     }
 
     /// The torso disc and every capsule projected on the x-y plane, for a top view.
-    pub fn top_view_shapes(&self) -> Vec<Shape> {
+    fn shapes(&self) -> Vec<Shape> {
         let mut shapes = Vec::new();
         for (_, collider) in self.world.colliders.iter() {
             // From the bodies, not the colliders' own poses: those follow the bodies only at
@@ -543,14 +458,7 @@ impl AntRobot {
                     role: Role::Robot,
                 });
             } else if let Some(capsule) = collider.shape().as_capsule() {
-                let a = *pose * capsule.segment.a;
-                let b = *pose * capsule.segment.b;
-                shapes.push(Shape::Capsule {
-                    a: [a.x, a.y],
-                    b: [b.x, b.y],
-                    radius: capsule.radius,
-                    role: Role::Robot,
-                });
+                shapes.push(multibody::capsule_shape(pose, capsule));
             }
         }
         shapes

@@ -7,14 +7,10 @@
 use crate::ant::AntEpisode;
 use crate::env::check_family;
 use crate::error::SimError;
-use crate::family::{
-    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
-    Transition,
-};
+use crate::family::{EnvConfig, Environment, Family, FamilySpec, RunView, Task, Transition};
 use crate::render::Frame;
 use crate::spec::LEGGED_ACCEL_STD;
-use crate::spec::{goal_test_angles, goal_train_angles, write_goal};
-use crate::task::TASK_VALUE_TOLERANCE;
+use crate::spec::{goal_test_angles, goal_train_angles};
 
 /// Default episode length (control steps of 0.05 s), as in the reference.
 pub const HORIZON: usize = 100;
@@ -95,19 +91,10 @@ impl Environment for AntGoalEnv {
         let forward_velocity = self.ant.physics_step(action)?;
         let distance = self.ant.torso_distance(self.goal);
         let reward = -distance - ACTION_COST * self.ant.effort();
-        let (terminated, truncated) = self.ant.clock.advance(false);
-        Ok(Transition {
-            obs: &self.ant.obs,
-            reward,
-            done: terminated || truncated,
-            info: StepInfo {
-                step: self.ant.clock.step,
-                terminated,
-                truncated,
-                metric_sample: distance,
-                forward_velocity,
-            },
-        })
+        let ant = &mut self.ant;
+        Ok(ant
+            .clock
+            .transition(&ant.obs, reward, false, distance, forward_velocity))
     }
 
     fn observation(&self) -> &[f32] {
@@ -123,34 +110,23 @@ impl Environment for AntGoalEnv {
 // ---------------------------------------------------------------------------------------------
 // The family's declaration (`families.rs` lists it), its constant and its tasks.
 
-/// ant-goal: point-goal's goals for the 3-D ant; Figure 2's protocol.
+/// ant-goal: point-goal's goals for the 3-D ant; Figure 2's protocol. The task parameter, its
+/// names, the metric and the protocol are point-goal's (taken from its `SPEC`, so that a goal
+/// angle names, labels and scores the same goal in both families); the rest is the ant's.
 pub(crate) const SPEC: FamilySpec = FamilySpec {
     name: "ant-goal",
     obs_dim: crate::ant::OBS_DIM,
     act_dim: crate::ant::ACT_DIM,
-    task_dim: 2,
-    metric: MetricKind::MinGoalDistance,
-    value_name: "goal angle (rad)",
-    value_tolerance: TASK_VALUE_TOLERANCE,
-    value_key: "goal_angle",
-    value_decimals: 4,
-    write_parameter: write_goal,
     train_tasks: || goal_train_angles().map(Task::ant_goal).collect(),
     test_tasks: || goal_test_angles().map(Task::ant_goal).collect(),
     task_from_value: |v| Ok(Task::ant_goal(v as f32)),
-    nominal_value: None,
     obs_components: &crate::ant::OBS_COMPONENTS,
-    eval: EvalDefaults {
-        context_sizes: &[1],
-        draws: 3,
-        rollouts: 10,
-        falls_end_episodes: false,
-    },
     estimator_accel_std: LEGGED_ACCEL_STD,
     view: RunView::GoalPath {
         xy: crate::ant::obs::XY,
     },
     make_env: |config| Ok(Box::new(AntGoalEnv::new(config)?)),
+    ..crate::point_goal::SPEC
 };
 
 impl Family {

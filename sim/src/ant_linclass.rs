@@ -30,8 +30,7 @@ use crate::ant::AntEpisode;
 use crate::env::check_family;
 use crate::error::SimError;
 use crate::family::{
-    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
-    Transition,
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task, Transition,
 };
 use crate::render::{Frame, Role, Shape};
 use crate::sensing::ObsComponent;
@@ -250,19 +249,12 @@ impl Environment for AntLinClassEnv {
                 self.decision = Decision::Wrong;
             }
         }
-        let (terminated, truncated) = self.ant.clock.advance(false);
-        Ok(Transition {
-            obs: &self.obs,
-            reward: if at_correct { 1.0 } else { 0.0 },
-            done: terminated || truncated,
-            info: StepInfo {
-                step: self.ant.clock.step,
-                terminated,
-                truncated,
-                metric_sample: self.decision.sample(),
-                forward_velocity,
-            },
-        })
+        let reward = if at_correct { 1.0 } else { 0.0 };
+        let metric_sample = self.decision.sample();
+        Ok(self
+            .ant
+            .clock
+            .transition(&self.obs, reward, false, metric_sample, forward_velocity))
     }
 
     fn observation(&self) -> &[f32] {

@@ -1,9 +1,12 @@
 //! Which implementation a [`Robot`] has on each physics backend, and its dimensions: the one
 //! place that names every backend's robots (adding a robot or a backend is one arm here).
 
+use crate::ant::AntRobot;
 use crate::error::SimError;
 use crate::kinds::Physics;
+use crate::planar::PlanarRobot;
 use crate::plant::{Plant, Robot};
+use crate::rapier_plant::RapierPlant;
 
 impl Robot {
     /// The robot's name in MuJoCo's and Gymnasium's terms.
@@ -35,13 +38,13 @@ impl Robot {
     pub(crate) fn plant(self, physics: Physics) -> Result<Box<dyn Plant>, SimError> {
         match physics {
             Physics::Rapier => Ok(match self {
-                Robot::HalfCheetah => Box::new(crate::planar::RapierPlanar::new(
+                Robot::HalfCheetah => Box::new(RapierPlant::<PlanarRobot>::new(
                     crate::robots::half_cheetah(),
                 )),
                 Robot::Walker2d => {
-                    Box::new(crate::planar::RapierPlanar::new(crate::robots::walker()))
+                    Box::new(RapierPlant::<PlanarRobot>::new(crate::robots::walker()))
                 }
-                Robot::Ant => Box::new(crate::ant::RapierAnt::new()),
+                Robot::Ant => Box::new(RapierPlant::<AntRobot>::new(crate::ant::ant())),
             }),
             Physics::Mujoco => mujoco_plant(self),
         }

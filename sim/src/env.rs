@@ -2,7 +2,7 @@
 //! environments share (the interface itself, [`Environment`], is in `family.rs`).
 
 use crate::error::SimError;
-use crate::family::{EnvConfig, Environment, Family, MetricKind, StepInfo, Task};
+use crate::family::{EnvConfig, Environment, Family, MetricKind, StepInfo, Task, Transition};
 
 /// The latched classification decision of an ant-linclass episode, as the per-step metric
 /// sample encodes it (and [`EpisodeMetric`] decodes it).
@@ -167,6 +167,32 @@ impl EpisodeClock {
         let truncated = !terminated && self.step >= self.horizon;
         self.over = terminated || truncated;
         (terminated, truncated)
+    }
+
+    /// Counts a step ([`Self::advance`]) and reports it: `obs` after it, its `reward`, whether
+    /// the task `terminated` it, the family's `metric_sample` and the torso's
+    /// `forward_velocity`.
+    pub fn transition<'a>(
+        &mut self,
+        obs: &'a [f32],
+        reward: f32,
+        terminated: bool,
+        metric_sample: f32,
+        forward_velocity: f32,
+    ) -> Transition<'a> {
+        let (terminated, truncated) = self.advance(terminated);
+        Transition {
+            obs,
+            reward,
+            done: terminated || truncated,
+            info: StepInfo {
+                step: self.step,
+                terminated,
+                truncated,
+                metric_sample,
+                forward_velocity,
+            },
+        }
     }
 }
 

@@ -131,7 +131,9 @@ impl MetricKind {
 
 /// What the workspace knows about one family. Plain data and plain functions: read a field,
 /// never match on the family. A family's module writes it as one struct literal, every field
-/// named (the five built in, as `cheetah_vel.rs`, and a family of another crate alike), and
+/// named (the five built in, as `cheetah_vel.rs`, and a family of another crate alike; a
+/// family whose tasks are another's takes those fields from the other's, as ant-goal takes
+/// point-goal's goals), and
 /// [`Family::of`](crate::Family::of) makes it a family.
 #[derive(Debug)]
 pub struct FamilySpec {

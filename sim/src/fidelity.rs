@@ -15,6 +15,7 @@ use serde_json::{Value, json};
 
 use crate::ant::{self, AntRobot, AntSpec};
 use crate::planar::{self, PlanarRobot, RobotSpec, Scaling, Start};
+use crate::rapier_plant::RapierRobot;
 use crate::robots;
 
 /// The robots the probe knows, each with a MuJoCo twin.
@@ -133,8 +134,7 @@ struct PlanarPlant {
 impl Plant for PlanarPlant {
     fn step(&mut self, action: &[f32]) {
         let clipped: Vec<f32> = action.iter().map(|a| a.clamp(-1.0, 1.0)).collect();
-        self.robot.set_torques(&clipped);
-        self.robot.advance();
+        self.robot.step(&clipped);
     }
     fn state(&self) -> Vec<f32> {
         let mut obs = [0.0; planar::OBS_DIM];
@@ -181,8 +181,7 @@ impl AntPlant {
 impl Plant for AntPlant {
     fn step(&mut self, action: &[f32]) {
         let clipped: Vec<f32> = action.iter().map(|a| a.clamp(-1.0, 1.0)).collect();
-        self.robot.set_torques(&clipped);
-        self.robot.advance();
+        self.robot.step(&clipped);
     }
     fn state(&self) -> Vec<f32> {
         let mut obs = [0.0; ant::OBS_DIM];

@@ -2,7 +2,7 @@
 
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
-use crate::family::{EnvConfig, Environment, Family, StepInfo, Task};
+use crate::family::{EnvConfig, Environment, Family, Task};
 use crate::kinds::Physics;
 use crate::planar::{ACT_DIM, OBS_DIM};
 use crate::plant::{Plant, Robot, TorsoPose};
@@ -181,19 +181,13 @@ impl Environment for PlanarLeggedEnv {
                 (reward, reward, fell)
             }
         };
-        let (terminated, truncated) = self.clock.advance(terminated);
-        Ok(crate::family::Transition {
-            obs: &self.obs,
+        Ok(self.clock.transition(
+            &self.obs,
             reward,
-            done: terminated || truncated,
-            info: StepInfo {
-                step: self.clock.step,
-                terminated,
-                truncated,
-                metric_sample,
-                forward_velocity,
-            },
-        })
+            terminated,
+            metric_sample,
+            forward_velocity,
+        ))
     }
 
     fn observation(&self) -> &[f32] {

@@ -50,6 +50,7 @@ mod physics;
 pub mod planar;
 mod plant;
 pub mod point_goal;
+mod rapier_plant;
 pub mod render;
 mod robots;
 pub mod seeds;

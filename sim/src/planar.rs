@@ -12,9 +12,16 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 use rapier2d::prelude::*;
 
+// The 2-D build of what the Rapier robots share (`multibody.rs` says why it is compiled twice).
+use rapier2d as rapier;
+#[allow(clippy::duplicate_mod)] // once per dimension, on purpose
+#[path = "multibody.rs"]
+mod multibody;
+
 use crate::dynamics::WalkerDynamics;
-use crate::plant::{Plant, TorsoPose};
-use crate::render::{Role, Shape};
+use crate::plant::TorsoPose;
+use crate::rapier_plant::RapierRobot;
+use crate::render::Shape;
 use crate::sensing::{ObsComponent, rate};
 
 /// Both planar legged robots have six torque-controlled joints.
@@ -171,11 +178,6 @@ pub(crate) struct PlanarRobot {
 }
 
 impl PlanarRobot {
-    /// Builds the robot at rest, then adds the seeded initial-state noise.
-    pub fn build(spec: &RobotSpec, scaling: &Scaling, seed: u64) -> Self {
-        Self::build_with(spec, scaling, Start::Noise(seed))
-    }
-
     /// Builds the robot as `start` says.
     pub fn build_with(spec: &RobotSpec, scaling: &Scaling, start: Start) -> Self {
         let (mut world, ground) = Self::world(spec);
@@ -200,13 +202,11 @@ impl PlanarRobot {
                 .can_sleep(false),
         );
         for capsule in &spec.torso {
-            world.insert_collider(
+            let collider =
                 ColliderBuilder::capsule_from_endpoints(v(capsule.a), v(capsule.b), capsule.radius)
-                    .density(0.0)
-                    .friction(spec.torso_friction * scaling.friction[0])
-                    .friction_combine_rule(CoefficientCombineRule::Max),
-                Some(torso),
-            );
+                    .density(0.0);
+            let friction = spec.torso_friction * scaling.friction[0];
+            world.insert_collider(multibody::mujoco_friction(collider, friction), Some(torso));
         }
         let mut limbs = [torso; LIMBS];
         let mut gears = [0.0; LIMBS];
@@ -224,28 +224,23 @@ impl PlanarRobot {
                     ))
                     .can_sleep(false),
             );
-            world.insert_collider(
-                ColliderBuilder::capsule_from_endpoints(
-                    v(limb.capsule.a) - joint,
-                    v(limb.capsule.b) - joint,
-                    limb.capsule.radius,
-                )
-                .density(0.0)
-                .friction(limb.friction * scaling.friction[i + 1])
-                .friction_combine_rule(CoefficientCombineRule::Max),
-                Some(body),
-            );
+            let collider = ColliderBuilder::capsule_from_endpoints(
+                v(limb.capsule.a) - joint,
+                v(limb.capsule.b) - joint,
+                limb.capsule.radius,
+            )
+            .density(0.0);
+            let friction = limb.friction * scaling.friction[i + 1];
+            world.insert_collider(multibody::mujoco_friction(collider, friction), Some(body));
             let (parent, parent_origin) = match limb.parent {
                 Some(p) => (limbs[p], v(spec.limbs[p].joint)),
                 None => (torso, Vector::ZERO),
             };
-            let hinge = RevoluteJointBuilder::new()
-                .local_anchor1(joint - parent_origin)
-                .local_anchor2(Vector::ZERO)
-                .limits(limb.range)
-                .motor_model(MotorModel::ForceBased)
-                .motor_velocity(0.0, 0.0)
-                .motor_max_force(0.0);
+            let hinge = multibody::motor_hinge(
+                RevoluteJointBuilder::new(),
+                joint - parent_origin,
+                limb.range,
+            );
             world.insert_multibody_joint(parent, body, hinge);
             limbs[i] = body;
             gears[i] = limb.gear;
@@ -270,28 +265,17 @@ impl PlanarRobot {
     /// The robot's world: its integration parameters and the ground, with the ground's
     /// collider.
     fn world(spec: &RobotSpec) -> (PhysicsWorld, ColliderHandle) {
-        let mut world = PhysicsWorld::new();
-        world.integration_parameters.dt = spec.physics_dt;
-        world.integration_parameters.num_solver_iterations = spec.solver_iterations;
-        let [frequency, damping_ratio] = spec.contact_softness;
-        let softness = SpringCoefficients::new(frequency, damping_ratio);
-        world.integration_parameters.contact_softness = softness;
-        world.integration_parameters.static_contact_softness = softness;
-        let (_, ground) = world.insert(
-            RigidBodyBuilder::fixed().translation(Vector::new(0.0, -0.5)),
-            ColliderBuilder::cuboid(1.0e4, 0.5)
-                .friction(spec.ground_friction)
-                .friction_combine_rule(CoefficientCombineRule::Max),
-        );
-        (world, ground)
+        multibody::world_on_ground(
+            spec.physics_dt,
+            spec.solver_iterations,
+            spec.contact_softness,
+            multibody::mujoco_friction(ColliderBuilder::cuboid(1.0e4, 0.5), spec.ground_friction),
+            Vector::new(0.0, -0.5),
+        )
     }
 
     fn multibody_mut(&mut self) -> Option<&mut Multibody> {
-        let handle = MultibodyJointHandle(self.limbs[0].0);
-        self.world
-            .multibody_joints
-            .get_mut(handle)
-            .map(|(mb, _)| mb)
+        multibody::multibody_mut(&mut self.world.multibody_joints, self.limbs[0])
     }
 
     fn configure_joints(&mut self, spec: &RobotSpec, scaling: &Scaling) {
@@ -299,13 +283,7 @@ impl PlanarRobot {
         let Some(multibody) = self.multibody_mut() else {
             return;
         };
-        // A welded root turns fixed (0 dofs) only at the first step: count what is there now.
-        let root_dofs = multibody.ndofs() - LIMBS;
-        multibody.set_self_contacts_enabled(false);
-        // MuJoCo's root joints have no damping; Rapier gives a free angular dof 0.1.
-        for dof in 0..root_dofs {
-            multibody.damping_mut()[dof] = 0.0;
-        }
+        let root_dofs = multibody::undamped_root(multibody, LIMBS);
         // Rapier integrates a joint spring implicitly, -k (q + h v) over a solver substep h:
         // an extra damping k h that MuJoCo's (explicit) spring does not have. Take it off the
         // declared damping, so the joint's total damping is MuJoCo's.
@@ -339,21 +317,17 @@ impl PlanarRobot {
                 }
             })
             .collect();
-        let handle = MultibodyJointHandle(self.limbs[0].0);
         let world = &mut self.world;
-        if let Some((multibody, _)) = world.multibody_joints.get_mut(handle) {
+        if let Some(multibody) =
+            multibody::multibody_mut(&mut world.multibody_joints, self.limbs[0])
+        {
             multibody.forward_kinematics(&world.bodies, true);
-            multibody.apply_displacements(&displacement);
-            multibody
-                .generalized_velocity_mut()
-                .copy_from_slice(&velocity);
-            multibody.forward_kinematics(&world.bodies, false);
-            multibody.update_rigid_bodies(&mut world.bodies, true);
+            multibody::displace(multibody, &mut world.bodies, &displacement, &velocity);
         }
     }
 
     /// Sets the joint torques `action[i] * gear[i]` (action already clipped).
-    pub fn set_torques(&mut self, action: &[f32]) {
+    fn set_torques(&mut self, action: &[f32]) {
         let gears = self.gears;
         let signs = self.signs;
         let Some(multibody) = self.multibody_mut() else {
@@ -362,19 +336,8 @@ impl PlanarRobot {
         for (i, (&a, gear)) in action.iter().zip(gears).enumerate() {
             let torque = signs[i] * a * gear;
             if let Some(link) = multibody.link_mut(i + 1) {
-                let target = if torque >= 0.0 { 1.0e9 } else { -1.0e9 };
-                link.joint
-                    .data
-                    .set_motor_velocity(JointAxis::AngX, target, 0.0)
-                    .set_motor_max_force(JointAxis::AngX, torque.abs());
+                multibody::drive(link, torque);
             }
-        }
-    }
-
-    /// Advances one control step (several physics steps).
-    pub fn advance(&mut self) {
-        for _ in 0..self.substeps {
-            self.world.step();
         }
     }
 
@@ -385,9 +348,37 @@ impl PlanarRobot {
         (p.x, p.y, -body.rotation().angle())
     }
 
-    /// Writes the 17-D observation in MuJoCo's coordinates (Gymnasium's layout, the torso
-    /// height absolute); velocities are clipped to +-`velocity_clip`.
-    pub fn observe(&self, obs: &mut [f32; OBS_DIM], velocity_clip: f32) {
+    /// The deepest penetration (m) of any robot collider into the ground right now (0 if
+    /// none): what the fidelity probe compares with MuJoCo's contact distances.
+    pub fn ground_penetration(&self) -> f32 {
+        multibody::deepest_penetration(&self.world, self.ground)
+    }
+}
+
+impl RapierRobot for PlanarRobot {
+    type Spec = RobotSpec;
+    const OBS_DIM: usize = OBS_DIM;
+
+    fn build(spec: &RobotSpec, seed: u64, dynamics: Option<&WalkerDynamics>) -> Self {
+        Self::build_with(spec, &Scaling::of(dynamics), Start::Noise(seed))
+    }
+
+    fn control_dt(spec: &RobotSpec) -> f32 {
+        spec.physics_dt * spec.substeps as f32
+    }
+
+    fn step(&mut self, action: &[f32]) {
+        self.set_torques(action);
+        multibody::advance(&mut self.world, self.substeps);
+    }
+
+    fn diverged(&self) -> bool {
+        multibody::diverged(&self.world)
+    }
+
+    /// The 17-D observation in MuJoCo's coordinates (Gymnasium's layout, the torso height
+    /// absolute).
+    fn observe(&self, obs: &mut [f32], velocity_clip: f32) {
         let (_, z, pitch) = self.torso_pose();
         obs[0] = z;
         obs[1] = pitch;
@@ -401,8 +392,7 @@ impl PlanarRobot {
             obs[2 + i] = self.signs[i] * wrap_angle(relative);
         }
         let clip = |value: f32| value.clamp(-velocity_clip, velocity_clip);
-        let handle = MultibodyJointHandle(self.limbs[0].0);
-        if let Some((multibody, _)) = self.world.multibody_joints.get(handle) {
+        if let Some(multibody) = multibody::multibody(&self.world.multibody_joints, self.limbs[0]) {
             let velocity = multibody.generalized_velocity();
             let root = multibody.ndofs() - LIMBS;
             if root == ROOT_DOFS {
@@ -418,52 +408,23 @@ impl PlanarRobot {
         }
     }
 
-    /// The deepest penetration (m) of any robot collider into the ground right now (0 if
-    /// none): what the fidelity probe compares with MuJoCo's contact distances.
-    pub fn ground_penetration(&self) -> f32 {
-        deepest_penetration(&self.world.narrow_phase, self.ground)
+    fn torso(&self) -> TorsoPose {
+        let (x, z, pitch) = self.torso_pose();
+        TorsoPose {
+            position: [x, 0.0, z],
+            pitch,
+        }
     }
 
-    /// True if any body's position or velocity is non-finite.
-    pub fn diverged(&self) -> bool {
-        self.world.bodies.iter().any(|(_, body)| {
-            !(body.translation().is_finite()
-                && body.linvel().is_finite()
-                && body.angvel().is_finite())
-        })
-    }
-
-    /// The robot's capsules in world coordinates, for rendering.
-    pub fn shapes(&self) -> Vec<Shape> {
+    /// The robot's capsules in world coordinates (side view).
+    fn shapes(&self) -> Vec<Shape> {
         let mut shapes = Vec::new();
         for (_, collider) in self.world.colliders.iter() {
             if let Some(capsule) = collider.shape().as_capsule() {
-                let pose = collider.position();
-                let a = *pose * capsule.segment.a;
-                let b = *pose * capsule.segment.b;
-                shapes.push(Shape::Capsule {
-                    a: [a.x, a.y],
-                    b: [b.x, b.y],
-                    radius: capsule.radius,
-                    role: Role::Robot,
-                });
+                shapes.push(multibody::capsule_shape(collider.position(), capsule));
             }
         }
         shapes
-    }
-}
-
-/// A planar robot on Rapier: its spec, rebuilt in a fresh world at every reset.
-pub(crate) struct RapierPlanar {
-    spec: RobotSpec,
-    robot: PlanarRobot,
-}
-
-impl RapierPlanar {
-    /// The robot of `spec`, reset with seed 0 and nominal dynamics.
-    pub fn new(spec: RobotSpec) -> Self {
-        let robot = PlanarRobot::build(&spec, &Scaling::NOMINAL, 0);
-        Self { spec, robot }
     }
 }
 
@@ -480,53 +441,6 @@ impl Scaling {
             None => Scaling::NOMINAL,
         }
     }
-}
-
-impl Plant for RapierPlanar {
-    fn control_dt(&self) -> f32 {
-        self.spec.physics_dt * self.spec.substeps as f32
-    }
-
-    fn reset(&mut self, seed: u64, dynamics: Option<&WalkerDynamics>) {
-        self.robot = PlanarRobot::build(&self.spec, &Scaling::of(dynamics), seed);
-    }
-
-    fn step(&mut self, action: &[f32]) {
-        self.robot.set_torques(action);
-        self.robot.advance();
-    }
-
-    fn diverged(&self) -> bool {
-        self.robot.diverged()
-    }
-
-    fn observe(&self, out: &mut [f32], velocity_clip: f32) {
-        if let Ok(out) = <&mut [f32; OBS_DIM]>::try_from(out) {
-            self.robot.observe(out, velocity_clip);
-        }
-    }
-
-    fn torso(&self) -> TorsoPose {
-        let (x, z, pitch) = self.robot.torso_pose();
-        TorsoPose {
-            position: [x, 0.0, z],
-            pitch,
-        }
-    }
-
-    fn shapes(&self) -> Vec<Shape> {
-        self.robot.shapes()
-    }
-}
-
-/// The deepest penetration into collider `ground` over its current contact manifolds.
-pub(crate) fn deepest_penetration(narrow_phase: &NarrowPhase, ground: ColliderHandle) -> f32 {
-    narrow_phase
-        .contact_pairs_with(ground)
-        .flat_map(|pair| pair.manifolds().iter())
-        .flat_map(|manifold| manifold.points.iter())
-        .map(|point| -point.dist)
-        .fold(0.0, f32::max)
 }
 
 /// Wraps an angle to (-pi, pi].

@@ -11,8 +11,7 @@ use rapier2d::prelude::*;
 use crate::env::{EpisodeClock, check_family, clip_action};
 use crate::error::SimError;
 use crate::family::{
-    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, StepInfo, Task,
-    Transition,
+    EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task, Transition,
 };
 use crate::kinds::Physics;
 use crate::render::{Frame, Role, Shape, View};
@@ -174,19 +173,10 @@ impl Environment for PointGoalEnv {
         }
         let distance = self.distance_to_goal();
         let effort = self.action[0] * self.action[0] + self.action[1] * self.action[1];
-        let (terminated, truncated) = self.clock.advance(false);
-        Ok(Transition {
-            obs: &self.obs,
-            reward: -distance - ACTION_COST * effort,
-            done: terminated || truncated,
-            info: StepInfo {
-                step: self.clock.step,
-                terminated,
-                truncated,
-                metric_sample: distance,
-                forward_velocity: 0.0,
-            },
-        })
+        let reward = -distance - ACTION_COST * effort;
+        Ok(self
+            .clock
+            .transition(&self.obs, reward, false, distance, 0.0))
     }
 
     fn observation(&self) -> &[f32] {

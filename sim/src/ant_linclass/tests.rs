@@ -4,7 +4,7 @@
 use super::*;
 use crate::ant::ACT_DIM;
 use crate::env::{EpisodeMetric, make_env};
-use crate::family::MetricKind;
+use crate::family::{MetricKind, StepInfo};
 use crate::render::{View, frame_to_svg};
 
 fn gait(step: usize) -> [f32; ACT_DIM] {
