@@ -4,10 +4,10 @@
 
 use std::cell::RefCell;
 
-use candle_core::{CpuStorage, DType, Device, InplaceOp2, Layout, Tensor, Var};
+use candle_core::{DType, Device, Tensor, Var};
 
 use crate::error::Result;
-use crate::model::{check_shapes, f32_slice, f32_slice_mut};
+use crate::model::{OnSlices, SliceUpdate, check_shapes};
 
 /// Hyper-parameters of [`Adam`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -55,19 +55,10 @@ struct AdamStep<'a> {
     eps_t: f32,
 }
 
-impl InplaceOp2 for AdamStep<'_> {
-    fn name(&self) -> &'static str {
-        "adam"
-    }
-    fn cpu_fwd(
-        &self,
-        s1: &mut CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> candle_core::Result<()> {
-        let p = f32_slice_mut(s1, l1)?;
-        let g = f32_slice(s2, l2)?;
+impl SliceUpdate for AdamStep<'_> {
+    const NAME: &'static str = "adam";
+
+    fn apply(&self, p: &mut [f32], g: &[f32]) -> candle_core::Result<()> {
         let mut m = self.m.borrow_mut();
         let mut v = self.v.borrow_mut();
         if p.len() != g.len() || m.len() != p.len() {
@@ -156,14 +147,14 @@ impl Adam {
                 continue;
             };
             let g = g.contiguous()?;
-            let op = AdamStep {
+            let op = OnSlices(AdamStep {
                 m: RefCell::new(&mut self.m[i]),
                 v: RefCell::new(&mut self.v[i]),
                 lr_t,
                 b1: self.cfg.beta1,
                 b2: self.cfg.beta2,
                 eps_t,
-            };
+            });
             var.as_tensor().inplace_op2(&g, &op)?;
         }
         Ok(())

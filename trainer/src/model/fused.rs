@@ -17,7 +17,7 @@
 
 use std::mem::MaybeUninit;
 
-use candle_core::{CpuStorage, CustomOp3, Layout, Shape, Tensor};
+use candle_core::{CpuStorage, CustomOp3, InplaceOp2, Layout, Shape, Tensor};
 
 mod shared;
 pub use shared::SharedCols;
@@ -26,9 +26,8 @@ fn msg(m: &str) -> candle_core::Error {
     candle_core::Error::Msg(format!("fused linear: {m}"))
 }
 
-/// Contiguous f32 slice of a CPU tensor storage (shared by the in-place ops of the MLP and
-/// the optimiser).
-pub(crate) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Result<&'a [f32]> {
+/// Contiguous f32 slice of a CPU tensor storage.
+fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Result<&'a [f32]> {
     let (a, b) = l
         .contiguous_offsets()
         .ok_or_else(|| msg("non-contiguous input"))?;
@@ -39,16 +38,44 @@ pub(crate) fn f32_slice<'a>(s: &'a CpuStorage, l: &Layout) -> candle_core::Resul
 }
 
 /// Mutable [`f32_slice`].
-pub(crate) fn f32_slice_mut<'a>(
-    s: &'a mut CpuStorage,
-    l: &Layout,
-) -> candle_core::Result<&'a mut [f32]> {
+fn f32_slice_mut<'a>(s: &'a mut CpuStorage, l: &Layout) -> candle_core::Result<&'a mut [f32]> {
     let (a, b) = l
         .contiguous_offsets()
         .ok_or_else(|| msg("non-contiguous input"))?;
     match s {
         CpuStorage::F32(v) => Ok(&mut v[a..b]),
         _ => Err(msg("f32 only")),
+    }
+}
+
+/// An in-place update of one CPU tensor's f32 values from another's (the MLP's Polyak step,
+/// the optimiser's Adam step). [`OnSlices`] makes it a candle `InplaceOp2`, so that each
+/// update states only its arithmetic and the storage unpacking stands in one place.
+pub(crate) trait SliceUpdate {
+    /// The op's name in candle's errors.
+    const NAME: &'static str;
+
+    /// Updates `dst` from `src` (each a tensor's contiguous values).
+    fn apply(&self, dst: &mut [f32], src: &[f32]) -> candle_core::Result<()>;
+}
+
+/// A [`SliceUpdate`] as a candle `InplaceOp2` on contiguous f32 CPU tensors (other devices
+/// keep candle's refusal).
+pub(crate) struct OnSlices<U>(pub U);
+
+impl<U: SliceUpdate> InplaceOp2 for OnSlices<U> {
+    fn name(&self) -> &'static str {
+        U::NAME
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &mut CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+    ) -> candle_core::Result<()> {
+        self.0.apply(f32_slice_mut(s1, l1)?, f32_slice(s2, l2)?)
     }
 }
 

@@ -8,10 +8,10 @@
 //!
 //! All randomness comes from the caller's RNG so that a seed fixes the whole run.
 
-use candle_core::{CpuStorage, Device, InplaceOp2, Layout, Tensor, Var};
+use candle_core::{Device, Tensor, Var};
 use rand::Rng;
 
-use super::fused::{SharedCols, f32_slice, f32_slice_mut};
+use super::fused::{OnSlices, SharedCols, SliceUpdate};
 use crate::error::{Error, Result};
 
 /// Weights and biases of one MLP as plain tensors, in layer order `[w0, b0, w1, b1, ...]`.
@@ -182,7 +182,7 @@ impl FrozenMlp {
     /// Polyak averaging `theta_targ <- (1 - tau) theta_targ + tau theta`, in place.
     pub fn polyak_update(&self, online: &Mlp, tau: f32) -> Result<()> {
         for (t, v) in self.params.iter().zip(online.vars()) {
-            t.inplace_op2(v.as_tensor(), &Lerp { tau })?;
+            t.inplace_op2(v.as_tensor(), &OnSlices(Lerp { tau }))?;
         }
         Ok(())
     }
@@ -223,19 +223,10 @@ struct Lerp {
     tau: f32,
 }
 
-impl InplaceOp2 for Lerp {
-    fn name(&self) -> &'static str {
-        "lerp"
-    }
-    fn cpu_fwd(
-        &self,
-        s1: &mut CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-    ) -> candle_core::Result<()> {
-        let dst = f32_slice_mut(s1, l1)?;
-        let src = f32_slice(s2, l2)?;
+impl SliceUpdate for Lerp {
+    const NAME: &'static str = "lerp";
+
+    fn apply(&self, dst: &mut [f32], src: &[f32]) -> candle_core::Result<()> {
         for (d, s) in dst.iter_mut().zip(src) {
             *d += self.tau * (*s - *d);
         }

@@ -20,7 +20,7 @@ pub use context::{
 pub use discriminator::{DiscInput, DiscStats, Discriminator, bce_with_logits, input_gradient};
 pub use fused::SharedCols;
 pub(crate) use fused::TanhGaussian;
-pub(crate) use fused::{f32_slice, f32_slice_mut};
+pub(crate) use fused::{OnSlices, SliceUpdate};
 pub use meta_policy::{ConditionedActor, META_POLICY_FILE, MetaPolicy, TrainingMark};
 pub(crate) use meta_policy::{mlp_load, mlp_tensors};
 pub(crate) use mlp::check_shapes;
