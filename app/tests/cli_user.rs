@@ -281,13 +281,8 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         };
         std::fs::write(&cfg, format!("{budget}{toml_text}")).unwrap();
         let run = dir.join(format!("run{i}"));
-        let out = smile(
-            &[
-                &["train", "--algo", algo, "--demos", s(&train)][..],
-                &["--config", s(&cfg), "-o", s(&run), "--quiet"],
-            ]
-            .concat(),
-        );
+        let rest = ["--config", s(&cfg), "-o", s(&run), "--quiet"];
+        let out = smile(&[&common::train_args(algo, &train)[..], &rest].concat());
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(
             out.status.code(),

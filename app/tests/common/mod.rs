@@ -96,15 +96,12 @@ pub fn tiny_per_task_expert(value: &str, run: &std::path::Path) -> String {
 
 /// The arguments of `smile train --algo meta-bc` on `train` into `run`; append the rest.
 pub fn meta_bc_args<'a>(train: &'a std::path::Path, run: &'a std::path::Path) -> Vec<&'a str> {
-    vec![
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(train),
-        "-o",
-        s(run),
-    ]
+    [&train_args("meta-bc", train)[..], &["-o", s(run)]].concat()
+}
+
+/// The arguments of `smile train --algo <algo>` on `demos`; append the rest.
+pub fn train_args<'a>(algo: &'a str, demos: &'a std::path::Path) -> Vec<&'a str> {
+    vec!["train", "--algo", algo, "--demos", s(demos)]
 }
 
 /// The arguments of `smile train --resume` of `run` on `train`; append the rest.
