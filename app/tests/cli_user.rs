@@ -246,20 +246,10 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
     // tables, then values that parse but cannot train (they must reach the config's
     // validate()). Each also sets a one-step budget, so that a config wrongly accepted fails
     // the test quickly instead of training for minutes.
-    let cases = [
+    let mut cases: Vec<(&str, String, String)> = [
         ("smile", "total_updatez = 5\n", "total_updatez"),
         ("smile", "[context]\nz_dimm = 3\n", "z_dimm"),
         ("smile", "[sac]\nhiden = [8]\n", "hiden"),
-        (
-            "smile",
-            "tasks_per_batch = 0\n",
-            "tasks_per_batch must be a count from 1 to",
-        ),
-        (
-            "smile",
-            "sac_per_task = 0\n",
-            "sac_per_task must be a count from 1 to",
-        ),
         (
             "smile",
             "gp_weight = -1.0\n",
@@ -268,18 +258,20 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         ("smile", "[sac]\nbatch_size = 0\n", "sac.batch_size"),
         ("meta-bc", "total_stepz = 5\n", "total_stepz"),
         ("meta-bc", "[context]\nr_dimm = 3\n", "r_dimm"),
-        (
-            "meta-bc",
-            "per_task = 0\n",
-            "per_task must be a count from 1 to",
-        ),
-        (
-            "meta-bc",
-            "tasks_per_batch = 0\n",
-            "tasks_per_batch must be a count from 1 to",
-        ),
         ("meta-bc", "lr = -0.001\n", "lr must be positive"),
-    ];
+    ]
+    .map(|(algo, toml_text, needle)| (algo, toml_text.to_string(), needle.to_string()))
+    .into();
+    // A count of 0 is refused as a count, by its key's name.
+    for (algo, key) in [
+        ("smile", "tasks_per_batch"),
+        ("smile", "sac_per_task"),
+        ("meta-bc", "per_task"),
+        ("meta-bc", "tasks_per_batch"),
+    ] {
+        let needle = format!("{key} must be a count from 1 to");
+        cases.push((algo, format!("{key} = 0\n"), needle));
+    }
     for (i, (algo, toml_text, needle)) in cases.into_iter().enumerate() {
         let cfg = dir.join(format!("c{i}.toml"));
         let budget = if algo == "smile" {
@@ -289,20 +281,15 @@ fn meta_learner_configs_refuse_unknown_keys_and_invalid_values_by_name() {
         };
         std::fs::write(&cfg, format!("{budget}{toml_text}")).unwrap();
         let run = dir.join(format!("run{i}"));
-        let out = smile(
-            &[
-                &["train", "--algo", algo, "--demos", s(&train)][..],
-                &["--config", s(&cfg), "-o", s(&run), "--quiet"],
-            ]
-            .concat(),
-        );
+        let rest = ["--config", s(&cfg), "-o", s(&run), "--quiet"];
+        let out = smile(&[&common::train_args(algo, &train)[..], &rest].concat());
         let err = String::from_utf8_lossy(&out.stderr);
         assert_eq!(
             out.status.code(),
             Some(1),
             "{algo} {toml_text:?} was not refused: {err}"
         );
-        assert!(err.contains(needle), "{algo} {toml_text:?}: {err}");
+        assert!(err.contains(&needle), "{algo} {toml_text:?}: {err}");
         assert!(
             !run.exists(),
             "{algo} {toml_text:?}: a run directory was created"

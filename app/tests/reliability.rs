@@ -3,7 +3,7 @@
 //! train, each called as a user calls the binary. Every case here failed on the code before.
 
 mod common;
-use common::{eval_args, ok, resume_args, s, smile};
+use common::{eval_args, ok, resume_args, s, smile, train_args};
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
@@ -580,18 +580,8 @@ fn values_a_flag_refuses_are_refused_from_files_and_every_command() {
         ("meta-bc", "env = \"cheetah-vel\""),
     ] {
         std::fs::write(&cfg, text).unwrap();
-        let e = err_of(&smile(&[
-            "train",
-            "--algo",
-            algo,
-            "--demos",
-            s(&train),
-            "--config",
-            s(&cfg),
-            "-o",
-            s(&run),
-            "--quiet",
-        ]));
+        let rest = ["--config", s(&cfg), "-o", s(&run), "--quiet"];
+        let e = err_of(&smile(&[&train_args(algo, &train)[..], &rest].concat()));
         let key = text.split(' ').next().unwrap();
         assert!(e.contains(key), "{text}: {e}");
         assert!(!run.join(trainer::META_POLICY_FILE).exists(), "{text}");

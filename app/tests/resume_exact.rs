@@ -106,16 +106,8 @@ fn killed_and_resumed_runs_end_byte_identical_to_uninterrupted_ones() {
         ),
         ("meta-bc", &bc_toml, "steps", "step", 120, bc.total_steps),
     ] {
-        let args = [
-            "train",
-            "--algo",
-            algo,
-            "--demos",
-            s(&train),
-            "--config",
-            s(config),
-            "--quiet",
-        ];
+        let mut args = common::train_args(algo, &train);
+        args.extend(["--config", s(config), "--quiet"]);
         let whole = dir.join(format!("{algo}-whole"));
         let cut = dir.join(format!("{algo}-cut"));
         let mut with_out = args.to_vec();

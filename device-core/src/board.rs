@@ -221,21 +221,32 @@ pub fn serve<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
     }
 }
 
-/// The bootloader: flashes blobs and answers `Hello` until a committed blob and a message for
-/// the application are there; returns that message's frame (`None`: stopped).
-fn bootloader<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
-    board: &mut Board<'_, P>,
-    device: &mut Device<F>,
-    handover: Handover,
-    on: &mut dyn FnMut(BoardEvent<'_>),
+/// What a phase does after a packet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Step {
+    /// Read on.
+    Stay,
+    /// The packet is the other phase's: hand its frame over.
+    HandOver,
+}
+
+/// The loop both phases run: reads frames (a handed-over one first, `first.1` naming its
+/// length), passes over damaged ones, and gives `step` each packet with whether it is fresh
+/// (not a resend), or `None` when nothing came within `wait`; after that the port is asked
+/// whether to stop. Returns the frame `step` hands over (`None`: stopped).
+fn phase<'c, P: Port>(
+    board: &mut Board<'c, P>,
+    first: ([u8; MAX_FRAME], Option<usize>),
+    wait: Duration,
+    mut step: impl FnMut(
+        &mut Board<'c, P>,
+        Option<(Packet<HostMessage<'_>>, bool)>,
+    ) -> Result<Step, BoardError<P::Error>>,
 ) -> Result<Handover, BoardError<P::Error>> {
-    let (mut buf, mut pending) = match handover {
-        Some((frame, len)) => (frame, Some(len)),
-        None => ([0u8; MAX_FRAME], None),
-    };
+    let (mut buf, mut pending) = first;
     loop {
-        let wait = Duration::from_millis(50);
         let Some(len) = board.next_frame(&mut buf, &mut pending, wait)? else {
+            step(board, None)?;
             if board.port.stop() {
                 return Ok(None);
             }
@@ -246,8 +257,30 @@ fn bootloader<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
             continue;
         };
         let fresh = !board.dedup.is_resend(p.seq);
-        if fresh && for_application(&p.message) && device.blob().is_ok() {
+        if step(board, Some((p, fresh)))? == Step::HandOver {
             return Ok(Some((buf, len)));
+        }
+    }
+}
+
+/// The bootloader: flashes blobs and answers `Hello` until a committed blob and a message for
+/// the application are there; returns that message's frame (`None`: stopped).
+fn bootloader<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
+    board: &mut Board<'_, P>,
+    device: &mut Device<F>,
+    handover: Handover,
+    on: &mut dyn FnMut(BoardEvent<'_>),
+) -> Result<Handover, BoardError<P::Error>> {
+    let first = match handover {
+        Some((frame, len)) => (frame, Some(len)),
+        None => ([0u8; MAX_FRAME], None),
+    };
+    phase(board, first, Duration::from_millis(50), |board, read| {
+        let Some((p, fresh)) = read else {
+            return Ok(Step::Stay);
+        };
+        if fresh && for_application(&p.message) && device.blob().is_ok() {
+            return Ok(Step::HandOver);
         }
         let status = board.status(p.seq, device.blob_id(), false);
         let answer = board.dedup.answer(p.seq, || match &p.message {
@@ -268,7 +301,8 @@ fn bootloader<P: Port, F: AsRef<[u8]> + AsMut<[u8]>>(
         {
             on(BoardEvent::Committed { blob, crc });
         }
-    }
+        Ok(Step::Stay)
+    })
 }
 
 /// The application's watchdog: the last tick's time while ticks flow.
@@ -286,7 +320,6 @@ fn application<P: Port>(
     first: ([u8; MAX_FRAME], usize),
     on: &mut dyn FnMut(BoardEvent<'_>),
 ) -> Result<Handover, BoardError<P::Error>> {
-    let (mut buf, mut pending) = (first.0, Some(first.1));
     let mut actuators = [0f32; MAX_DIM];
     let act_dim = app.act_dim();
     let mut dog = Watchdog {
@@ -294,9 +327,9 @@ fn application<P: Port>(
         holding: false,
     };
     let (mut transitions, mut push_time) = (0u32, Duration::ZERO);
-    loop {
-        let wait = Duration::from_millis(20);
-        let Some(len) = board.next_frame(&mut buf, &mut pending, wait)? else {
+    let first = (first.0, Some(first.1));
+    phase(board, first, Duration::from_millis(20), |board, read| {
+        let Some((p, fresh)) = read else {
             let now = board.port.now();
             if let Some(t) = dog
                 .last_tick
@@ -309,19 +342,11 @@ fn application<P: Port>(
                 dog.last_tick = None;
                 on(BoardEvent::Watchdog(now.saturating_sub(t)));
             }
-            if board.port.stop() {
-                return Ok(None);
-            }
-            continue;
+            return Ok(Step::Stay);
         };
-        let mut scratch = [0u8; MAX_FRAME];
-        let Some(p) = packet(&buf[..len], &mut scratch) else {
-            continue;
-        };
-        let fresh = !board.dedup.is_resend(p.seq);
         let hello = matches!(p.message, HostMessage::Hello { .. });
         if fresh && !for_application(&p.message) && !hello {
-            return Ok(Some((buf, len)));
+            return Ok(Step::HandOver);
         }
         let status = board.status(p.seq, blob, app.z().is_some());
         let port = &*board.port;
@@ -382,5 +407,6 @@ fn application<P: Port>(
             }
         }
         board.reply(&answer)?;
-    }
+        Ok(Step::Stay)
+    })
 }

@@ -2,7 +2,8 @@
 # makes OUT_DIR (the script's first argument), names the release `smile` (SMILE, default
 # target/release/smile) and the PyTorch python (PY, default the venv's), records the machine
 # and its load in OUT_DIR/machine.txt, and defines `sgemm_anchor` (PyTorch's single-core sgemm
-# rate, the yardstick each sitting is read against).
+# rate, the yardstick each sitting is read against) and `ours_pair` (our SMILe pair at a
+# config's recipe).
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 out=${1:?usage: $(basename "$0") OUT_DIR}
 mkdir -p "$out"
@@ -24,4 +25,12 @@ for m, n, k in [(2048, 512, 512), (1024, 512, 512), (1024, 256, 256)]:
     s = (time.perf_counter() - t) / r
     print(f"{m}x{n}x{k}: {2*m*n*k/s/1e9:.1f} GFLOP/s")
 PY
+}
+
+# Our SMILe update pair at CONFIG's recipe with DEMOS on THREADS learner threads, ITERS timed
+# after one warm-up, into JSON; prints the summary line.
+#   ours_pair CONFIG DEMOS THREADS ITERS JSON
+ours_pair() {
+  $smile bench --workload pair --config "$1" --demos "$2" \
+    --iters "$4" --warmup 1 --learner-threads "$3" --json "$5" | tail -1
 }

@@ -14,9 +14,8 @@ source "$(dirname "$0")/bench-common.sh"
 for round in 1 2; do
   for t in 1 2; do
     echo "== ours SMILe pairs, docs/configs/authors-cv-smile.toml, learner threads $t (round $round)"
-    $smile bench --workload pair --config docs/configs/authors-cv-smile.toml \
-      --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors \
-      --iters 3 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-t$t-r$round.json" | tail -1
+    ours_pair docs/configs/authors-cv-smile.toml \
+      assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors "$t" 3 "$out/ours-pair-t$t-r$round.json"
   done
   echo "== PyTorch SMILe pair, the same recipe, threads 1 2 (round $round)"
   $py docs/scripts/torch_smile_pair.py --threads 1 2 --iters 40 --warmup 5 | tee "$out/torch-pair-r$round.json"

@@ -23,9 +23,8 @@ threads=(1 2 4 8 16)
 sgemm_anchor
 for t in "${threads[@]}"; do
   echo "== ours SMILe pair, docs/configs/authors-cv-smile.toml, learner threads $t"
-  $smile bench --workload pair --config docs/configs/authors-cv-smile.toml \
-    --demos assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors \
-    --iters 2 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-authors-t$t.json" | tail -1
+  ours_pair docs/configs/authors-cv-smile.toml \
+    assets/experts/cheetah-vel/demos-train-4x-sub20.safetensors "$t" 2 "$out/ours-pair-authors-t$t.json"
 done
 echo "== PyTorch SMILe pair doing our pair's work, threads ${threads[*]}"
 $py docs/scripts/torch_smile_pair.py --threads "${threads[@]}" --iters 20 --warmup 3 | tee "$out/torch-pair.json"
@@ -39,8 +38,7 @@ $py docs/bench/pytorch/torch_reference.py --workloads sac --hidden 256 --layers 
   --z-dim 64 --threads "${threads[@]}" --iters 30 --warmup 5 | tee "$out/torch-sac.json"
 for t in 1 2 4 8; do
   echo "== ours SMILe pair, ant-goal MuJoCo, docs/configs/authors-ag-smile-narrow.toml, learner threads $t"
-  $smile bench --workload pair --config docs/configs/authors-ag-smile-narrow.toml \
-    --demos assets/experts/ant-goal-mujoco/demos-train-4x-sub1.safetensors \
-    --iters 3 --warmup 1 --learner-threads "$t" --json "$out/ours-pair-ag-t$t.json" | tail -1
+  ours_pair docs/configs/authors-ag-smile-narrow.toml \
+    assets/experts/ant-goal-mujoco/demos-train-4x-sub1.safetensors "$t" 3 "$out/ours-pair-ag-t$t.json"
 done
 echo "done $(date -u +%T)"

@@ -6,8 +6,8 @@
 //! device's reason. Every process here is bounded in time and killed at the end.
 
 mod common;
-use common::hil::{columns, hil_json, ok};
-use common::{s, tmp};
+use common::hil::{columns, hil_json};
+use common::{ok, s, tmp};
 
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};

@@ -22,8 +22,8 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
-use common::hil::{columns, hil_json, ok};
-use common::{s, tmp};
+use common::hil::{columns, hil_json};
+use common::{ok, s, tmp};
 use device_core::{Controller, DeviceConfig, DeviceMessage, HostMessage, Refusal};
 use firmware_sim::host;
 use firmware_sim::link::{Floats, LinkError};

@@ -11,11 +11,11 @@ mod demos;
 
 pub use demos::*;
 
-// The one-line error check is firmware-sim's test helper (one definition for both binaries).
+// The run checks are firmware-sim's test helpers (one definition for both binaries).
 #[path = "../../../firmware-sim/tests/common/output.rs"]
 mod output;
-#[allow(unused_imports)] // not every test binary checks an error
-pub use output::one_line_error;
+#[allow(unused_imports)] // not every test binary checks a run
+pub use output::{ok, one_line_error};
 
 /// A new, empty directory `<temp>/<prefix>-<name>-<pid>` (removed first if a previous run left
 /// it behind).
@@ -37,17 +37,6 @@ pub fn smile(args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("run smile")
-}
-
-/// Asserts that a `smile` run succeeded (printing its output if not); returns its stderr.
-pub fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
 }
 
 /// Point-goal PD demo files in `dir`: `train.safetensors` (8 meta-train tasks x 2 demos of 20
@@ -107,15 +96,12 @@ pub fn tiny_per_task_expert(value: &str, run: &std::path::Path) -> String {
 
 /// The arguments of `smile train --algo meta-bc` on `train` into `run`; append the rest.
 pub fn meta_bc_args<'a>(train: &'a std::path::Path, run: &'a std::path::Path) -> Vec<&'a str> {
-    vec![
-        "train",
-        "--algo",
-        "meta-bc",
-        "--demos",
-        s(train),
-        "-o",
-        s(run),
-    ]
+    [&train_args("meta-bc", train)[..], &["-o", s(run)]].concat()
+}
+
+/// The arguments of `smile train --algo <algo>` on `demos`; append the rest.
+pub fn train_args<'a>(algo: &'a str, demos: &'a std::path::Path) -> Vec<&'a str> {
+    vec!["train", "--algo", algo, "--demos", s(demos)]
 }
 
 /// The arguments of `smile train --resume` of `run` on `train`; append the rest.

@@ -316,22 +316,9 @@ impl std::fmt::Debug for RemoteDevice<'_> {
 }
 
 impl<'a> RemoteDevice<'a> {
-    /// [`Self::new`] then [`Self::start`]: greets the device, uploads `blob` unless it already
-    /// holds it, and teaches `context`; ticks then run at `rate_hz`. A refused blob is an
-    /// error with the device's reason.
-    pub fn connect(
-        link: SerialLink,
-        blob: &'a [u8],
-        context: Vec<&'a Trajectory>,
-        rate_hz: f32,
-    ) -> Result<Self, LoopError> {
-        let mut remote = Self::new(link, blob, context, rate_hz)?;
-        remote.start()?;
-        Ok(remote)
-    }
-
     /// The host's side of a device reached over `link`, nothing sent yet: checks that `blob`
-    /// is a model and takes its dimensions and safe action.
+    /// is a model and takes its dimensions and safe action. [`Self::start`] then brings the
+    /// device up; ticks run at `rate_hz`.
     pub fn new(
         link: SerialLink,
         blob: &'a [u8],

@@ -1,19 +1,7 @@
-//! What the hardware-in-the-loop tests read back from `firmware-sim host` and `run`: the exit,
-//! the trace's columns and `hil.json`.
+//! What the hardware-in-the-loop tests read back from `firmware-sim host` and `run`: the
+//! trace's columns and `hil.json`.
 
 use std::path::Path;
-use std::process::Output;
-
-/// The stderr of a command that must have succeeded (both streams shown when it did not).
-pub fn ok(out: &Output) -> String {
-    let err = String::from_utf8_lossy(&out.stderr).into_owned();
-    assert!(
-        out.status.success(),
-        "stdout: {}\nstderr: {err}",
-        String::from_utf8_lossy(&out.stdout)
-    );
-    err
-}
 
 /// The columns of `trace.csv` in `dir` whose names start with `prefix`, row by row.
 pub fn columns(dir: &Path, prefixes: &[&str]) -> Vec<Vec<String>> {

@@ -7,10 +7,10 @@ use std::process::{Command, Output};
 
 pub mod hil;
 
-// The one-line error check is shared with the app's tests (they include output.rs by path).
+// The run checks are shared with the app's tests (they include output.rs by path).
 mod output;
-#[allow(unused_imports)] // not every test binary checks an error
-pub use output::one_line_error;
+#[allow(unused_imports)] // not every test binary checks a run
+pub use output::{ok, one_line_error};
 
 use sim::{EnvConfig, Family, PointGoalPdExpert, Task, Trajectory, make_env, record_trajectory};
 
