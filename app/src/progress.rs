@@ -120,6 +120,48 @@ fn plain_line(pb: &ProgressBar, what: &str, base: u64, since: Duration) -> Strin
     )
 }
 
+/// The line a log shows for a run's event; none for step counts, expert episodes and
+/// checkpoints (the bar shows those).
+pub fn log_line(e: &trainer::run::RunEvent) -> Option<String> {
+    use trainer::Progress;
+    use trainer::run::RunEvent;
+    match e {
+        RunEvent::Note(text) => Some(text.clone()),
+        RunEvent::Started {
+            what,
+            total,
+            done,
+            unit,
+            word,
+            resumed,
+        } => {
+            let head = match resumed {
+                true => format!("resuming from {word} {done}\n"),
+                false => String::new(),
+            };
+            Some(format!("{head}{what}; {total} {unit}"))
+        }
+        RunEvent::Progress(
+            Progress::Eval {
+                step,
+                metric,
+                best,
+                val_mse,
+            },
+            word,
+        ) => Some(match val_mse {
+            Some(mse) => format!("{word} {step}: val mse {mse:.5}, held-out metric {metric:.4}"),
+            None => {
+                format!("{word} {step}: held-out train-task metric {metric:.4} (best {best:.4})")
+            }
+        }),
+        RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
+            "early stop at {word} {s}: the held-out selection metric stopped improving"
+        )),
+        RunEvent::Progress(..) => None,
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -160,47 +202,5 @@ mod tests {
         assert!(rate < 400.0, "{line}");
         // The ETA follows: 390 units at that rate are seconds, not a fraction of one.
         assert!(!line.contains("ETA 0:00:00"), "{line}");
-    }
-}
-
-/// The line a log shows for a run's event; none for step counts, expert episodes and
-/// checkpoints (the bar shows those).
-pub fn log_line(e: &trainer::run::RunEvent) -> Option<String> {
-    use trainer::Progress;
-    use trainer::run::RunEvent;
-    match e {
-        RunEvent::Note(text) => Some(text.clone()),
-        RunEvent::Started {
-            what,
-            total,
-            done,
-            unit,
-            word,
-            resumed,
-        } => {
-            let head = match resumed {
-                true => format!("resuming from {word} {done}\n"),
-                false => String::new(),
-            };
-            Some(format!("{head}{what}; {total} {unit}"))
-        }
-        RunEvent::Progress(
-            Progress::Eval {
-                step,
-                metric,
-                best,
-                val_mse,
-            },
-            word,
-        ) => Some(match val_mse {
-            Some(mse) => format!("{word} {step}: val mse {mse:.5}, held-out metric {metric:.4}"),
-            None => {
-                format!("{word} {step}: held-out train-task metric {metric:.4} (best {best:.4})")
-            }
-        }),
-        RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
-            "early stop at {word} {s}: the held-out selection metric stopped improving"
-        )),
-        RunEvent::Progress(..) => None,
     }
 }
