@@ -151,3 +151,31 @@ fn set<T: Clone>(slot: Option<&mut T>, value: &Option<T>) {
         *slot = v.clone();
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every setting but the budget is named when given: a new field of `Overrides` does not
+    /// compile here until it is given below, and then this fails until the list names it.
+    #[test]
+    fn every_setting_beyond_the_budget_is_named_when_given() {
+        let all = Overrides {
+            updates: Some(1),
+            cpu_budget_s: Some(1.0),
+            seed: Some(1),
+            learner_threads: Some(1),
+            eval_every: Some(1),
+            hidden: Some(vec![1]),
+            gp_weight: Some(1.0),
+            reward_scale: Some(1.0),
+            bc_weight: Some(1.0),
+            physics: Some(Physics::Rapier),
+            sensing: Some(crate::data::Sensing::default()),
+        };
+        let named = all.given_beyond_budget();
+        assert_eq!(named.len(), 9, "{named:?}");
+        assert!(!named.contains(&Setting::Updates) && !named.contains(&Setting::CpuBudget));
+        assert!(Overrides::default().given_beyond_budget().is_empty());
+    }
+}

@@ -625,6 +625,7 @@ pub fn masked_matmul_t(g: &Tensor, y: &Tensor, w: &Tensor) -> candle_core::Resul
 }
 
 mod tanh_gaussian;
+pub(crate) use tanh_gaussian::HALF_LN_2PI;
 pub use tanh_gaussian::TanhGaussian;
 
 #[cfg(test)]

@@ -13,10 +13,8 @@ use rand::Rng;
 use rand_distr::StandardNormal;
 
 use crate::error::Result;
+use crate::model::fused::HALF_LN_2PI;
 use crate::model::{Input, Mlp};
-
-/// `0.5 * ln(2 pi)`.
-pub(crate) const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
 
 /// A tanh-squashed Gaussian policy; actions lie in `(-1, 1)^act_dim`.
 #[derive(Debug, Clone)]

@@ -4,9 +4,12 @@
 use candle_core::{CpuStorage, Layout, Shape, Tensor};
 
 use super::{f32_slice, msg};
-use crate::model::policy::HALF_LN_2PI;
 
-/// Fused tanh-Gaussian head (see [`crate::policy`]): from the policy network's output
+/// `0.5 * ln(2 pi)`, in the Gaussian log-density (here, below the policy that uses the head:
+/// the policy imports it, not the other way round).
+pub(crate) const HALF_LN_2PI: f64 = 0.918_938_533_204_672_8;
+
+/// Fused tanh-Gaussian head (see `model::policy`): from the policy network's output
 /// `h = [mu, raw log sigma]` `(B, 2A)` and noise `eps` `(B, A)` to `(B, A + 1)` holding
 /// `a = tanh(mu + exp(clamp(raw)) eps)` and, in the last column,
 /// `log pi(a|s) = sum_i [-eps_i^2/2 - log sigma_i - ln(2 pi)/2 - log(1 - a_i^2)]`
