@@ -60,7 +60,7 @@ pub use setting::Setting;
 pub use model::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, DiscInput, DiscStats, Discriminator,
     FrozenMlp, META_POLICY_FILE, MetaPolicy, Mlp, ObsNorm, PolicySample, TanhGaussianPolicy,
-    TrainingMark, input_gradient,
+    TrainingMark,
 };
 
 /// The optimiser.

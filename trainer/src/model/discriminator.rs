@@ -145,14 +145,9 @@ impl Discriminator {
 /// layers). With row-vector layers `h_{l+1} = relu(h_l W_l + b_l)`:
 /// `g = (((1 W_L^T) . m_{L-1}) W_{L-1}^T . ... . m_0) W_0^T`, where `m_l = 1[pre-activation > 0]`
 /// (constants: ReLU's second derivative is zero almost everywhere, so this equals PyTorch's
-/// `create_graph=True` gradient).
-pub fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
-    input_gradient_first_cols(net, x.into(), x.dim(1)?)
-}
-
-/// [`input_gradient`]'s first `cols` columns only (the gradient penalty's `x~`, not its
-/// detached `z`): the last product of the chain then uses only the first `cols` rows of
-/// `W_0`, which skips `z`'s share of that product, of its backward and of `W_0`'s gradient
+/// `create_graph=True` gradient). Only the first `cols` columns (the gradient penalty's `x~`,
+/// not its detached `z`): the last product of the chain then uses only the first `cols` rows
+/// of `W_0`, which skips `z`'s share of that product, of its backward and of `W_0`'s gradient
 /// (about a third of the discriminator's first layer there at the authors' shapes).
 fn input_gradient_first_cols(net: &Mlp, input: Input<'_>, cols: usize) -> Result<Tensor> {
     let x = input.x;
@@ -219,6 +214,11 @@ pub struct DiscStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The whole input's gradient (every column).
+    fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
+        input_gradient_first_cols(net, x.into(), x.dim(1)?)
+    }
     use candle_core::Var;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

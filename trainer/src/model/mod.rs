@@ -17,7 +17,8 @@ mod policy;
 pub use context::{
     ContextBatch, ContextConfig, ContextEncoder, ContextSpec, ObsNorm, policy_input,
 };
-pub use discriminator::{DiscInput, DiscStats, Discriminator, bce_with_logits, input_gradient};
+pub(crate) use discriminator::bce_with_logits;
+pub use discriminator::{DiscInput, DiscStats, Discriminator};
 pub use fused::SharedCols;
 pub(crate) use fused::TanhGaussian;
 pub(crate) use fused::{OnSlices, SliceUpdate};
