@@ -196,8 +196,6 @@ pub struct ExpertTrainer {
     best: Option<BestEval>,
     /// Where the updates run (`learner_threads`).
     pool: LearnerPool,
-    /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::throughput::Throughput,
 }
 
 /// The best evaluation of a run with `keep_best`: its metric and when it was taken; the
@@ -293,7 +291,6 @@ impl ExpertTrainer {
             episodes: 0,
             best: None,
             pool,
-            clock: crate::algo::throughput::Throughput::since(0),
         })
     }
 

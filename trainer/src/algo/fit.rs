@@ -26,8 +26,6 @@ pub enum Progress {
         episodic_return: f32,
         /// The family's metric for the episode.
         metric: f32,
-        /// Env steps per second since this process started training.
-        sps: f64,
     },
     /// A held-out evaluation.
     Eval {
@@ -106,6 +104,28 @@ impl Compute {
     }
 }
 
+/// Units of work per second since this process started training: the `charts/sps` on every
+/// line a learner logs.
+struct Throughput {
+    t0: std::time::Instant,
+    done0: u64,
+}
+
+impl Throughput {
+    /// Starts the clock at `done` units.
+    fn since(done: u64) -> Self {
+        Self {
+            t0: std::time::Instant::now(),
+            done0: done,
+        }
+    }
+
+    /// Units per second from the start to `done`.
+    fn per_s(&self, done: u64) -> f64 {
+        done.saturating_sub(self.done0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9)
+    }
+}
+
 /// The next multiple of `every` after `done`: where an event falls due again. `every` 0 is
 /// never.
 fn next_multiple(done: u64, every: u64) -> u64 {
@@ -151,6 +171,7 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
     let compute = Compute::start(run.cpu_before(), cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
+    let clock = Throughput::since(run.done());
     let mut evals = Schedule::new(cadence.eval_every, run.done(), cadence.eval_at_end);
     let mut checkpoints = Schedule::new(cadence.checkpoint_every.max(1), run.done(), true);
     let mut finished = run.finished();
@@ -160,6 +181,7 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
         fields.extend(run.counted(cpu_s));
         finished = run.finished() || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
         if !fields.is_empty() {
+            fields.push(("charts/sps", clock.per_s(run.done())));
             log.log(run.done(), &fields)?;
         }
         if evals.due(run.done(), finished)

@@ -116,7 +116,7 @@ pub struct MetaInputs {
 /// while !finished (the learner's budget or stopping rule, or the compute budget):
 ///     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
 ///                             Meta-BC: one step)
-///     counted; log the metrics
+///     counted; log the metrics (with the loop's units per second, charts/sps)
 ///     if an evaluation is due: evaluate; save_kept if best; log; report
 ///     if a checkpoint is due: save_checkpoint; report
 /// finish                     (the final policy files)
@@ -147,7 +147,7 @@ pub trait Learner: Sized {
     /// Its budget, and when evaluations and checkpoints are due.
     fn cadence(&self) -> Cadence;
 
-    /// Before the loop: a warm start, the untrained policy's evaluation, this process's clocks.
+    /// Before the loop: a warm start, the untrained policy's evaluation.
     fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
         Ok(())
     }

@@ -75,8 +75,6 @@ pub struct MetaBc {
     /// The learner threads of `learner_threads > 1`, started at the first step.
     pool: Option<LearnerPool>,
     stopped: bool,
-    /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::throughput::Throughput,
 }
 
 impl MetaBc {
@@ -160,7 +158,6 @@ impl MetaBc {
             bad_evals: 0,
             stopped: false,
             pool: None,
-            clock: crate::algo::throughput::Throughput::since(0),
         })
     }
 

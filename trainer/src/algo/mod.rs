@@ -19,7 +19,6 @@ pub mod meta_bc;
 pub mod sac;
 mod settings;
 pub mod smile;
-mod throughput;
 
 pub use fit::fit;
 pub use learner::{

@@ -102,8 +102,6 @@ pub struct Smile {
     /// The environment the rollouts beside the pairs step (`learner_threads > 1`; it travels
     /// with each rollout job and comes back with its result).
     rollout_env: Option<Box<dyn Environment>>,
-    /// Throughput since this process started training (`charts/sps`).
-    clock: crate::algo::throughput::Throughput,
     /// SMILe + BC's `[bc_early]`: each training task's demo rows, the first steps' repeated.
     bc_rows: Option<Vec<Vec<(usize, usize)>>>,
 }
@@ -178,7 +176,6 @@ impl Smile {
             best: f32::NAN,
             pool: None,
             rollout_env: None,
-            clock: crate::algo::throughput::Throughput::since(0),
             bc_rows,
         })
     }

@@ -254,15 +254,12 @@ fn train(req: &ExpertRequest, quiet: bool) -> Result<ExpertConfig> {
             Progress::Episode {
                 episodic_return,
                 metric,
-                sps,
                 ..
             },
             _,
-        ) => pb.iter().for_each(|b| {
-            b.set_message(format!(
-                "sps {sps:.0} return {episodic_return:.2} metric {metric:.3}"
-            ))
-        }),
+        ) => pb
+            .iter()
+            .for_each(|b| b.set_message(format!("return {episodic_return:.2} metric {metric:.3}"))),
         RunEvent::Progress(Progress::Checkpoint(s), _) => pb
             .iter()
             .for_each(|b| b.println(format!("checkpoint at step {s}"))),

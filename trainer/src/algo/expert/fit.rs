@@ -8,7 +8,6 @@ use std::path::Path;
 use super::{BEST_POLICY_FILE, ExpertConfig, ExpertTrainer, evaluate};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Learner, Unit};
-use crate::algo::throughput::Throughput;
 use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
@@ -66,18 +65,11 @@ impl Learner for ExpertTrainer {
         }
     }
 
-    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
-        self.clock = Throughput::since(self.env_steps);
-        Ok(())
-    }
-
     fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
         let rep = self.run_episode(&mut |s| on(Progress::Steps(s)))?;
-        let sps = self.clock.per_s(rep.env_steps);
         let mut fields = vec![
             ("charts/episodic_return", rep.episodic_return as f64),
             ("charts/metric", rep.metric as f64),
-            ("charts/sps", sps),
             ("charts/updates", self.sac.updates() as f64),
         ];
         if let Some(s) = &rep.last_update {
@@ -87,7 +79,6 @@ impl Learner for ExpertTrainer {
             step: rep.env_steps,
             episodic_return: rep.episodic_return,
             metric: rep.metric,
-            sps,
         });
         Ok(fields)
     }

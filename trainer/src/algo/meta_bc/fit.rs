@@ -10,7 +10,6 @@ use super::{MetaBc, MetaBcConfig, Selection};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::{Overrides, Slots};
-use crate::algo::throughput::Throughput;
 use crate::data::{better, quick_eval};
 use crate::error::Result;
 use crate::io::MetricsLog;
@@ -49,11 +48,6 @@ impl Learner for MetaBc {
         }
     }
 
-    fn begin(&mut self, _log: &mut MetricsLog) -> Result<()> {
-        self.clock = Throughput::since(self.steps);
-        Ok(())
-    }
-
     fn finished(&self) -> bool {
         self.steps >= self.cfg.total_steps || self.stopped
     }
@@ -68,10 +62,8 @@ impl Learner for MetaBc {
         if !self.steps.is_multiple_of(50) {
             return Ok(Vec::new());
         }
-        let sps = self.clock.per_s(self.steps);
         Ok(vec![
             ("losses/bc_mse", mse as f64),
-            ("charts/sps", sps),
             ("charts/dataset_size", self.dataset_size() as f64),
         ])
     }

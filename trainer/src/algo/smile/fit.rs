@@ -9,7 +9,6 @@ use super::{Smile, SmileConfig};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::{Overrides, Slots};
-use crate::algo::throughput::Throughput;
 use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
@@ -57,7 +56,6 @@ impl Learner for Smile {
         if self.updates == 0 && self.replay.total_len() == 0 {
             self.warm_start()?;
         }
-        self.clock = Throughput::since(self.updates);
         if !self.data.val.is_empty() && self.updates == 0 {
             // The untrained policy as the first point of the validation curve.
             let m = self.validate()?;
@@ -83,7 +81,6 @@ impl Learner for Smile {
             Some((d, s, r)) => (d, Some(s), r),
             None => (DiscStats::default(), None, 0.0),
         };
-        let ups = self.clock.per_s(self.updates);
         let cfg = &self.cfg;
         let mut fields = vec![
             ("losses/disc_bce", ds.bce as f64),
@@ -91,7 +88,6 @@ impl Learner for Smile {
             ("charts/disc_acc_expert", ds.acc_expert as f64),
             ("charts/disc_acc_policy", ds.acc_policy as f64),
             ("charts/reward_mean", rm as f64),
-            ("charts/sps", ups),
             ("charts/env_steps", self.env_steps as f64),
         ];
         if let Some(s) = &ss {
