@@ -158,7 +158,10 @@ pub fn log_line(e: &trainer::run::RunEvent) -> Option<String> {
         RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
             "early stop at {word} {s}: the held-out selection metric stopped improving"
         )),
-        RunEvent::Progress(..) => None,
+        RunEvent::Progress(
+            Progress::Steps(_) | Progress::Episode { .. } | Progress::Checkpoint(_),
+            _,
+        ) => None,
     }
 }
 

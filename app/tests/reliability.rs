@@ -256,6 +256,12 @@ fn resume_refuses_changed_flags_edited_config_and_other_demos() {
     std::fs::write(&cfg_path, &edited).unwrap();
     let e = err_of(&resume(&["--updates", "60"]));
     assert!(e.contains("`seed`") && e.contains("config.toml"), "{e}");
+    // A flag given with the run's own value is not blamed for the file's change.
+    let e = err_of(&resume(&["--hidden", "8,8", "--updates", "60"]));
+    assert!(
+        e.contains("but config.toml changes `seed`") && !e.contains("--hidden"),
+        "{e}"
+    );
     assert_eq!(std::fs::read_to_string(&cfg_path).unwrap(), edited);
     std::fs::write(&cfg_path, &original).unwrap();
     // Other demos (another file's checksum) are refused.

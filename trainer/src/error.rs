@@ -79,8 +79,8 @@ pub enum Error {
         run: PathBuf,
         /// The configuration's top-level key that differs.
         key: String,
-        /// The settings the caller gave beyond the budget (none: the change is in the run's
-        /// `config.toml`).
+        /// The caller's settings that alone change `key` (none: the run's `config.toml` was
+        /// changed).
         given: Box<[crate::setting::Setting]>,
         /// Its value in the run.
         was: String,

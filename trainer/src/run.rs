@@ -21,6 +21,7 @@ use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, 
 use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
 use crate::io::checkpoint;
+use crate::setting::Setting;
 
 mod expert;
 mod registry;
@@ -59,11 +60,15 @@ impl RunInfo {
     /// The record of the run in `dir` (its [`RUN_FILE`]).
     pub fn read(dir: &Path) -> Result<RunInfo> {
         let info = dir.join(RUN_FILE);
-        let text = std::fs::read_to_string(&info).map_err(|_| {
-            Error::Usage(format!(
+        let text = std::fs::read_to_string(&info).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => Error::Usage(format!(
                 "{} holds no run to resume (no {RUN_FILE})",
                 dir.display()
-            ))
+            )),
+            _ => Error::Io {
+                path: info.clone(),
+                source: e,
+            },
         })?;
         serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
             path: info.clone(),
@@ -417,7 +422,7 @@ impl Run<'_> {
         let inputs = MetaInputs { data, expert };
         let run = if self.resumes() {
             let run = L::resume(&req.out, inputs, &cfg)?;
-            check_resume(req, &cfg, run.config())?;
+            check_resume(req, self.algo, &cfg, run.config())?;
             run
         } else {
             L::start(cfg, inputs)?
@@ -501,8 +506,13 @@ fn write_config<T: Serialize>(out: &Path, cfg: &T) -> Result<()> {
 /// On a resume: the configuration asked for must agree with the one the run continues (its
 /// checkpoint's, with the budget asked for), and so must its `config.toml` (a reader trusts
 /// that file to describe the run).
-fn check_resume<T: Serialize>(req: &TrainRequest, given: &T, running: &T) -> Result<()> {
-    let table = |c: &T| -> Result<toml::Table> {
+fn check_resume<C: MetaSettings>(
+    req: &TrainRequest,
+    algo: Algo,
+    given: &C,
+    running: &C,
+) -> Result<()> {
+    let table = |c: &C| -> Result<toml::Table> {
         toml::Table::try_from(c).map_err(|e| Error::Serialise {
             what: "the configuration",
             reason: e.to_string(),
@@ -515,11 +525,32 @@ fn check_resume<T: Serialize>(req: &TrainRequest, given: &T, running: &T) -> Res
             return Err(Error::ResumeChanges {
                 run: req.out.clone(),
                 key: key.clone(),
-                given: req.settings.given_beyond_budget(),
+                given: changed_by(req, algo, running, key, &r).into(),
                 was: theirs.to_string(),
                 now: ours.map_or("missing".into(), ToString::to_string),
             });
         }
     }
     Ok(())
+}
+
+/// The caller's settings (beyond the budget) that alone change `key` of `running`, whose table
+/// is `r`: what a resume's refusal blames (none: the run's `config.toml` changed it).
+fn changed_by<C: MetaSettings>(
+    req: &TrainRequest,
+    algo: Algo,
+    running: &C,
+    key: &str,
+    r: &toml::Table,
+) -> Vec<Setting> {
+    let changes = |s: &Setting| {
+        let mut c = running.clone();
+        c.apply(algo, &req.settings.only(*s)).is_ok()
+            && toml::Table::try_from(&c).is_ok_and(|t| t.get(key) != r.get(key))
+    };
+    req.settings
+        .given_beyond_budget()
+        .into_iter()
+        .filter(changes)
+        .collect()
 }

@@ -112,21 +112,69 @@ impl Overrides {
     }
 
     /// The settings given (`Some`) other than the budget: what a resume may not change.
-    pub(crate) fn given_beyond_budget(&self) -> Box<[Setting]> {
-        [
-            (self.seed.is_some(), Setting::Seed),
-            (self.learner_threads.is_some(), Setting::LearnerThreads),
-            (self.eval_every.is_some(), Setting::EvalEvery),
-            (self.hidden.is_some(), Setting::Hidden),
-            (self.gp_weight.is_some(), Setting::GpWeight),
-            (self.reward_scale.is_some(), Setting::RewardScale),
-            (self.bc_weight.is_some(), Setting::BcWeight),
-            (self.physics.is_some(), Setting::Physics),
-            (self.sensing.is_some(), Setting::Sensing),
-        ]
-        .into_iter()
-        .filter_map(|(given, s)| given.then_some(s))
-        .collect()
+    pub(crate) fn given_beyond_budget(&self) -> Vec<Setting> {
+        const BEYOND_BUDGET: [Setting; 9] = [
+            Setting::Seed,
+            Setting::LearnerThreads,
+            Setting::EvalEvery,
+            Setting::Hidden,
+            Setting::GpWeight,
+            Setting::RewardScale,
+            Setting::BcWeight,
+            Setting::Physics,
+            Setting::Sensing,
+        ];
+        let given = |s: &Setting| self.only(*s) != Overrides::default();
+        BEYOND_BUDGET.into_iter().filter(given).collect()
+    }
+
+    /// This setting alone, as given here.
+    pub(crate) fn only(&self, s: Setting) -> Overrides {
+        let o = self.clone();
+        let d = Overrides::default();
+        match s {
+            Setting::Updates => Overrides {
+                updates: o.updates,
+                ..d
+            },
+            Setting::CpuBudget => Overrides {
+                cpu_budget_s: o.cpu_budget_s,
+                ..d
+            },
+            Setting::Seed => Overrides { seed: o.seed, ..d },
+            Setting::LearnerThreads => Overrides {
+                learner_threads: o.learner_threads,
+                ..d
+            },
+            Setting::EvalEvery => Overrides {
+                eval_every: o.eval_every,
+                ..d
+            },
+            Setting::Hidden => Overrides {
+                hidden: o.hidden,
+                ..d
+            },
+            Setting::GpWeight => Overrides {
+                gp_weight: o.gp_weight,
+                ..d
+            },
+            Setting::RewardScale => Overrides {
+                reward_scale: o.reward_scale,
+                ..d
+            },
+            Setting::BcWeight => Overrides {
+                bc_weight: o.bc_weight,
+                ..d
+            },
+            Setting::Physics => Overrides {
+                physics: o.physics,
+                ..d
+            },
+            Setting::Sensing => Overrides {
+                sensing: o.sensing,
+                ..d
+            },
+        }
     }
 }
 

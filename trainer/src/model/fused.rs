@@ -517,8 +517,8 @@ pub fn linear_shared(
     x.contiguous()?.apply_op3(w, b, Linear { relu, shared })
 }
 
-/// One step of the gradient penalty's input-gradient chain as one autograd node (see
-/// [`crate::model::discriminator::input_gradient`]): from `g (B, out)`, the layer's ReLU
+/// One step of the gradient penalty's input-gradient chain as one autograd node (see the
+/// discriminator's `input_gradient_first_cols`): from `g (B, out)`, the layer's ReLU
 /// output `y (B, out)` (a constant) and its weight `w (in, out)`,
 /// `out = (g . 1[y > 0]) W^T`  `(B, in)`. Backward, with `G = g . 1[y > 0]`:
 /// `dg = (dout W) . 1[y > 0]` and `dW = dout^T G`, each only if autograd wants it. (As plain
