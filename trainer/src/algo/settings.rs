@@ -130,51 +130,21 @@ impl Overrides {
 
     /// This setting alone, as given here.
     pub(crate) fn only(&self, s: Setting) -> Overrides {
-        let o = self.clone();
-        let d = Overrides::default();
+        let (mut o, x) = (Overrides::default(), self.clone());
         match s {
-            Setting::Updates => Overrides {
-                updates: o.updates,
-                ..d
-            },
-            Setting::CpuBudget => Overrides {
-                cpu_budget_s: o.cpu_budget_s,
-                ..d
-            },
-            Setting::Seed => Overrides { seed: o.seed, ..d },
-            Setting::LearnerThreads => Overrides {
-                learner_threads: o.learner_threads,
-                ..d
-            },
-            Setting::EvalEvery => Overrides {
-                eval_every: o.eval_every,
-                ..d
-            },
-            Setting::Hidden => Overrides {
-                hidden: o.hidden,
-                ..d
-            },
-            Setting::GpWeight => Overrides {
-                gp_weight: o.gp_weight,
-                ..d
-            },
-            Setting::RewardScale => Overrides {
-                reward_scale: o.reward_scale,
-                ..d
-            },
-            Setting::BcWeight => Overrides {
-                bc_weight: o.bc_weight,
-                ..d
-            },
-            Setting::Physics => Overrides {
-                physics: o.physics,
-                ..d
-            },
-            Setting::Sensing => Overrides {
-                sensing: o.sensing,
-                ..d
-            },
+            Setting::Updates => o.updates = x.updates,
+            Setting::CpuBudget => o.cpu_budget_s = x.cpu_budget_s,
+            Setting::Seed => o.seed = x.seed,
+            Setting::LearnerThreads => o.learner_threads = x.learner_threads,
+            Setting::EvalEvery => o.eval_every = x.eval_every,
+            Setting::Hidden => o.hidden = x.hidden,
+            Setting::GpWeight => o.gp_weight = x.gp_weight,
+            Setting::RewardScale => o.reward_scale = x.reward_scale,
+            Setting::BcWeight => o.bc_weight = x.bc_weight,
+            Setting::Physics => o.physics = x.physics,
+            Setting::Sensing => o.sensing = x.sensing,
         }
+        o
     }
 }
 
