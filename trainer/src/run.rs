@@ -32,7 +32,7 @@ pub use expert::{ExpertRequest, train_expert};
 pub const RUN_FILE: &str = "run.json";
 
 /// The expert name recorded for point-goal's scripted PD controller.
-pub const SCRIPTED_PD: &str = "scripted-pd";
+pub use crate::algo::expert::SCRIPTED_PD;
 
 /// What a run directory records in [`RUN_FILE`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -333,9 +333,7 @@ impl Run<'_> {
     fn relabelling_expert(&self, on: &mut dyn FnMut(RunEvent)) -> Result<Option<ExpertSet>> {
         let algo = self.algo;
         if algo.needs_expert() {
-            let scripted = Path::new(SCRIPTED_PD);
-            let (set, note) =
-                ExpertSet::relabelling(self.expert.as_deref(), scripted, self.family)?;
+            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), self.family)?;
             on(RunEvent::Note(format!("{algo}: {note}")));
             return Ok(Some(set));
         }

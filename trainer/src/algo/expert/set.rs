@@ -25,6 +25,10 @@ pub fn trained_task_value(path: &Path) -> Result<Option<f64>> {
         .and_then(|v| v.as_f64()))
 }
 
+/// The name a run records for point-goal's scripted PD controller as its relabelling expert
+/// (and that names it as one).
+pub const SCRIPTED_PD: &str = "scripted-pd";
+
 /// Several experts for one family: per-task experts (trained with one task, their policy
 /// file records its `task_value`) and at most one general expert. Demos pick, for each task,
 /// the per-task expert of that task, else the general one.
@@ -50,14 +54,10 @@ impl From<Expert> for ExpertSet {
 impl ExpertSet {
     /// Meta-DAgger's relabelling expert: the one `given` (a run, a policy file or a folder
     /// of per-task experts), else on point-goal its scripted PD controller (also named by
-    /// `given` = `scripted`); returns it with a line saying which it is.
-    pub(crate) fn relabelling(
-        given: Option<&Path>,
-        scripted: &Path,
-        family: Family,
-    ) -> Result<(Self, String)> {
+    /// [`SCRIPTED_PD`]); returns it with a line saying which it is.
+    pub(crate) fn relabelling(given: Option<&Path>, family: Family) -> Result<(Self, String)> {
         match given {
-            Some(p) if p != scripted => {
+            Some(p) if p != Path::new(SCRIPTED_PD) => {
                 let set = Self::load(&[p])
                     .map_err(|e| Error::Usage(format!("loading expert {}: {e}", p.display())))?;
                 Ok((set, format!("relabelling with the expert {}", p.display())))
