@@ -13,82 +13,32 @@
 
 use std::path::{Path, PathBuf};
 
-use serde::{Deserialize, Serialize};
 use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::ExpertSet;
 use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, fit};
 use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
-use crate::io::checkpoint;
+use crate::io::{checkpoint, run_dir};
 use crate::setting::Setting;
 
 mod expert;
 mod registry;
 pub use expert::{ExpertRequest, train_expert};
 
-/// File in a run directory recording how the run was started, so that a resume continues it
-/// with the same algorithm, expert and demos.
-pub const RUN_FILE: &str = "run.json";
+/// How a run directory records its run, read and written by `io` (the run's files).
+pub use crate::io::run_dir::{RUN_FILE, RunInfo};
 
 /// The expert name recorded for point-goal's scripted PD controller.
 pub use crate::algo::expert::SCRIPTED_PD;
 
-/// What a run directory records in [`RUN_FILE`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct RunInfo {
-    /// The algorithm's name ([`Algo::name`]).
-    pub algo: String,
-    /// Meta-DAgger's relabelling expert: a `smile expert` run, or [`SCRIPTED_PD`].
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub expert: Option<String>,
-    /// The expert's path as the OS gave it, when it is not UTF-8 (`expert` then holds a lossy
-    /// copy for people to read): a resume must find the very same file.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub expert_os: Option<std::ffi::OsString>,
-    /// SHA-256 of the demo file the run started on: a resume refuses other demos (their
-    /// normalisation and tasks would silently replace the run's). Absent in older runs.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub demos_sha256: Option<String>,
-    /// The plant the run simulates (the config's `physics`, which the demos must match).
-    /// Absent in runs made before the MuJoCo backend: Rapier's.
-    #[serde(default)]
-    pub physics: Physics,
-}
-
+// Here, not beside the record: `io` knows no algorithms.
 impl RunInfo {
-    /// The record of the run in `dir` (its [`RUN_FILE`]).
-    pub fn read(dir: &Path) -> Result<RunInfo> {
-        let info = dir.join(RUN_FILE);
-        let text = std::fs::read_to_string(&info).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => Error::Usage(format!(
-                "{} holds no run to resume (no {RUN_FILE})",
-                dir.display()
-            )),
-            _ => Error::Io {
-                path: info.clone(),
-                source: e,
-            },
-        })?;
-        serde_json::from_str(&text).map_err(|e| Error::Checkpoint {
-            path: info.clone(),
-            reason: format!("not a run record: {e}"),
-        })
-    }
-
     /// The recorded algorithm.
     pub fn algo(&self, dir: &Path) -> Result<Algo> {
         self.algo
             .parse()
             .map_err(|e: Error| Error::Usage(format!("{}: {e}", dir.join(RUN_FILE).display())))
-    }
-
-    /// The recorded relabelling expert's path, exactly as it was given.
-    pub fn expert_path(&self) -> Option<PathBuf> {
-        self.expert_os
-            .clone()
-            .map(PathBuf::from)
-            .or(self.expert.clone().map(PathBuf::from))
     }
 }
 
@@ -179,19 +129,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     // over with its recorded configuration (a sweep's rerun does the same without the flag).
     let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
     if restart {
-        refuse_finished_without_checkpoint(&req.out)?;
-        let cfg = req.out.join("config.toml");
-        if !cfg.exists() {
-            return Err(Error::input(
-                Input::Resume,
-                format!(
-                    "{} holds no checkpoint and no config.toml: its run was interrupted before \
-                     it recorded its configuration, so there is nothing to resume; start it \
-                     again instead (its partial files are replaced)",
-                    req.out.display()
-                ),
-            ));
-        }
+        let cfg = run_dir::restart_config(&req.out)?;
         on(RunEvent::Note(format!(
             "{} has no checkpoint yet (its run was interrupted before the first one): starting \
              it over from update 0 with its recorded configuration ({})",
@@ -201,31 +139,10 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     }
     if req.resume {
         let rec = RunInfo::read(&req.out)?;
-        match &rec.demos_sha256 {
-            Some(sha) if *sha != demos_sha => {
-                return Err(Error::input(
-                    Input::Demos,
-                    format!(
-                        "the demos {} are not the file {} was trained on (SHA-256 {} here, {} \
-                         recorded in {RUN_FILE}); resume with the run's own demos, or start a \
-                         new run on these",
-                        req.demos.display(),
-                        req.out.display(),
-                        &demos_sha[..12],
-                        &sha[..sha.len().min(12)]
-                    ),
-                ));
-            }
-            Some(_) => {}
-            None => on(RunEvent::Note(format!(
-                "warning: {} records no demo checksum (a run older than that check); make sure \
-                 the demos are the file it started on",
-                req.out.join(RUN_FILE).display()
-            ))),
+        if let Some(warning) = rec.check_demos(&req.out, &req.demos, &demos_sha)? {
+            on(RunEvent::Note(warning));
         }
-        if expert.is_none() {
-            expert = rec.expert_path();
-        }
+        expert = expert.or(rec.expert_path());
     } else {
         checkpoint::ensure_fresh_run_dir(&req.out)?;
     }
@@ -239,33 +156,6 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         expert,
     };
     (registry::Meta::of(algo).train)(&run, on)
-}
-
-/// A `--resume` of a run whose checkpoint is gone after it finished: there is nothing to
-/// continue from (the replay, the optimisers), and starting it over would replace a finished
-/// policy; refused, naming the missing file.
-fn refuse_finished_without_checkpoint(out: &Path) -> Result<()> {
-    let policy = out.join(crate::model::META_POLICY_FILE);
-    let finished = policy.exists()
-        && crate::model::MetaPolicy::training_mark(&policy)
-            .ok()
-            .flatten()
-            .is_some_and(|m| m.finished);
-    if !finished {
-        return Ok(());
-    }
-    Err(Error::input(
-        Input::Resume,
-        format!(
-            "{} holds a finished run, but its checkpoint {} is gone: a larger budget continues \
-             from the checkpoint (its replay and optimisers), so this run cannot be extended; \
-             restore the checkpoint, or train a new run in another directory (the finished \
-             policy {} is kept)",
-            out.display(),
-            out.join(checkpoint::CHECKPOINT_FILE).display(),
-            policy.display()
-        ),
-    ))
 }
 
 /// A request with its inputs read.
@@ -287,7 +177,7 @@ impl Run<'_> {
     fn config<C: MetaSettings>(&self) -> Result<C> {
         let req = self.req;
         let file = if req.resume {
-            Some(req.out.join("config.toml"))
+            Some(req.out.join(run_dir::CONFIG_FILE))
         } else {
             req.config_file.clone()
         };
@@ -373,21 +263,8 @@ impl Run<'_> {
         let out = &self.req.out;
         let lock = open_dir(out, self.resumes(), !self.restart, on)?;
         let expert = self.expert_record();
-        let info = RunInfo {
-            algo: self.algo.name().into(),
-            expert: expert.as_ref().map(|p| p.to_string_lossy().into_owned()),
-            expert_os: expert
-                .as_ref()
-                .filter(|p| p.to_str().is_none())
-                .map(|p| p.as_os_str().to_owned()),
-            demos_sha256: Some(self.demos_sha.clone()),
-            physics,
-        };
-        let json = serde_json::to_string_pretty(&info).map_err(|e| Error::Serialise {
-            what: "run.json",
-            reason: e.to_string(),
-        })?;
-        checkpoint::write_atomic(&out.join(RUN_FILE), json.as_bytes())?;
+        let algo = self.algo.name();
+        RunInfo::new(algo, expert.as_deref(), self.demos_sha.clone(), physics).write(out)?;
         Ok(lock)
     }
 
@@ -442,7 +319,7 @@ fn drive<L: Learner>(
     lock: crate::io::DirLock,
     on: &mut dyn FnMut(RunEvent),
 ) -> Result<L> {
-    write_config(dir, run.config())?;
+    run_dir::write_config(dir, run.config())?;
     let unit = L::UNIT;
     on(RunEvent::Started {
         what,
@@ -466,39 +343,24 @@ fn drive<L: Learner>(
     Ok(run)
 }
 
-/// Holds `out`'s lock for the run; a new run (not `resumes`) first clears what a run killed
-/// before its first checkpoint left there, so this run's log does not continue the dead one's
-/// (saying so when `tell`).
+/// Holds `out`'s lock for the run ([`run_dir::open`]), saying what a new run cleared there
+/// (when `tell`).
 fn open_dir(
     out: &Path,
     resumes: bool,
     tell: bool,
     on: &mut dyn FnMut(RunEvent),
 ) -> Result<crate::io::DirLock> {
-    let lock = crate::io::DirLock::acquire(out)?;
-    if !resumes {
-        // Checked again under the lock: the directory may have changed since the request was
-        // read (another process finishing its first checkpoint there).
-        let removed = checkpoint::clear_interrupted_run(out)?;
-        if !removed.is_empty() && tell {
-            on(RunEvent::Note(format!(
-                "{} held a run interrupted before its first checkpoint (nothing to resume); \
-                 starting over: removed {}",
-                out.display(),
-                removed.join(", ")
-            )));
-        }
+    let (lock, removed) = run_dir::open(out, resumes)?;
+    if !removed.is_empty() && tell {
+        on(RunEvent::Note(format!(
+            "{} held a run interrupted before its first checkpoint (nothing to resume); \
+             starting over: removed {}",
+            out.display(),
+            removed.join(", ")
+        )));
     }
     Ok(lock)
-}
-
-/// Records the configuration a run trains with in `out/config.toml`, atomically.
-fn write_config<T: Serialize>(out: &Path, cfg: &T) -> Result<()> {
-    let text = toml::to_string(cfg).map_err(|e| Error::Serialise {
-        what: "config.toml",
-        reason: e.to_string(),
-    })?;
-    checkpoint::write_atomic(&out.join("config.toml"), text.as_bytes())
 }
 
 /// On a resume: the configuration asked for must agree with the one the run continues (its

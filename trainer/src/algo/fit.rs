@@ -10,7 +10,6 @@ use std::path::Path;
 use crate::algo::learner::Learner;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
-use crate::model::{META_POLICY_FILE, MetaPolicy, TrainingMark};
 
 /// What a learner reports while it trains.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -168,7 +167,8 @@ impl Schedule {
 /// log, schedules and compute count where its checkpoint left them.
 pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let cadence = run.cadence();
-    let compute = Compute::start(run.cpu_before(), cadence.cpu_budget_s)?;
+    let before = run.cpu_seconds().map_or(0.0, |s| *s);
+    let compute = Compute::start(before, cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
     let clock = Throughput::since(run.done());
@@ -178,7 +178,10 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
     while !finished {
         let mut fields = run.advance(on)?;
         let cpu_s = compute.seconds();
-        fields.extend(run.counted(cpu_s));
+        if let Some(count) = run.cpu_seconds() {
+            *count = cpu_s;
+            fields.push(("charts/cpu_s", cpu_s));
+        }
         finished = run.finished() || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
         if !fields.is_empty() {
             fields.push(("charts/sps", clock.per_s(run.done())));
@@ -202,30 +205,6 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
         }
     }
     run.finish(dir, &mut log)
-}
-
-/// A meta-learner's end of training: the last policy in `dir/last/`, and the kept (best)
-/// policy in `dir/meta_policy.safetensors` marked finished; the last one takes its place when
-/// no evaluation kept one, or when `final_replaces_kept` (SMILe without held-out tasks, whose
-/// evaluations keep nothing).
-pub(crate) fn finish_meta_policy(
-    policy: &MetaPolicy,
-    mark: TrainingMark,
-    dir: &Path,
-    final_replaces_kept: bool,
-) -> Result<()> {
-    let last = dir.join("last");
-    std::fs::create_dir_all(&last).map_err(|e| Error::Io {
-        path: last.clone(),
-        source: e,
-    })?;
-    policy.save_marked(&last, Some(mark))?;
-    if final_replaces_kept || !dir.join(META_POLICY_FILE).exists() {
-        policy.save_marked(dir, Some(mark))
-    } else {
-        // The kept (best) policy was written mid-run, marked unfinished: now it is final.
-        MetaPolicy::mark_finished(dir)
-    }
 }
 
 #[cfg(test)]

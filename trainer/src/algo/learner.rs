@@ -116,7 +116,7 @@ pub struct MetaInputs {
 /// while !finished (the learner's budget or stopping rule, or the compute budget):
 ///     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
 ///                             Meta-BC: one step)
-///     counted; log the metrics (with the loop's units per second, charts/sps)
+///     count the CPU-seconds; log the metrics (with the units per second, charts/sps)
 ///     if an evaluation is due: evaluate; save_kept if best; log; report
 ///     if a checkpoint is due: save_checkpoint; report
 /// finish                     (the final policy files)
@@ -157,15 +157,10 @@ pub trait Learner: Sized {
         self.done() >= self.cadence().total
     }
 
-    /// CPU-seconds the run's earlier processes used (its checkpoint's); 0 for a learner that
-    /// keeps no count.
-    fn cpu_before(&self) -> f64 {
-        0.0
-    }
-
-    /// The run's CPU-seconds after a unit of work: a learner that counts them records them
-    /// (for its checkpoint) and returns the metric to log; `None` logs nothing.
-    fn counted(&mut self, _cpu_s: f64) -> Option<(&'static str, f64)> {
+    /// Where the learner keeps the run's CPU-seconds for its checkpoint: the loop starts from
+    /// it (the earlier processes' count), updates it after each unit of work and logs it
+    /// (`charts/cpu_s`); `None` for a learner that keeps no count.
+    fn cpu_seconds(&mut self) -> Option<&mut f64> {
         None
     }
 

@@ -11,6 +11,7 @@ pub mod onnx;
 pub mod os_path;
 mod policy_file;
 pub mod qat;
+pub mod run_dir;
 
 pub use config::{MAX_COUNT, MAX_HORIZON, MAX_STEPS};
 pub use config::{from_toml_over_defaults, set_key};

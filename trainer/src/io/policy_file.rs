@@ -40,6 +40,25 @@ impl MetaPolicy {
         checkpoint::save_file(&dir.join(META_POLICY_FILE), &ts, &meta).map(|_| ())
     }
 
+    /// A meta-learner's end of training in its run directory `dir`: this (last) policy in
+    /// `dir/last/`, and the kept (best) policy in `dir/meta_policy.safetensors` marked
+    /// finished; this one takes its place when no evaluation kept one, or when
+    /// `replaces_kept` (SMILe without held-out tasks, whose evaluations keep nothing).
+    pub fn save_final(&self, dir: &Path, mark: TrainingMark, replaces_kept: bool) -> Result<()> {
+        let last = dir.join("last");
+        std::fs::create_dir_all(&last).map_err(|e| Error::Io {
+            path: last.clone(),
+            source: e,
+        })?;
+        self.save_marked(&last, Some(mark))?;
+        if replaces_kept || !dir.join(META_POLICY_FILE).exists() {
+            self.save_marked(dir, Some(mark))
+        } else {
+            // The kept (best) policy was written mid-run, marked unfinished: now it is final.
+            Self::mark_finished(dir)
+        }
+    }
+
     /// Marks the meta-policy file at `path` (a run directory or the file) finished, keeping its
     /// weights: training calls it once the budget is spent or it stopped early.
     pub fn mark_finished(path: &Path) -> Result<()> {

@@ -58,16 +58,8 @@ pub struct ExpertArgs {
     /// Total environment steps [default: 30000, or the --config file's].
     #[arg(long)]
     total_steps: Option<u64>,
-    /// Seed.
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Learner threads, the cores the SAC updates use (the config's `learner_threads`,
-    /// default 1): large matrix products split across them; the same weights on any count.
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
-    learner_threads: Option<u16>,
-    /// Hidden widths of actor and critics, e.g. 256,256.
-    #[arg(long, value_delimiter = ',', value_parser = crate::width)]
-    hidden: Option<Vec<usize>>,
+    #[command(flatten)]
+    learner: crate::train::LearnerFlags,
     /// Minibatch size.
     #[arg(long)]
     batch_size: Option<usize>,
@@ -127,13 +119,16 @@ fn effective_config(a: &ExpertArgs) -> Result<ExpertConfig> {
     cfg.env = a.env.unwrap_or(cfg.env);
     cfg.physics = a.physics.unwrap_or(cfg.physics);
     cfg.total_steps = a.total_steps.unwrap_or(cfg.total_steps);
-    cfg.seed = a.seed.unwrap_or(cfg.seed);
-    cfg.learner_threads = a.learner_threads.map_or(cfg.learner_threads, usize::from);
+    cfg.seed = a.learner.seed.unwrap_or(cfg.seed);
+    cfg.learner_threads = a
+        .learner
+        .learner_threads
+        .map_or(cfg.learner_threads, usize::from);
     cfg.sac.batch_size = a.batch_size.unwrap_or(cfg.sac.batch_size);
     cfg.learning_starts = a.learning_starts.unwrap_or(cfg.learning_starts);
     cfg.checkpoint_every = a.checkpoint_every.unwrap_or(cfg.checkpoint_every);
     cfg.eval_every = a.eval_every.unwrap_or(cfg.eval_every);
-    if let Some(hidden) = &a.hidden {
+    if let Some(hidden) = &a.learner.hidden {
         cfg.sac.hidden = hidden.clone();
     }
     cfg.horizon = a.horizon.or(cfg.horizon);

@@ -16,6 +16,24 @@ fn algo_parser() -> impl clap::builder::TypedValueParser<Value = Algo> {
         .try_map(|name| name.parse::<Algo>())
 }
 
+/// The flags `smile train` and `smile expert` share: how the learner runs.
+#[derive(Args, Debug)]
+pub(crate) struct LearnerFlags {
+    /// Seed.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Learner threads, the cores the updates use (the config's `learner_threads`, default 1):
+    /// large matrix products split across them, and SMILe's discriminator and SAC steps
+    /// overlapped (SAC's reward then from the discriminator before the pair). Results are the
+    /// same for any count above 1, an expert's for any count; give each thread a free core.
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    pub learner_threads: Option<u16>,
+    /// Hidden widths of the networks it trains, e.g. 128,128: an expert's actor and critics,
+    /// SMILe's SAC and discriminator, Meta-BC's policy.
+    #[arg(long, value_delimiter = ',', value_parser = crate::width)]
+    pub hidden: Option<Vec<usize>>,
+}
+
 /// Arguments of `smile train`.
 #[derive(Args, Debug)]
 pub struct TrainArgs {
@@ -52,18 +70,8 @@ pub struct TrainArgs {
     /// a machine that also runs other work; raise it on `--resume` to continue.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     cpu_budget: Option<f32>,
-    /// Seed.
-    #[arg(long)]
-    seed: Option<u64>,
-    /// Learner threads, the cores the updates use (the config's `learner_threads`, default 1):
-    /// large matrix products split across them, and SMILe's discriminator and SAC steps
-    /// overlapped (SAC's reward then from the discriminator before the pair). Results are the
-    /// same for any count above 1; give each thread a free core.
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
-    learner_threads: Option<u16>,
-    /// SAC / disc / policy hidden widths, e.g. 128,128.
-    #[arg(long, value_delimiter = ',', value_parser = crate::width)]
-    hidden: Option<Vec<usize>>,
+    #[command(flatten)]
+    learner: LearnerFlags,
     /// Gradient-penalty weight (SMILe), finite and >= 0.
     #[arg(long, value_parser = |t: &str| crate::finite_at_least(t, 0.0))]
     gp_weight: Option<f32>,
@@ -160,10 +168,10 @@ fn overrides(a: &TrainArgs) -> Result<Overrides> {
     Ok(Overrides {
         updates: a.updates,
         cpu_budget_s: a.cpu_budget.map(f64::from),
-        seed: a.seed,
-        learner_threads: a.learner_threads.map(usize::from),
+        seed: a.learner.seed,
+        learner_threads: a.learner.learner_threads.map(usize::from),
         eval_every: a.eval_every,
-        hidden: a.hidden.clone(),
+        hidden: a.learner.hidden.clone(),
         gp_weight: a.gp_weight,
         reward_scale: a.reward_scale,
         bc_weight: a.bc_weight,

@@ -7,7 +7,7 @@ use std::path::Path;
 use sim::Family;
 
 use super::{MetaBc, MetaBcConfig, Selection};
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::{Overrides, Slots};
 use crate::data::{better, quick_eval};
@@ -126,7 +126,7 @@ impl Learner for MetaBc {
     }
 
     fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
-        finish_meta_policy(&self.meta_policy(), self.mark(true), dir, false)
+        self.meta_policy().save_final(dir, self.mark(true), false)
     }
 }
 

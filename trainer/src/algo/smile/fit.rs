@@ -6,7 +6,7 @@ use std::path::Path;
 use sim::Family;
 
 use super::{Smile, SmileConfig};
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, finish_meta_policy};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::settings::{Overrides, Slots};
 use crate::data::better;
@@ -64,13 +64,8 @@ impl Learner for Smile {
         Ok(())
     }
 
-    fn cpu_before(&self) -> f64 {
-        self.cpu_s
-    }
-
-    fn counted(&mut self, cpu_s: f64) -> Option<(&'static str, f64)> {
-        self.cpu_s = cpu_s;
-        Some(("charts/cpu_s", cpu_s))
+    fn cpu_seconds(&mut self) -> Option<&mut f64> {
+        Some(&mut self.cpu_s)
     }
 
     // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
@@ -136,7 +131,8 @@ impl Learner for Smile {
 
     fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
         let replaces = self.data.val.is_empty();
-        finish_meta_policy(&self.meta_policy(), self.mark(true), dir, replaces)
+        self.meta_policy()
+            .save_final(dir, self.mark(true), replaces)
     }
 }
 
