@@ -21,7 +21,9 @@ fn capsule(a: [f32; 2], b: [f32; 2], radius: f32) -> Capsule {
 }
 
 /// A limb from `joint` to `end` hanging from `parent` (None = torso), every value named;
-/// `.into()` turns it into the [`LimbSpec`] the builder takes.
+/// `LimbSpec::from` turns it into the [`LimbSpec`] the builder takes. Copy, so that a limb can
+/// state only what differs from another (`Limb { mass, ..thigh }`).
+#[derive(Clone, Copy)]
 struct Limb {
     parent: Option<usize>,
     joint: [f32; 2],
@@ -64,13 +66,84 @@ impl From<Limb> for LimbSpec {
 /// HalfCheetah: torso with head, back leg (thigh, shin, foot) and front leg; control dt 0.05
 /// as in Gymnasium, but as 2 physics steps of 0.025 s (Gymnasium: 5 of 0.01) because the
 /// multibody mass-matrix update dominates the cost; friction 0.4.
-// Over 100 lines on purpose: a robot is one declaration where every body, joint and value is
-// named beside its source in half_cheetah.xml (the rapier examples' style), not a procedure.
+// A robot is one declaration where every body, joint and value is named beside its source in
+// half_cheetah.xml (the rapier examples' style), not a procedure.
 pub(crate) fn half_cheetah() -> RobotSpec {
     // half_cheetah.xml's hinges turn about +y.
     const AXIS_Y: f32 = 1.0;
     let r = 0.046;
     let f = 0.4;
+    // Every limb has bthigh's radius, hinge axis, armature and friction (the default class's);
+    // the others state their own place, mass and joint.
+    let bthigh = Limb {
+        parent: None,
+        joint: [-0.5, 0.0],
+        end: [-0.34, -0.25],
+        radius: r,
+        mass: 1.544,
+        mujoco_axis_y: AXIS_Y,
+        mujoco_range: [-0.52, 1.05],
+        gear: 120.0,
+        damping: 6.0,
+        stiffness: 240.0,
+        armature: 0.1,
+        friction: f,
+    };
+    let bshin = Limb {
+        parent: Some(0),
+        joint: [-0.34, -0.25],
+        end: [-0.62, -0.39],
+        mass: 1.587,
+        mujoco_range: [-0.785, 0.785],
+        gear: 90.0,
+        damping: 4.5,
+        stiffness: 180.0,
+        ..bthigh
+    };
+    let bfoot = Limb {
+        parent: Some(1),
+        joint: [-0.62, -0.39],
+        end: [-0.56, -0.58],
+        mass: 1.095,
+        mujoco_range: [-0.4, 0.785],
+        gear: 60.0,
+        damping: 3.0,
+        stiffness: 120.0,
+        ..bthigh
+    };
+    let fthigh = Limb {
+        parent: None,
+        joint: [0.5, 0.0],
+        end: [0.36, -0.24],
+        mass: 1.438,
+        mujoco_range: [-1.0, 0.7],
+        gear: 120.0,
+        damping: 4.5,
+        stiffness: 180.0,
+        ..bthigh
+    };
+    let fshin = Limb {
+        parent: Some(3),
+        joint: [0.36, -0.24],
+        end: [0.49, -0.42],
+        mass: 1.201,
+        mujoco_range: [-1.2, 0.87],
+        gear: 60.0,
+        damping: 3.0,
+        stiffness: 120.0,
+        ..bthigh
+    };
+    let ffoot = Limb {
+        parent: Some(4),
+        joint: [0.49, -0.42],
+        end: [0.58, -0.56],
+        mass: 0.885,
+        mujoco_range: [-0.5, 0.5],
+        gear: 30.0,
+        damping: 1.5,
+        stiffness: 60.0,
+        ..bthigh
+    };
     RobotSpec {
         torso: vec![
             capsule([-0.5, 0.0], [0.5, 0.0], r),
@@ -82,98 +155,7 @@ pub(crate) fn half_cheetah() -> RobotSpec {
         ground_friction: f,
         contact_softness: CHEETAH_CONTACT_SOFTNESS,
         origin: [0.0, 0.7],
-        limbs: [
-            Limb {
-                parent: None,
-                joint: [-0.5, 0.0],
-                end: [-0.34, -0.25],
-                radius: r,
-                mass: 1.544,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-0.52, 1.05],
-                gear: 120.0,
-                damping: 6.0,
-                stiffness: 240.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(0),
-                joint: [-0.34, -0.25],
-                end: [-0.62, -0.39],
-                radius: r,
-                mass: 1.587,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-0.785, 0.785],
-                gear: 90.0,
-                damping: 4.5,
-                stiffness: 180.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(1),
-                joint: [-0.62, -0.39],
-                end: [-0.56, -0.58],
-                radius: r,
-                mass: 1.095,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-0.4, 0.785],
-                gear: 60.0,
-                damping: 3.0,
-                stiffness: 120.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: None,
-                joint: [0.5, 0.0],
-                end: [0.36, -0.24],
-                radius: r,
-                mass: 1.438,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-1.0, 0.7],
-                gear: 120.0,
-                damping: 4.5,
-                stiffness: 180.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(3),
-                joint: [0.36, -0.24],
-                end: [0.49, -0.42],
-                radius: r,
-                mass: 1.201,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-1.2, 0.87],
-                gear: 60.0,
-                damping: 3.0,
-                stiffness: 120.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(4),
-                joint: [0.49, -0.42],
-                end: [0.58, -0.56],
-                radius: r,
-                mass: 0.885,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: [-0.5, 0.5],
-                gear: 30.0,
-                damping: 1.5,
-                stiffness: 60.0,
-                armature: 0.1,
-                friction: f,
-            }
-            .into(),
-        ],
+        limbs: [bthigh, bshin, bfoot, fthigh, fshin, ffoot].map(LimbSpec::from),
         physics_dt: 0.025,
         substeps: 2,
         solver_iterations: 2,
@@ -196,53 +178,41 @@ pub(crate) fn walker() -> RobotSpec {
     let bend = [-2.618, 0.0];
     let ankle = [-0.785, 0.785];
     let leg = |hip_parent: Option<usize>, first: usize, foot_friction: f32| {
-        [
-            Limb {
-                parent: hip_parent,
-                joint: [0.0, -0.2],
-                end: [0.0, -0.65],
-                radius: 0.05,
-                mass: 4.058,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: bend,
-                gear: 100.0,
-                damping: 0.1,
-                stiffness: 0.0,
-                armature: 0.01,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(first),
-                joint: [0.0, -0.65],
-                end: [0.0, -1.15],
-                radius: 0.04,
-                mass: 2.781,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: bend,
-                gear: 100.0,
-                damping: 0.1,
-                stiffness: 0.0,
-                armature: 0.01,
-                friction: f,
-            }
-            .into(),
-            Limb {
-                parent: Some(first + 1),
-                joint: [0.0, -1.15],
-                end: [0.2, -1.15],
-                radius: 0.06,
-                mass: 3.167,
-                mujoco_axis_y: AXIS_Y,
-                mujoco_range: ankle,
-                gear: 100.0,
-                damping: 0.1,
-                stiffness: 0.0,
-                armature: 0.01,
-                friction: foot_friction,
-            }
-            .into(),
-        ]
+        // The leg and foot have the thigh's joint (gear, damping, spring, armature) and
+        // friction; they state their own place, size and mass, the foot its range and friction.
+        let thigh = Limb {
+            parent: hip_parent,
+            joint: [0.0, -0.2],
+            end: [0.0, -0.65],
+            radius: 0.05,
+            mass: 4.058,
+            mujoco_axis_y: AXIS_Y,
+            mujoco_range: bend,
+            gear: 100.0,
+            damping: 0.1,
+            stiffness: 0.0,
+            armature: 0.01,
+            friction: f,
+        };
+        let leg = Limb {
+            parent: Some(first),
+            joint: [0.0, -0.65],
+            end: [0.0, -1.15],
+            radius: 0.04,
+            mass: 2.781,
+            ..thigh
+        };
+        let foot = Limb {
+            parent: Some(first + 1),
+            joint: [0.0, -1.15],
+            end: [0.2, -1.15],
+            radius: 0.06,
+            mass: 3.167,
+            mujoco_range: ankle,
+            friction: foot_friction,
+            ..thigh
+        };
+        [thigh, leg, foot].map(LimbSpec::from)
     };
     let [r0, r1, r2] = leg(None, 0, f);
     let [l0, l1, l2] = leg(None, 3, left_foot);
