@@ -32,16 +32,6 @@ pub use crate::io::run_dir::{RUN_FILE, RunInfo};
 /// The expert name recorded for point-goal's scripted PD controller.
 pub use crate::algo::expert::SCRIPTED_PD;
 
-// Here, not beside the record: `io` knows no algorithms.
-impl RunInfo {
-    /// The recorded algorithm.
-    pub fn algo(&self, dir: &Path) -> Result<Algo> {
-        self.algo
-            .parse()
-            .map_err(|e: Error| Error::Usage(format!("{}: {e}", dir.join(RUN_FILE).display())))
-    }
-}
-
 /// A run to start or resume.
 #[derive(Debug, Clone, Default)]
 pub struct TrainRequest {
@@ -98,7 +88,10 @@ pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
     if !req.resume {
         return Ok(req.algo.unwrap_or(Algo::Smile));
     }
-    let algo = RunInfo::read(&req.out)?.algo(&req.out)?;
+    let record = RunInfo::read(&req.out)?.algo;
+    let algo: Algo = record
+        .parse()
+        .map_err(|e: Error| Error::Usage(format!("{}: {e}", req.out.join(RUN_FILE).display())))?;
     if let Some(given) = req.algo.filter(|g| *g != algo) {
         return Err(Error::input(
             Input::Algo,
@@ -240,18 +233,6 @@ impl Run<'_> {
         }
     }
 
-    /// The name the run records for its expert.
-    fn expert_record(&self) -> Option<PathBuf> {
-        if !self.algo.needs_expert() {
-            return None;
-        }
-        Some(
-            self.expert
-                .clone()
-                .unwrap_or_else(|| PathBuf::from(SCRIPTED_PD)),
-        )
-    }
-
     /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
     /// nothing behind) and records the run. The returned lock is held for the whole
     /// training: a second writer is refused.
@@ -262,7 +243,11 @@ impl Run<'_> {
     ) -> Result<crate::io::DirLock> {
         let out = &self.req.out;
         let lock = open_dir(out, self.resumes(), !self.restart, on)?;
-        let expert = self.expert_record();
+        // The expert it records: the one given, else the default (point-goal's scripted PD).
+        let expert = self
+            .algo
+            .needs_expert()
+            .then(|| self.expert.clone().unwrap_or_else(|| SCRIPTED_PD.into()));
         let algo = self.algo.name();
         RunInfo::new(algo, expert.as_deref(), self.demos_sha.clone(), physics).write(out)?;
         Ok(lock)
