@@ -74,7 +74,8 @@ pub(crate) fn half_cheetah() -> RobotSpec {
     let r = 0.046;
     let f = 0.4;
     // Every limb has bthigh's radius, hinge axis, armature and friction (the default class's);
-    // the others state their own place, mass and joint.
+    // the others state their own place (parent, joint position, end), mass, range, gear,
+    // damping and stiffness.
     let bthigh = Limb {
         parent: None,
         joint: [-0.5, 0.0],
@@ -178,8 +179,9 @@ pub(crate) fn walker() -> RobotSpec {
     let bend = [-2.618, 0.0];
     let ankle = [-0.785, 0.785];
     let leg = |hip_parent: Option<usize>, first: usize, foot_friction: f32| {
-        // The leg and foot have the thigh's joint (gear, damping, spring, armature) and
-        // friction; they state their own place, size and mass, the foot its range and friction.
+        // The leg and foot have the thigh's hinge (axis, range, gear, damping, stiffness,
+        // armature) and friction; they state their own place, radius and mass, the foot its
+        // range and friction.
         let thigh = Limb {
             parent: hip_parent,
             joint: [0.0, -0.2],

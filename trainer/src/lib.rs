@@ -5,7 +5,8 @@
 //!
 //! ```text
 //! model (networks) -> algo (SAC, experts, SMILe, Meta-BC) -> data (demos, split, rollouts,
-//! replay) -> eval (protocols, metrics) -> io (checkpoints, metrics log, blob export) -> CLI
+//! replay) -> eval (protocols, metrics) -> io (checkpoints, run records, metrics log, blob
+//! export) -> CLI
 //! ```
 //!
 //! * `model`: [`Mlp`], [`TanhGaussianPolicy`], [`ContextEncoder`], [`Discriminator`] and
@@ -21,7 +22,8 @@
 //!   rollouts ([`run_episode`]) and replay buffers.
 //! * [`eval`]: the paper's evaluation protocols per family (JSON, markdown, SVG plot), the
 //!   walker-dyn normalised metric, expert evaluation.
-//! * `io`: [`checkpoint`]s, the metrics log, the blob [`export`], the [`onnx`] export.
+//! * `io`: [`checkpoint`]s, a run directory's records (`run.json`, `config.toml`), the metrics
+//!   log, the blob [`export`], the [`onnx`] export.
 //! * [`run`]: a run directory started or resumed ([`run::train`]): configuration (a file
 //!   under typed [`Overrides`]), demos, expert, records and lock around a [`Learner`]; what
 //!   `smile train`, sweep cells and the quickstart call. [`run::train_expert`] does the same

@@ -26,7 +26,7 @@ mod expert;
 mod registry;
 pub use expert::{ExpertRequest, train_expert};
 
-/// How a run directory records its run, read and written by `io` (the run's files).
+// The run directory's record, read and written in `io` (the run's files).
 pub use crate::io::run_dir::{RUN_FILE, RunInfo};
 
 /// The expert name recorded for point-goal's scripted PD controller.

@@ -167,7 +167,7 @@ impl Schedule {
 /// log, schedules and compute count where its checkpoint left them.
 pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let cadence = run.cadence();
-    let before = run.cpu_seconds().map_or(0.0, |s| *s);
+    let before = run.cpu_seconds_mut().map_or(0.0, |s| *s);
     let compute = Compute::start(before, cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
@@ -178,7 +178,7 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
     while !finished {
         let mut fields = run.advance(on)?;
         let cpu_s = compute.seconds();
-        if let Some(count) = run.cpu_seconds() {
+        if let Some(count) = run.cpu_seconds_mut() {
             *count = cpu_s;
             fields.push(("charts/cpu_s", cpu_s));
         }

@@ -116,7 +116,8 @@ pub struct MetaInputs {
 /// while !finished (the learner's budget or stopping rule, or the compute budget):
 ///     advance                (SAC: one episode; SMILe: one iteration of Algorithm 1;
 ///                             Meta-BC: one step)
-///     count the CPU-seconds; log the metrics (with the units per second, charts/sps)
+///     cpu_seconds_mut        (the run's CPU-seconds, counted and logged: charts/cpu_s)
+///     log the metrics        (with the units per second, charts/sps)
 ///     if an evaluation is due: evaluate; save_kept if best; log; report
 ///     if a checkpoint is due: save_checkpoint; report
 /// finish                     (the final policy files)
@@ -160,7 +161,7 @@ pub trait Learner: Sized {
     /// Where the learner keeps the run's CPU-seconds for its checkpoint: the loop starts from
     /// it (the earlier processes' count), updates it after each unit of work and logs it
     /// (`charts/cpu_s`); `None` for a learner that keeps no count.
-    fn cpu_seconds(&mut self) -> Option<&mut f64> {
+    fn cpu_seconds_mut(&mut self) -> Option<&mut f64> {
         None
     }
 

@@ -1,6 +1,6 @@
 //! What the trainer writes and reads: configuration files (over the defaults), atomic
-//! checkpoints, the metrics log (JSON lines and TensorBoard events), the infer-core blob export
-//! with its verification, and the ONNX export.
+//! checkpoints, a run directory's records (`run_dir`), the metrics log (JSON lines and
+//! TensorBoard events), the infer-core blob export with its verification, and the ONNX export.
 
 pub mod checkpoint;
 mod config;

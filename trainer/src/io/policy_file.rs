@@ -44,7 +44,12 @@ impl MetaPolicy {
     /// `dir/last/`, and the kept (best) policy in `dir/meta_policy.safetensors` marked
     /// finished; this one takes its place when no evaluation kept one, or when
     /// `replaces_kept` (SMILe without held-out tasks, whose evaluations keep nothing).
-    pub fn save_final(&self, dir: &Path, mark: TrainingMark, replaces_kept: bool) -> Result<()> {
+    pub(crate) fn save_final(
+        &self,
+        dir: &Path,
+        mark: TrainingMark,
+        replaces_kept: bool,
+    ) -> Result<()> {
         let last = dir.join("last");
         std::fs::create_dir_all(&last).map_err(|e| Error::Io {
             path: last.clone(),

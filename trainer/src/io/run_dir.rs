@@ -1,6 +1,9 @@
 //! A run directory's records and the checks that start or resume one: [`RUN_FILE`] (how the
-//! run was started), `config.toml` (what it trains with), its lock, and what a run killed early
-//! left behind. The run driver (`run.rs`) decides; this module reads and writes.
+//! run was started), [`CONFIG_FILE`] (what it trains with), its lock, and the restart of a run
+//! killed before its first checkpoint. Whether a directory may take a new run, and the clearing
+//! of what a killed run left, are the checkpoint's (`checkpoint::ensure_fresh_run_dir`,
+//! `checkpoint::clear_interrupted_run`). The run driver (`run.rs`) decides; this module reads
+//! and writes.
 
 use std::path::{Path, PathBuf};
 
@@ -44,7 +47,12 @@ pub struct RunInfo {
 impl RunInfo {
     /// A record of a run of `algo` on the demos whose SHA-256 is `demos_sha256`, relabelled
     /// by `expert` (the path exactly as given).
-    pub fn new(algo: &str, expert: Option<&Path>, demos_sha256: String, physics: Physics) -> Self {
+    pub(crate) fn new(
+        algo: &str,
+        expert: Option<&Path>,
+        demos_sha256: String,
+        physics: Physics,
+    ) -> Self {
         Self {
             algo: algo.into(),
             expert: expert.map(|p| p.to_string_lossy().into_owned()),
@@ -76,9 +84,9 @@ impl RunInfo {
     }
 
     /// Writes this record as `dir`'s [`RUN_FILE`], atomically.
-    pub fn write(&self, dir: &Path) -> Result<()> {
+    pub(crate) fn write(&self, dir: &Path) -> Result<()> {
         let json = serde_json::to_string_pretty(self).map_err(|e| Error::Serialise {
-            what: "run.json",
+            what: RUN_FILE,
             reason: e.to_string(),
         })?;
         write_atomic(&dir.join(RUN_FILE), json.as_bytes())
@@ -86,7 +94,12 @@ impl RunInfo {
 
     /// Refuses other demos than the ones the run in `dir` started on (`sha256`: the SHA-256
     /// of `demos`); a record older than that check passes with a warning to show.
-    pub fn check_demos(&self, dir: &Path, demos: &Path, sha256: &str) -> Result<Option<String>> {
+    pub(crate) fn check_demos(
+        &self,
+        dir: &Path,
+        demos: &Path,
+        sha256: &str,
+    ) -> Result<Option<String>> {
         match &self.demos_sha256 {
             Some(sha) if sha != sha256 => Err(Error::input(
                 Input::Demos,
@@ -96,8 +109,8 @@ impl RunInfo {
                      run on these",
                     demos.display(),
                     dir.display(),
-                    &sha256[..sha256.len().min(12)],
-                    &sha[..sha.len().min(12)]
+                    sha256.get(..12).unwrap_or(sha256),
+                    sha.get(..12).unwrap_or(sha)
                 ),
             )),
             Some(_) => Ok(None),
@@ -121,7 +134,7 @@ impl RunInfo {
 /// Records the configuration a run trains with in `dir`'s [`CONFIG_FILE`], atomically.
 pub fn write_config<T: Serialize>(dir: &Path, cfg: &T) -> Result<()> {
     let text = toml::to_string(cfg).map_err(|e| Error::Serialise {
-        what: "config.toml",
+        what: CONFIG_FILE,
         reason: e.to_string(),
     })?;
     write_atomic(&dir.join(CONFIG_FILE), text.as_bytes())
@@ -134,9 +147,10 @@ pub fn open(dir: &Path, resumes: bool) -> Result<(DirLock, Vec<&'static str>)> {
     let lock = DirLock::acquire(dir)?;
     // Checked again under the lock: the directory may have changed since the request was
     // read (another process finishing its first checkpoint there).
-    let removed = match resumes {
-        true => Vec::new(),
-        false => checkpoint::clear_interrupted_run(dir)?,
+    let removed = if resumes {
+        Vec::new()
+    } else {
+        checkpoint::clear_interrupted_run(dir)?
     };
     Ok((lock, removed))
 }

@@ -13,6 +13,7 @@ use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
+use crate::io::run_dir::CONFIG_FILE;
 
 /// An expert run to start or resume.
 #[derive(Debug, Clone, Default)]
@@ -76,9 +77,7 @@ fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result
 
 /// The run checkpointed in `dir`, its budget raised to `total_steps` if given.
 fn resume(dir: &Path, total_steps: Option<u64>) -> Result<ExpertTrainer> {
-    if !dir.join(checkpoint::CHECKPOINT_FILE).exists()
-        && dir.join(crate::io::run_dir::CONFIG_FILE).exists()
-    {
+    if !dir.join(checkpoint::CHECKPOINT_FILE).exists() && dir.join(CONFIG_FILE).exists() {
         return Err(Error::Usage(format!(
             "{} has no checkpoint yet (its run was interrupted before its first one), so there \
              is nothing to continue; start it again with the same settings in the same \

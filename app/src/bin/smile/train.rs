@@ -23,13 +23,13 @@ pub(crate) struct LearnerFlags {
     #[arg(long)]
     pub seed: Option<u64>,
     /// Learner threads, the cores the updates use (the config's `learner_threads`, default 1):
-    /// large matrix products split across them, and SMILe's discriminator and SAC steps
-    /// overlapped (SAC's reward then from the discriminator before the pair). Results are the
-    /// same for any count above 1, an expert's for any count; give each thread a free core.
+    /// large matrix products split across them (SMILe also overlaps its discriminator and SAC
+    /// steps). The count does not change the results (SMILe's: any count above 1 gives the
+    /// same); give each thread a free core.
     #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
     pub learner_threads: Option<u16>,
-    /// Hidden widths of the networks it trains, e.g. 128,128: an expert's actor and critics,
-    /// SMILe's SAC and discriminator, Meta-BC's policy.
+    /// Hidden widths of the networks the learner trains, e.g. 128,128 (an expert: actor and
+    /// critics; SMILe: SAC and discriminator; Meta-BC: the policy).
     #[arg(long, value_delimiter = ',', value_parser = crate::width)]
     pub hidden: Option<Vec<usize>>,
 }

@@ -64,7 +64,7 @@ impl Learner for Smile {
         Ok(())
     }
 
-    fn cpu_seconds(&mut self) -> Option<&mut f64> {
+    fn cpu_seconds_mut(&mut self) -> Option<&mut f64> {
         Some(&mut self.cpu_s)
     }
 
