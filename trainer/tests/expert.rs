@@ -387,3 +387,62 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
     std::fs::remove_dir_all(&far).ok();
     std::fs::remove_dir_all(&d).ok();
 }
+
+/// A resume of an expert run killed before its first checkpoint starts it over with its
+/// recorded `config.toml`, as a meta-learner's does: the same policy as the uninterrupted run,
+/// one start in its log. A finished run whose checkpoint is gone is refused, its policy kept.
+#[test]
+fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
+    use trainer::run::{ExpertRequest, RunEvent, train_expert};
+    trainer::threads::set_compute_threads(1);
+    let d = tmp("restart");
+    let request = |config| ExpertRequest {
+        out: d.clone(),
+        config,
+        total_steps: None,
+    };
+    train_expert(&request(Some(tiny(60))), &mut |_| {}).unwrap();
+    let read = |name: &str| std::fs::read(d.join(name)).unwrap();
+    let (policy, log) = (read(checkpoint::POLICY_FILE), read(trainer::METRICS_FILE));
+    // What a run killed before its first checkpoint leaves: its config, log and events.
+    for f in [
+        checkpoint::CHECKPOINT_FILE,
+        "checkpoint.json",
+        checkpoint::POLICY_FILE,
+    ] {
+        std::fs::remove_file(d.join(f)).unwrap();
+    }
+    let mut notes = Vec::new();
+    train_expert(&request(None), &mut |e| {
+        if let RunEvent::Note(n) = e {
+            notes.push(n)
+        }
+    })
+    .unwrap();
+    assert!(
+        notes.iter().any(|n| n.contains("no checkpoint yet")),
+        "{notes:?}"
+    );
+    assert_eq!(
+        read(checkpoint::POLICY_FILE),
+        policy,
+        "the same run, from step 0"
+    );
+    let lines = |b: &[u8]| String::from_utf8_lossy(b).lines().count();
+    assert_eq!(
+        lines(&read(trainer::METRICS_FILE)),
+        lines(&log),
+        "one start in the log"
+    );
+    // Finished, then its checkpoint lost: nothing to continue, and the policy stays.
+    std::fs::remove_file(d.join(checkpoint::CHECKPOINT_FILE)).unwrap();
+    let e = train_expert(&request(None), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("finished expert") && e.contains("is kept"),
+        "{e}"
+    );
+    assert_eq!(read(checkpoint::POLICY_FILE), policy);
+    std::fs::remove_dir_all(&d).ok();
+}

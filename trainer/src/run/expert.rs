@@ -2,7 +2,8 @@
 //!
 //! The same steps as a meta-learner's run ([`train`](super::train)): a new run refuses a
 //! directory that holds one, a resume continues the checkpoint with its saved configuration
-//! (only the step budget may grow), the directory's lock is held for the whole training, the
+//! (only the step budget may grow) or, for a run killed before its first checkpoint, starts it
+//! over with its recorded `config.toml`, the directory's lock is held for the whole training, the
 //! configuration is recorded in `config.toml`, and the SAC expert trains through the one fit
 //! loop, reporting [`RunEvent`]s: the driver's tail is the meta-learners' (`drive`).
 
@@ -11,8 +12,8 @@ use std::path::{Path, PathBuf};
 use super::{RunEvent, drive, open_dir};
 use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
-use crate::error::{Error, Result};
-use crate::io::checkpoint;
+use crate::error::{Error, Input, Result};
+use crate::io::checkpoint::{self, POLICY_FILE};
 use crate::io::run_dir::CONFIG_FILE;
 
 /// An expert run to start or resume.
@@ -20,7 +21,8 @@ use crate::io::run_dir::CONFIG_FILE;
 pub struct ExpertRequest {
     /// The run directory.
     pub out: PathBuf,
-    /// A new run's configuration; `None` resumes the run in `out` from its checkpoint.
+    /// A new run's configuration; `None` resumes the run in `out` from its checkpoint (one
+    /// killed before its first checkpoint starts over with its recorded configuration).
     pub config: Option<ExpertConfig>,
     /// On a resume: the step budget, raised to train longer (`None`: the run's).
     pub total_steps: Option<u64>,
@@ -31,11 +33,18 @@ pub struct ExpertRequest {
 /// A failure during training says at which step, and where the last good checkpoint is.
 pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertConfig> {
     let dir = &req.out;
+    // A resume of a run killed before its first checkpoint starts it over with its recorded
+    // configuration, as a meta-learner's does (`run::train`).
+    let restart = req.config.is_none()
+        && !dir.join(checkpoint::CHECKPOINT_FILE).exists()
+        && dir.join(CONFIG_FILE).exists();
     let run = match &req.config {
         Some(cfg) => start(dir, cfg, on)?,
-        None => resume(dir, req.total_steps)?,
+        None if restart => start(dir, &recorded(dir, req.total_steps, on)?, on)?,
+        None => ExpertTrainer::resume(dir, req.total_steps)?,
     };
-    let lock = open_dir(dir, req.config.is_none(), true, on)?;
+    let resumes = req.config.is_none() && !restart;
+    let lock = open_dir(dir, resumes, !restart, on)?;
     let cfg = run.config();
     let what = format!("a SAC expert on {} ({})", cfg.env, cfg.physics);
     // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
@@ -50,7 +59,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
         ))),
         e => on(e),
     };
-    let run = drive(run, dir, what, req.config.is_none(), lock, &mut on)?;
+    let run = drive(run, dir, what, resumes, lock, &mut on)?;
     if let Some(b) = run.best_eval() {
         on(RunEvent::Note(format!(
             "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
@@ -75,15 +84,42 @@ fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result
     ExpertTrainer::new(cfg.clone())
 }
 
-/// The run checkpointed in `dir`, its budget raised to `total_steps` if given.
-fn resume(dir: &Path, total_steps: Option<u64>) -> Result<ExpertTrainer> {
-    if !dir.join(checkpoint::CHECKPOINT_FILE).exists() && dir.join(CONFIG_FILE).exists() {
-        return Err(Error::Usage(format!(
-            "{} has no checkpoint yet (its run was interrupted before its first one), so there \
-             is nothing to continue; start it again with the same settings in the same \
-             directory (its partial files are replaced)",
-            dir.display()
-        )));
+/// The configuration a resume of the run in `dir`, killed before its first checkpoint, starts
+/// over with: its recorded `config.toml`, the step budget raised to `total_steps` if given. A
+/// finished run whose checkpoint is gone is refused: starting it over would replace its policy.
+fn recorded(
+    dir: &Path,
+    total_steps: Option<u64>,
+    on: &mut dyn FnMut(RunEvent),
+) -> Result<ExpertConfig> {
+    let policy = dir.join(POLICY_FILE);
+    if policy.exists() {
+        return Err(Error::input(
+            Input::Resume,
+            format!(
+                "{} holds a finished expert, but its checkpoint {} is gone: a larger budget \
+                 continues from the checkpoint (its replay and optimisers), so this run cannot \
+                 be extended; restore the checkpoint, or train a new run in another directory \
+                 (the finished policy {} is kept)",
+                dir.display(),
+                dir.join(checkpoint::CHECKPOINT_FILE).display(),
+                policy.display()
+            ),
+        ));
     }
-    ExpertTrainer::resume(dir, total_steps)
+    let path = dir.join(CONFIG_FILE);
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
+        path: path.clone(),
+        source: e,
+    })?;
+    let mut cfg: ExpertConfig = crate::io::from_toml_over_defaults(&text)
+        .map_err(|e| Error::Config(format!("parsing {}: {e}", path.display())))?;
+    cfg.total_steps = total_steps.unwrap_or(cfg.total_steps);
+    on(RunEvent::Note(format!(
+        "{} has no checkpoint yet (its run was interrupted before the first one): starting it \
+         over from step 0 with its recorded configuration ({})",
+        dir.display(),
+        path.display()
+    )));
+    Ok(cfg)
 }

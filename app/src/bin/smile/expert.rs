@@ -52,7 +52,8 @@ pub struct ExpertArgs {
     /// --kind scripted-pd].
     #[arg(short, long)]
     out: Option<PathBuf>,
-    /// Continue the run in this directory from its checkpoint (its saved config is used).
+    /// Continue the run in this directory from its checkpoint (its saved config is used); a
+    /// run killed before its first checkpoint starts over with its recorded config.
     #[arg(long, conflicts_with_all = ["config", "env", "physics"])]
     resume: Option<PathBuf>,
     /// Total environment steps [default: 30000, or the --config file's].
