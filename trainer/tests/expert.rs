@@ -440,7 +440,7 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
         .unwrap_err()
         .to_string();
     assert!(
-        e.contains("finished expert") && e.contains("is kept"),
+        e.contains("holds a finished run") && e.contains("is kept"),
         "{e}"
     );
     assert_eq!(read(checkpoint::POLICY_FILE), policy);

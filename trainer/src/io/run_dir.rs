@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 use sim::Physics;
 
-use super::checkpoint::{self, CHECKPOINT_FILE, write_atomic};
+use super::checkpoint::{self, CHECKPOINT_FILE, POLICY_FILE, write_atomic};
 use super::lock::DirLock;
 use crate::error::{Error, Input, Result};
 use crate::model::{META_POLICY_FILE, MetaPolicy};
@@ -175,19 +175,23 @@ pub fn restart_config(dir: &Path) -> Result<PathBuf> {
     ))
 }
 
-/// A `--resume` of a run whose checkpoint is gone after it finished: there is nothing to
+/// A `--resume` of a run whose checkpoint is gone after it finished (its meta-policy marked
+/// finished, or an expert's policy, which only a finished run writes): there is nothing to
 /// continue from (the replay, the optimisers), and starting it over would replace a finished
 /// policy; refused, naming the missing file.
 fn refuse_finished_without_checkpoint(dir: &Path) -> Result<()> {
-    let policy = dir.join(META_POLICY_FILE);
-    let finished = policy.exists()
-        && MetaPolicy::training_mark(&policy)
+    let meta = dir.join(META_POLICY_FILE);
+    let finished_meta = meta.exists()
+        && MetaPolicy::training_mark(&meta)
             .ok()
             .flatten()
             .is_some_and(|m| m.finished);
-    if !finished {
-        return Ok(());
-    }
+    let expert = dir.join(POLICY_FILE);
+    let policy = match (finished_meta, expert.exists()) {
+        (true, _) => meta,
+        (false, true) => expert,
+        (false, false) => return Ok(()),
+    };
     Err(Error::input(
         Input::Resume,
         format!(

@@ -12,9 +12,9 @@ use std::path::{Path, PathBuf};
 use super::{RunEvent, drive, open_dir};
 use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
-use crate::error::{Error, Input, Result};
-use crate::io::checkpoint::{self, POLICY_FILE};
-use crate::io::run_dir::CONFIG_FILE;
+use crate::error::{Error, Result};
+use crate::io::checkpoint;
+use crate::io::run_dir::{self, CONFIG_FILE};
 
 /// An expert run to start or resume.
 #[derive(Debug, Clone, Default)]
@@ -85,29 +85,14 @@ fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result
 }
 
 /// The configuration a resume of the run in `dir`, killed before its first checkpoint, starts
-/// over with: its recorded `config.toml`, the step budget raised to `total_steps` if given. A
-/// finished run whose checkpoint is gone is refused: starting it over would replace its policy.
+/// over with: its recorded `config.toml` ([`run_dir::restart_config`], which refuses a finished
+/// run whose checkpoint is gone), the step budget raised to `total_steps` if given.
 fn recorded(
     dir: &Path,
     total_steps: Option<u64>,
     on: &mut dyn FnMut(RunEvent),
 ) -> Result<ExpertConfig> {
-    let policy = dir.join(POLICY_FILE);
-    if policy.exists() {
-        return Err(Error::input(
-            Input::Resume,
-            format!(
-                "{} holds a finished expert, but its checkpoint {} is gone: a larger budget \
-                 continues from the checkpoint (its replay and optimisers), so this run cannot \
-                 be extended; restore the checkpoint, or train a new run in another directory \
-                 (the finished policy {} is kept)",
-                dir.display(),
-                dir.join(checkpoint::CHECKPOINT_FILE).display(),
-                policy.display()
-            ),
-        ));
-    }
-    let path = dir.join(CONFIG_FILE);
+    let path = run_dir::restart_config(dir)?;
     let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
         path: path.clone(),
         source: e,
