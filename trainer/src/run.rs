@@ -328,15 +328,15 @@ fn drive<L: Learner>(
     Ok(run)
 }
 
-/// Holds `out`'s lock for the run ([`run_dir::open`]), saying what a new run cleared there
-/// (when `tell`).
+/// Holds `out`'s lock for the run ([`run_dir::lock_for_run`]), saying what a new run cleared
+/// there (when `tell`).
 fn open_dir(
     out: &Path,
     resumes: bool,
     tell: bool,
     on: &mut dyn FnMut(RunEvent),
 ) -> Result<crate::io::DirLock> {
-    let (lock, removed) = run_dir::open(out, resumes)?;
+    let (lock, removed) = run_dir::lock_for_run(out, resumes)?;
     if !removed.is_empty() && tell {
         on(RunEvent::Note(format!(
             "{} held a run interrupted before its first checkpoint (nothing to resume); \

@@ -143,7 +143,7 @@ pub fn write_config<T: Serialize>(dir: &Path, cfg: &T) -> Result<()> {
 /// Takes `dir`'s lock for a run; a new run (not `resumes`) first clears what a run killed
 /// before its first checkpoint left there, so its log does not continue the dead one's.
 /// Returns the lock, held for the whole training, and the names it removed.
-pub fn open(dir: &Path, resumes: bool) -> Result<(DirLock, Vec<&'static str>)> {
+pub fn lock_for_run(dir: &Path, resumes: bool) -> Result<(DirLock, Vec<&'static str>)> {
     let lock = DirLock::acquire(dir)?;
     // Checked again under the lock: the directory may have changed since the request was
     // read (another process finishing its first checkpoint there).
