@@ -390,7 +390,8 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
 
 /// A resume of an expert run killed before its first checkpoint starts it over with its
 /// recorded `config.toml`, as a meta-learner's does: the same policy as the uninterrupted run,
-/// one start in its log. A finished run whose checkpoint is gone is refused, its policy kept.
+/// the dead run's files cleared. A finished run whose checkpoint is gone is refused, its files
+/// kept.
 #[test]
 fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
     use trainer::run::{ExpertRequest, RunEvent, train_expert};
@@ -403,39 +404,41 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
     };
     train_expert(&request(Some(tiny(60))), &mut |_| {}).unwrap();
     let read = |name: &str| std::fs::read(d.join(name)).unwrap();
-    let (policy, log) = (read(checkpoint::POLICY_FILE), read(trainer::METRICS_FILE));
-    // What a run killed before its first checkpoint leaves: its config, log and events.
-    for f in [
+    let policy = read(checkpoint::POLICY_FILE);
+    // What a run killed before its first checkpoint leaves: its config, log and events, and
+    // perhaps a policy kept by an early evaluation and a compute count.
+    let gone = [
         checkpoint::CHECKPOINT_FILE,
         "checkpoint.json",
         checkpoint::POLICY_FILE,
-    ] {
+    ];
+    for f in gone {
         std::fs::remove_file(d.join(f)).unwrap();
     }
-    let mut notes = Vec::new();
-    train_expert(&request(None), &mut |e| {
-        if let RunEvent::Note(n) = e {
-            notes.push(n)
-        }
+    let leftovers = [checkpoint::BEST_POLICY_FILE, "compute.json"];
+    for f in leftovers {
+        std::fs::write(d.join(f), b"left by the killed run").unwrap();
+    }
+    let events = || std::fs::read_dir(d.join("tb")).unwrap().count();
+    assert_eq!(events(), 1);
+
+    let (mut notes, mut started) = (Vec::new(), None);
+    train_expert(&request(None), &mut |e| match e {
+        RunEvent::Note(n) => notes.push(n),
+        RunEvent::Started { done, resumed, .. } => started = Some((done, resumed)),
+        _ => {}
     })
     .unwrap();
-    assert!(
-        notes.iter().any(|n| n.contains("no checkpoint yet")),
-        "{notes:?}"
-    );
-    assert_eq!(
-        read(checkpoint::POLICY_FILE),
-        policy,
-        "the same run, from step 0"
-    );
-    let lines = |b: &[u8]| String::from_utf8_lossy(b).lines().count();
-    assert_eq!(
-        lines(&read(trainer::METRICS_FILE)),
-        lines(&log),
-        "one start in the log"
-    );
-    // Finished, then its checkpoint lost: nothing to continue, and the policy stays.
+    let restarted = notes.iter().any(|n| n.contains("no checkpoint yet"));
+    assert!(restarted, "{notes:?}");
+    assert_eq!(started, Some((0, false)), "a new start, from step 0");
+    assert_eq!(read(checkpoint::POLICY_FILE), policy, "the same run");
+    assert_eq!(events(), 1, "the dead run's event file is gone");
+    assert!(leftovers.iter().all(|f| !d.join(f).exists()));
+
+    // Finished, then its checkpoint lost: nothing to continue, and nothing is removed.
     std::fs::remove_file(d.join(checkpoint::CHECKPOINT_FILE)).unwrap();
+    let log = read(trainer::METRICS_FILE);
     let e = train_expert(&request(None), &mut |_| {})
         .unwrap_err()
         .to_string();
@@ -444,5 +447,6 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
         "{e}"
     );
     assert_eq!(read(checkpoint::POLICY_FILE), policy);
+    assert_eq!(read(trainer::METRICS_FILE), log);
     std::fs::remove_dir_all(&d).ok();
 }

@@ -2,7 +2,7 @@
 //!
 //! The same steps as a meta-learner's run ([`train`](super::train)): a new run refuses a
 //! directory that holds one, a resume continues the checkpoint with its saved configuration
-//! (only the step budget may grow) or, for a run killed before its first checkpoint, starts it
+//! (only the step budget may change) or, for a run killed before its first checkpoint, starts it
 //! over with its recorded `config.toml`, the directory's lock is held for the whole training, the
 //! configuration is recorded in `config.toml`, and the SAC expert trains through the one fit
 //! loop, reporting [`RunEvent`]s: the driver's tail is the meta-learners' (`drive`).
@@ -14,7 +14,7 @@ use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
-use crate::io::run_dir::{self, CONFIG_FILE};
+use crate::io::run_dir;
 
 /// An expert run to start or resume.
 #[derive(Debug, Clone, Default)]
@@ -24,7 +24,7 @@ pub struct ExpertRequest {
     /// A new run's configuration; `None` resumes the run in `out` from its checkpoint (one
     /// killed before its first checkpoint starts over with its recorded configuration).
     pub config: Option<ExpertConfig>,
-    /// On a resume: the step budget, raised to train longer (`None`: the run's).
+    /// On a resume: the step budget (`None`: the run's), raised to train longer.
     pub total_steps: Option<u64>,
 }
 
@@ -35,12 +35,21 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
     let dir = &req.out;
     // A resume of a run killed before its first checkpoint starts it over with its recorded
     // configuration, as a meta-learner's does (`run::train`).
-    let restart = req.config.is_none()
-        && !dir.join(checkpoint::CHECKPOINT_FILE).exists()
-        && dir.join(CONFIG_FILE).exists();
+    let restart =
+        req.config.is_none() && dir.is_dir() && !dir.join(checkpoint::CHECKPOINT_FILE).exists();
     let run = match &req.config {
         Some(cfg) => start(dir, cfg, on)?,
-        None if restart => start(dir, &recorded(dir, req.total_steps, on)?, on)?,
+        None if restart => {
+            let (cfg, path) = recorded_config(dir, req.total_steps)?;
+            let run = start(dir, &cfg, on)?;
+            on(RunEvent::Note(format!(
+                "{} has no checkpoint yet (its run was interrupted before the first one): \
+                 starting it over from step 0 with its recorded configuration ({})",
+                dir.display(),
+                path.display()
+            )));
+            run
+        }
         None => ExpertTrainer::resume(dir, req.total_steps)?,
     };
     let resumes = req.config.is_none() && !restart;
@@ -85,13 +94,10 @@ fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result
 }
 
 /// The configuration a resume of the run in `dir`, killed before its first checkpoint, starts
-/// over with: its recorded `config.toml` ([`run_dir::restart_config`], which refuses a finished
-/// run whose checkpoint is gone), the step budget raised to `total_steps` if given.
-fn recorded(
-    dir: &Path,
-    total_steps: Option<u64>,
-    on: &mut dyn FnMut(RunEvent),
-) -> Result<ExpertConfig> {
+/// over with, and its file: the recorded `config.toml` ([`run_dir::restart_config`], which
+/// refuses a finished run whose checkpoint is gone, and a run that recorded no configuration),
+/// its step budget replaced by `total_steps` if given.
+fn recorded_config(dir: &Path, total_steps: Option<u64>) -> Result<(ExpertConfig, PathBuf)> {
     let path = run_dir::restart_config(dir)?;
     let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
         path: path.clone(),
@@ -100,11 +106,5 @@ fn recorded(
     let mut cfg: ExpertConfig = crate::io::from_toml_over_defaults(&text)
         .map_err(|e| Error::Config(format!("parsing {}: {e}", path.display())))?;
     cfg.total_steps = total_steps.unwrap_or(cfg.total_steps);
-    on(RunEvent::Note(format!(
-        "{} has no checkpoint yet (its run was interrupted before the first one): starting it \
-         over from step 0 with its recorded configuration ({})",
-        dir.display(),
-        path.display()
-    )));
-    Ok(cfg)
+    Ok((cfg, path))
 }

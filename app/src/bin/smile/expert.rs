@@ -56,7 +56,8 @@ pub struct ExpertArgs {
     /// run killed before its first checkpoint starts over with its recorded config.
     #[arg(long, conflicts_with_all = ["config", "env", "physics"])]
     resume: Option<PathBuf>,
-    /// Total environment steps [default: 30000, or the --config file's].
+    /// Total environment steps [default: 30000, or the --config file's; on --resume, the
+    /// run's].
     #[arg(long)]
     total_steps: Option<u64>,
     #[command(flatten)]
