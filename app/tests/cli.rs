@@ -78,6 +78,15 @@ fn expert_resume_demos_pipeline() {
         "1",
     ]));
     assert_eq!(last_metrics(&run)["step"], 100);
+    // A resume keeps the run's configuration: a flag that would set it is refused, not ignored.
+    for flag in [&["--seed", "3"][..], &["--hidden", "8,8"], &["--keep-best"]] {
+        let out = smile(&[&["expert", "--resume", run_s, "--quiet"][..], flag].concat());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains("cannot be used with"),
+            "{err}"
+        );
+    }
 
     let demos = d.join("demos.safetensors");
     let demos_s = demos.to_str().unwrap();

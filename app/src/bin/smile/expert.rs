@@ -53,8 +53,13 @@ pub struct ExpertArgs {
     #[arg(short, long)]
     out: Option<PathBuf>,
     /// Continue the run in this directory from its checkpoint (its saved config is used); a
-    /// run killed before its first checkpoint starts over with its recorded config.
-    #[arg(long, conflicts_with_all = ["config", "env", "physics"])]
+    /// run killed before its first checkpoint starts over with its recorded config. Only
+    /// --total-steps may change; the flags that set the config are refused with it.
+    #[arg(long, conflicts_with_all = [
+        "config", "env", "physics", "seed", "learner_threads", "hidden", "batch_size",
+        "learning_starts", "horizon", "task_index", "task_value", "checkpoint_every",
+        "eval_every", "keep_best",
+    ])]
     resume: Option<PathBuf>,
     /// Total environment steps [default: 30000, or the --config file's; on --resume, the
     /// run's].
