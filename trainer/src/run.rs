@@ -123,12 +123,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
     if restart {
         let cfg = run_dir::restart_config(&req.out)?;
-        on(RunEvent::Note(format!(
-            "{} has no checkpoint yet (its run was interrupted before the first one): starting \
-             it over from update 0 with its recorded configuration ({})",
-            req.out.display(),
-            cfg.display()
-        )));
+        on(restarting(&req.out, &cfg, "update"));
     }
     if req.resume {
         let rec = RunInfo::read(&req.out)?;
@@ -149,6 +144,17 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         expert,
     };
     (registry::Meta::of(algo).train)(&run, on)
+}
+
+/// The note of a `--resume` that starts the run in `dir`, killed before its first checkpoint,
+/// over from its recorded configuration `cfg` (`word`: one unit of its budget).
+fn restarting(dir: &Path, cfg: &Path, word: &str) -> RunEvent {
+    RunEvent::Note(format!(
+        "{} has no checkpoint yet (its run was interrupted before the first one): starting it \
+         over from {word} 0 with its recorded configuration ({})",
+        dir.display(),
+        cfg.display()
+    ))
 }
 
 /// A request with its inputs read.

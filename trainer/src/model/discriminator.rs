@@ -214,14 +214,14 @@ pub struct DiscStats {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use candle_core::Var;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
 
     /// The whole input's gradient (every column).
     fn input_gradient(net: &Mlp, x: &Tensor) -> Result<Tensor> {
         input_gradient_first_cols(net, x.into(), x.dim(1)?)
     }
-    use candle_core::Var;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn input_gradient_matches_autograd() {

@@ -2,14 +2,15 @@
 //!
 //! The same steps as a meta-learner's run ([`train`](super::train)): a new run refuses a
 //! directory that holds one, a resume continues the checkpoint with its saved configuration
-//! (only the step budget may change) or, for a run killed before its first checkpoint, starts it
-//! over with its recorded `config.toml`, the directory's lock is held for the whole training, the
-//! configuration is recorded in `config.toml`, and the SAC expert trains through the one fit
-//! loop, reporting [`RunEvent`]s: the driver's tail is the meta-learners' (`drive`).
+//! (only the step budget may change) or, for a run killed before its first checkpoint, starts
+//! it over with its recorded `config.toml`, the directory's lock is held for the whole
+//! training, the configuration is recorded in `config.toml`, and the SAC expert trains
+//! through the one fit loop, reporting [`RunEvent`]s: the driver's tail is the meta-learners'
+//! (`drive`).
 
 use std::path::{Path, PathBuf};
 
-use super::{RunEvent, drive, open_dir};
+use super::{RunEvent, drive, open_dir, restarting};
 use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
@@ -42,12 +43,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
         None if restart => {
             let (cfg, path) = recorded_config(dir, req.total_steps)?;
             let run = start(dir, &cfg, on)?;
-            on(RunEvent::Note(format!(
-                "{} has no checkpoint yet (its run was interrupted before the first one): \
-                 starting it over from step 0 with its recorded configuration ({})",
-                dir.display(),
-                path.display()
-            )));
+            on(restarting(dir, &path, "step"));
             run
         }
         None => ExpertTrainer::resume(dir, req.total_steps)?,
