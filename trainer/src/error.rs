@@ -59,10 +59,12 @@ pub enum Error {
     },
     /// A setting was given to an algorithm that has no such setting (SMILe's `gp_weight` to
     /// Meta-BC, say).
-    #[error("`{setting}` is not a setting of {algo}")]
+    #[error("`{name}` is not a setting of {algo}")]
     NoSuchSetting {
-        /// The setting.
-        setting: crate::setting::Setting,
+        /// The setting's name ([`Setting::name`](crate::Setting::name)).
+        name: &'static str,
+        /// Its position in the settings given.
+        at: usize,
         /// The algorithm's name.
         algo: &'static str,
     },
@@ -79,9 +81,9 @@ pub enum Error {
         run: PathBuf,
         /// The configuration's top-level key that differs.
         key: String,
-        /// The caller's settings that alone change `key` (none: the run's `config.toml` was
-        /// changed).
-        given: Box<[crate::setting::Setting]>,
+        /// The positions, in the caller's settings, of those that alone change `key` (none:
+        /// the run's `config.toml` was changed).
+        given: Box<[usize]>,
         /// Its value in the run.
         was: String,
         /// The value asked for (`missing` if absent).

@@ -25,7 +25,7 @@
 //! * `io`: [`checkpoint`]s, a run directory's records (`run.json`, `config.toml`), the metrics
 //!   log, the blob [`export`], the [`onnx`] export.
 //! * [`run`]: a run directory started or resumed ([`run::train`]): configuration (a file
-//!   under typed [`Overrides`]), demos, expert, records and lock around a [`Learner`]; what
+//!   under typed [`Setting`]s), demos, expert, records and lock around a [`Learner`]; what
 //!   `smile train`, sweep cells and the quickstart call. [`run::train_expert`] does the same
 //!   for a SAC expert, through the same tail.
 //! * [`threads`]: the compute thread layout.
@@ -41,7 +41,6 @@ mod error;
 mod io;
 mod model;
 mod optim;
-mod setting;
 
 pub mod eval;
 pub mod run;
@@ -50,13 +49,12 @@ pub mod threads;
 // Algorithms: each module holds its configuration and its run type, a `Learner` trained by
 // `fit`; the meta-learners' configurations are `MetaSettings`, named by `Algo`.
 pub use algo::{
-    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Overrides, Progress,
-    Unit, expert, fit, meta_bc, sac, smile,
+    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Setting, Unit,
+    expert, fit, meta_bc, sac, smile,
 };
 
 /// Errors and the result alias.
 pub use error::{Error, Input, Result};
-pub use setting::Setting;
 
 /// Networks: MLPs, the SAC policy, the context encoder, the discriminator, the meta-policy.
 pub use model::{

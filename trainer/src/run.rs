@@ -16,11 +16,10 @@ use std::path::{Path, PathBuf};
 use sim::{DemoDataset, Family, Physics};
 
 use crate::algo::expert::ExpertSet;
-use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides, Progress, fit};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Progress, Setting, fit};
 use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
 use crate::io::{checkpoint, run_dir};
-use crate::setting::Setting;
 
 mod expert;
 mod registry;
@@ -47,8 +46,9 @@ pub struct TrainRequest {
     /// A configuration file (TOML over the algorithm's defaults); a resume reads the run's
     /// `config.toml` instead.
     pub config_file: Option<PathBuf>,
-    /// Settings over the file. Its plant (`physics`), when `None`: the file's, else the demos'.
-    pub settings: Overrides,
+    /// Settings over the file, in order. Its plant, when no [`Setting::Physics`] is given: the
+    /// file's, else the demos'.
+    pub settings: Vec<Setting>,
     /// Meta-DAgger's relabelling expert: a `smile expert` run directory or policy file, a
     /// folder of per-task experts, or [`SCRIPTED_PD`] (point-goal's default). `None` on a
     /// resume: the recorded one.
@@ -208,8 +208,9 @@ impl Run<'_> {
         }
         let mut settings = req.settings.clone();
         // A new run on MuJoCo demos runs on MuJoCo without being told twice.
-        if settings.physics.is_none() && !table.contains_key("physics") {
-            settings.physics = Some(self.ds.physics);
+        let physics_given = settings.iter().any(|s| matches!(s, Setting::Physics(_)));
+        if !physics_given && !table.contains_key("physics") {
+            settings.push(Setting::Physics(self.ds.physics));
         }
         let mut cfg: C = crate::io::from_toml_over_defaults(&text)
             .map_err(|e| Error::Config(format!("{what}: {e}")))?;
@@ -288,7 +289,7 @@ impl Run<'_> {
         let inputs = MetaInputs { data, expert };
         let run = if self.resumes() {
             let run = L::resume(&req.out, inputs, &cfg)?;
-            check_resume(req, self.algo, &cfg, run.config())?;
+            check_resume(req, &cfg, run.config())?;
             run
         } else {
             L::start(cfg, inputs)?
@@ -357,12 +358,7 @@ fn open_dir(
 /// On a resume: the configuration asked for must agree with the one the run continues (its
 /// checkpoint's, with the budget asked for), and so must its `config.toml` (a reader trusts
 /// that file to describe the run).
-fn check_resume<C: MetaSettings>(
-    req: &TrainRequest,
-    algo: Algo,
-    given: &C,
-    running: &C,
-) -> Result<()> {
+fn check_resume<C: MetaSettings>(req: &TrainRequest, given: &C, running: &C) -> Result<()> {
     let table = |c: &C| -> Result<toml::Table> {
         toml::Table::try_from(c).map_err(|e| Error::Serialise {
             what: "the configuration",
@@ -376,7 +372,7 @@ fn check_resume<C: MetaSettings>(
             return Err(Error::ResumeChanges {
                 run: req.out.clone(),
                 key: key.clone(),
-                given: changed_by(req, algo, running, key, &r).into(),
+                given: changed_by(req, running, key, &r).into(),
                 was: theirs.to_string(),
                 now: ours.map_or("missing".into(), ToString::to_string),
             });
@@ -385,23 +381,22 @@ fn check_resume<C: MetaSettings>(
     Ok(())
 }
 
-/// The caller's settings (beyond the budget) that alone change `key` of `running`, whose table
-/// is `r`: what a resume's refusal blames (none: the run's `config.toml` changed it).
+/// The positions of the caller's settings (beyond the budget) that alone change `key` of
+/// `running`, whose table is `r`: what a resume's refusal blames (none: the run's `config.toml`
+/// changed it).
 fn changed_by<C: MetaSettings>(
     req: &TrainRequest,
-    algo: Algo,
     running: &C,
     key: &str,
     r: &toml::Table,
-) -> Vec<Setting> {
+) -> Vec<usize> {
     let changes = |s: &Setting| {
         let mut c = running.clone();
-        c.apply(algo, &req.settings.only(*s)).is_ok()
-            && toml::Table::try_from(&c).is_ok_and(|t| t.get(key) != r.get(key))
+        c.set(s.clone()) && toml::Table::try_from(&c).is_ok_and(|t| t.get(key) != r.get(key))
     };
-    req.settings
-        .given_beyond_budget()
-        .into_iter()
-        .filter(changes)
+    let given = req.settings.iter().enumerate();
+    given
+        .filter(|(_, s)| !s.is_budget() && changes(s))
+        .map(|(at, _)| at)
         .collect()
 }

@@ -76,7 +76,7 @@ fn is_stale(dir: &Path, cell: &Cell) -> bool {
 /// when it holds one for the same settings but a smaller budget: the recorded key is the key
 /// of `cell` with the recorded config, and the algorithm finds the two configs equal but for
 /// a budget, none of it lower now and some higher ([`trainer::Algo::extension`]).
-fn extension(dir: &Path, cell: &Cell) -> Option<trainer::Overrides> {
+fn extension(dir: &Path, cell: &Cell) -> Option<Vec<trainer::Setting>> {
     let record = std::fs::read_to_string(dir.join("cell.json")).ok()?;
     let old_text = std::fs::read_to_string(dir.join("cell.toml")).ok()?;
     let record = serde_json::from_str::<CellRecord>(&record).ok()?;

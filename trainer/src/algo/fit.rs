@@ -74,55 +74,20 @@ pub struct Cadence {
     pub cpu_budget_s: f64,
 }
 
-/// The run's compute: the CPU-seconds its earlier processes used (from its checkpoint) plus
-/// this process's since the fit began, warm start and first evaluation included.
-struct Compute {
-    before: f64,
-    start: Option<f64>,
-}
-
-impl Compute {
-    /// Starts counting; a budget on a platform that reports no CPU time is refused.
-    fn start(before: f64, budget: f64) -> Result<Self> {
-        let start = crate::threads::process_cpu_seconds();
-        if budget > 0.0 && start.is_none() {
-            return Err(Error::Config(
-                "cpu_budget_s is set, but this platform does not report the process's CPU time"
-                    .into(),
-            ));
-        }
-        Ok(Self { before, start })
+/// The run's CPU-seconds as a clock: `before` (its earlier processes', from its checkpoint)
+/// plus this process's since the fit began, warm start and first evaluation included. A
+/// `budget` on a platform that reports no CPU time is refused.
+fn cpu_clock(before: f64, budget: f64) -> Result<impl Fn() -> f64> {
+    let start = crate::threads::process_cpu_seconds();
+    if budget > 0.0 && start.is_none() {
+        return Err(Error::Config(
+            "cpu_budget_s is set, but this platform does not report the process's CPU time".into(),
+        ));
     }
-
-    /// CPU-seconds of the run so far.
-    fn seconds(&self) -> f64 {
-        self.before
-            + crate::threads::process_cpu_seconds()
-                .zip(self.start)
-                .map_or(0.0, |(now, start)| now - start)
-    }
-}
-
-/// Units of work per second since this process started training: the `charts/sps` on every
-/// line a learner logs.
-struct Throughput {
-    t0: std::time::Instant,
-    done0: u64,
-}
-
-impl Throughput {
-    /// Starts the clock at `done` units.
-    fn since(done: u64) -> Self {
-        Self {
-            t0: std::time::Instant::now(),
-            done0: done,
-        }
-    }
-
-    /// Units per second from the start to `done`.
-    fn per_s(&self, done: u64) -> f64 {
-        done.saturating_sub(self.done0) as f64 / self.t0.elapsed().as_secs_f64().max(1e-9)
-    }
+    Ok(move || {
+        let now = crate::threads::process_cpu_seconds();
+        before + now.zip(start).map_or(0.0, |(now, start)| now - start)
+    })
 }
 
 /// The next multiple of `every` after `done`: where an event falls due again. `every` 0 is
@@ -168,23 +133,25 @@ impl Schedule {
 pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) -> Result<()> {
     let cadence = run.cadence();
     let before = run.cpu_seconds_mut().map_or(0.0, |s| *s);
-    let compute = Compute::start(before, cadence.cpu_budget_s)?;
+    let cpu_seconds = cpu_clock(before, cadence.cpu_budget_s)?;
     let mut log = MetricsLog::open_at(dir, run.done())?;
     run.begin(&mut log)?;
-    let clock = Throughput::since(run.done());
+    // The units per second since this process started training (`charts/sps`).
+    let (t0, done0) = (std::time::Instant::now(), run.done());
     let mut evals = Schedule::new(cadence.eval_every, run.done(), cadence.eval_at_end);
     let mut checkpoints = Schedule::new(cadence.checkpoint_every.max(1), run.done(), true);
     let mut finished = run.finished();
     while !finished {
         let mut fields = run.advance(on)?;
-        let cpu_s = compute.seconds();
+        let cpu_s = cpu_seconds();
         if let Some(count) = run.cpu_seconds_mut() {
             *count = cpu_s;
             fields.push(("charts/cpu_s", cpu_s));
         }
         finished = run.finished() || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
         if !fields.is_empty() {
-            fields.push(("charts/sps", clock.per_s(run.done())));
+            let secs = t0.elapsed().as_secs_f64().max(1e-9);
+            fields.push(("charts/sps", run.done().saturating_sub(done0) as f64 / secs));
             log.log(run.done(), &fields)?;
         }
         if evals.due(run.done(), finished)

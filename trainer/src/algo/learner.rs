@@ -24,7 +24,7 @@ use sim::Family;
 pub use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 
 use crate::algo::expert::ExpertSet;
-use crate::algo::settings::Overrides;
+use crate::algo::setting::Setting;
 use crate::data::MetaData;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
@@ -188,14 +188,29 @@ pub trait MetaSettings: Clone + PartialEq + Default + Serialize + DeserializeOwn
     /// Meta-BC's DAgger switch).
     fn configure(&mut self, algo: Algo, family: Family);
 
-    /// Lays the settings `o` gives over this configuration; a setting the algorithm does not
-    /// have is refused by name ([`Error::NoSuchSetting`]) and nothing changes.
-    fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()>;
+    /// Writes `setting` into this configuration; `false`, changing nothing, where the
+    /// algorithm has no such setting. An exhaustive `match`: a new [`Setting`] does not compile
+    /// until every learner takes or refuses it.
+    fn set(&mut self, setting: Setting) -> bool;
+
+    /// Lays `settings` over this configuration, in order; one the algorithm has not is refused
+    /// by name and position ([`Error::NoSuchSetting`]) and then nothing changes.
+    fn apply(&mut self, algo: Algo, settings: &[Setting]) -> Result<()> {
+        let mut cfg = self.clone();
+        for (at, s) in settings.iter().enumerate() {
+            if !cfg.set(s.clone()) {
+                let (name, algo) = (s.name(), algo.name());
+                return Err(Error::NoSuchSetting { name, at, algo });
+            }
+        }
+        *self = cfg;
+        Ok(())
+    }
 
     /// The training budget as settings (its updates, and the CPU-seconds where the algorithm
     /// has that budget): what a resume may change, and what a sweep extends a finished cell
     /// with where [`MetaSettings::EXTENDS`].
-    fn budget(&self) -> Overrides;
+    fn budget(&self) -> Vec<Setting>;
 
     /// Whether a finished run continues to a larger budget (SMILe), or a larger budget is a
     /// new run (Meta-BC: its policy is the one early stopping picked; more steps are another

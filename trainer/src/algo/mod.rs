@@ -7,7 +7,7 @@
 //! * [`distill`]: a trained meta-policy distilled to act through the device's senses.
 //! * [`learner`]: [`Learner`], the one interface SMILe, Meta-BC and the SAC expert implement,
 //!   [`MetaSettings`] their configurations', and [`Algo`], the meta-learners' names.
-//! * `settings`: [`Overrides`], the typed settings a caller lays over a configuration file.
+//! * `setting`: [`Setting`], the typed settings a caller lays over a configuration file.
 //! * `fit`: [`fit`], the one loop every learner trains through (metrics, evaluation and
 //!   keeping the best, checkpoints, stopping, the final policies).
 
@@ -17,11 +17,11 @@ mod fit;
 pub mod learner;
 pub mod meta_bc;
 pub mod sac;
-mod settings;
+mod setting;
 pub mod smile;
 
 pub use fit::fit;
 pub use learner::{
     Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Unit,
 };
-pub use settings::Overrides;
+pub use setting::Setting;

@@ -7,7 +7,7 @@ use sim::Family;
 use super::{Run, RunEvent};
 use crate::algo::meta_bc::MetaBc;
 use crate::algo::smile::Smile;
-use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Overrides};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Setting};
 use crate::error::{Error, Result};
 
 /// One meta-learner type's part in the driver and in sweeps, as plain functions.
@@ -15,7 +15,7 @@ pub(super) struct Meta {
     /// Trains a run with this learner type ([`Run::train`]).
     pub train: fn(&Run<'_>, &mut dyn FnMut(RunEvent)) -> Result<()>,
     check: fn(Algo, &str, Family) -> Result<()>,
-    extension: fn(Algo, &str, &str) -> Option<Overrides>,
+    extension: fn(Algo, &str, &str) -> Option<Vec<Setting>>,
 }
 
 impl Meta {
@@ -52,7 +52,7 @@ impl Algo {
     /// `new`: `Some` when `new` is `old` but for its budget, no part of the budget lower and
     /// one higher (a CPU-second budget of 0, none, counts as unlimited), else `None`. How a
     /// sweep continues a finished cell whose plan raised its budget.
-    pub fn extension(self, old: &str, new: &str) -> Option<Overrides> {
+    pub fn extension(self, old: &str, new: &str) -> Option<Vec<Setting>> {
         (Meta::of(self).extension)(self, old, new)
     }
 }
@@ -70,21 +70,29 @@ fn check<C: MetaSettings>(algo: Algo, text: &str, family: Family) -> Result<()> 
     cfg.validate()
 }
 
-fn extension<C: MetaSettings>(algo: Algo, old: &str, new: &str) -> Option<Overrides> {
+fn extension<C: MetaSettings>(algo: Algo, old: &str, new: &str) -> Option<Vec<Setting>> {
     if !C::EXTENDS {
         return None;
     }
     let old: C = toml::from_str(old).ok()?;
     let new: C = toml::from_str(new).ok()?;
-    let (was, now) = (old.budget(), new.budget());
+    let now = new.budget();
     let mut same = old.clone();
     same.apply(algo, &now).ok()?;
-    let cpu = |o: &Overrides| match o.cpu_budget_s {
-        Some(s) if s > 0.0 => s,
+    // Each part of the budget, in one order; a CPU-second budget of 0 (none) is unlimited.
+    let size = |s: &Setting| match *s {
+        Setting::Updates(n) => n as f64,
+        Setting::CpuBudget(c) if c > 0.0 => c,
         _ => f64::INFINITY,
     };
-    let not_lower = now.updates >= was.updates && cpu(&now) >= cpu(&was);
-    let higher = now.updates > was.updates || cpu(&now) > cpu(&was);
+    let parts: Vec<(f64, f64)> = old
+        .budget()
+        .iter()
+        .map(size)
+        .zip(now.iter().map(size))
+        .collect();
+    let not_lower = parts.iter().all(|(was, now)| now >= was);
+    let higher = parts.iter().any(|(was, now)| now > was);
     (same == new && not_lower && higher).then_some(now)
 }
 

@@ -8,7 +8,7 @@ use clap::Args;
 use clap::builder::TypedValueParser;
 use sim::Family;
 use trainer::run::{RunEvent, TrainRequest};
-use trainer::{Algo, Overrides, Progress};
+use trainer::{Algo, Progress, Setting};
 
 /// `--algo`'s parser: the library's names, listed in `--help`.
 fn algo_parser() -> impl clap::builder::TypedValueParser<Value = Algo> {
@@ -110,7 +110,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
         family: a.env,
         algo: a.algo,
         config_file: a.config.clone(),
-        settings: overrides(&a)?,
+        settings: settings(&a)?,
         expert: a.expert.clone(),
         resume: a.resume,
     };
@@ -153,7 +153,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
     if let Some(bar) = pb {
         bar.finish();
     }
-    let res = res.map_err(with_flags);
+    let res = res.map_err(|e| with_flags(e, &req.settings));
     if started {
         res.with_context(|| format!("{algo} training in {}", a.out.display()))?;
     } else {
@@ -164,20 +164,23 @@ pub fn run(a: TrainArgs) -> Result<()> {
 }
 
 /// The flags that set configuration values, typed; the algorithm refuses one it lacks.
-fn overrides(a: &TrainArgs) -> Result<Overrides> {
-    Ok(Overrides {
-        updates: a.updates,
-        cpu_budget_s: a.cpu_budget.map(f64::from),
-        seed: a.learner.seed,
-        learner_threads: a.learner.learner_threads.map(usize::from),
-        eval_every: a.eval_every,
-        hidden: a.learner.hidden.clone(),
-        gp_weight: a.gp_weight,
-        reward_scale: a.reward_scale,
-        bc_weight: a.bc_weight,
-        physics: a.physics,
-        sensing: a.sensing.as_deref().map(sensing_preset).transpose()?,
-    })
+fn settings(a: &TrainArgs) -> Result<Vec<Setting>> {
+    let sensing = a.sensing.as_deref().map(sensing_preset).transpose()?;
+    let l = &a.learner;
+    let given = [
+        a.updates.map(Setting::Updates),
+        a.cpu_budget.map(|s| Setting::CpuBudget(s.into())),
+        l.seed.map(Setting::Seed),
+        l.learner_threads.map(|n| Setting::LearnerThreads(n.into())),
+        a.eval_every.map(Setting::EvalEvery),
+        l.hidden.clone().map(Setting::Hidden),
+        a.gp_weight.map(Setting::GpWeight),
+        a.reward_scale.map(Setting::RewardScale),
+        a.bc_weight.map(Setting::BcWeight),
+        a.physics.map(Setting::Physics),
+        sensing.map(Setting::Sensing),
+    ];
+    Ok(given.into_iter().flatten().collect())
 }
 
 /// The `[sensing]` section of the `--sensing` file, checked, or an error naming the file.
@@ -204,23 +207,26 @@ pub(crate) fn sensing_preset(path: &std::path::Path) -> Result<trainer::Sensing>
     Ok(preset.sensing)
 }
 
-/// The library's error, with the flag that gives the setting it names.
-fn with_flags(e: trainer::Error) -> anyhow::Error {
+/// The library's error, with the flag of the setting it names (`given`: the settings the
+/// flags gave, in the library's positions).
+fn with_flags(e: trainer::Error, given: &[Setting]) -> anyhow::Error {
     match e {
-        trainer::Error::NoSuchSetting { setting, algo } => {
-            anyhow::anyhow!(
-                "{} is a SMILe setting; {algo} has no such setting",
-                flag_of(setting)
-            )
+        trainer::Error::NoSuchSetting { name, at, algo } => {
+            let flag = given.get(at).map_or(name, flag_of);
+            anyhow::anyhow!("{flag} is a SMILe setting; {algo} has no such setting")
         }
         trainer::Error::ResumeChanges {
             run,
             key,
-            given,
+            given: blamed,
             was,
             now,
         } => {
-            let flags: Vec<&str> = given.iter().copied().map(flag_of).collect();
+            let flags: Vec<&str> = blamed
+                .iter()
+                .filter_map(|&at| given.get(at))
+                .map(flag_of)
+                .collect();
             let flag = match flags.is_empty() {
                 true => "config.toml".to_string(),
                 false => flags.join(" / "),
@@ -239,19 +245,18 @@ fn with_flags(e: trainer::Error) -> anyhow::Error {
 }
 
 /// The flag that gives a setting.
-fn flag_of(setting: trainer::Setting) -> &'static str {
-    use trainer::Setting;
+fn flag_of(setting: &Setting) -> &'static str {
     match setting {
-        Setting::Updates => "--updates",
-        Setting::CpuBudget => "--cpu-budget",
-        Setting::Seed => "--seed",
-        Setting::LearnerThreads => "--learner-threads",
-        Setting::EvalEvery => "--eval-every",
-        Setting::Hidden => "--hidden",
-        Setting::GpWeight => "--gp-weight",
-        Setting::RewardScale => "--reward-scale",
-        Setting::BcWeight => "--bc-weight",
-        Setting::Physics => "--physics",
-        Setting::Sensing => "--sensing",
+        Setting::Updates(_) => "--updates",
+        Setting::CpuBudget(_) => "--cpu-budget",
+        Setting::Seed(_) => "--seed",
+        Setting::LearnerThreads(_) => "--learner-threads",
+        Setting::EvalEvery(_) => "--eval-every",
+        Setting::Hidden(_) => "--hidden",
+        Setting::GpWeight(_) => "--gp-weight",
+        Setting::RewardScale(_) => "--reward-scale",
+        Setting::BcWeight(_) => "--bc-weight",
+        Setting::Physics(_) => "--physics",
+        Setting::Sensing(_) => "--sensing",
     }
 }

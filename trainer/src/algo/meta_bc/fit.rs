@@ -9,7 +9,7 @@ use sim::Family;
 use super::{MetaBc, MetaBcConfig, Selection};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
-use crate::algo::settings::{Overrides, Slots};
+use crate::algo::setting::Setting;
 use crate::data::{better, quick_eval};
 use crate::error::Result;
 use crate::io::MetricsLog;
@@ -140,28 +140,26 @@ impl MetaSettings for MetaBcConfig {
         self.dagger = algo == Algo::MetaDagger;
     }
 
-    fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()> {
-        let slots = Slots {
-            updates: &mut self.total_steps,
-            cpu_budget_s: None,
-            seed: &mut self.seed,
-            learner_threads: &mut self.learner_threads,
-            eval_every: &mut self.eval_every,
-            hidden: vec![&mut self.policy_hidden],
-            gp_weight: None,
-            reward_scale: None,
-            bc_weight: None,
-            physics: &mut self.physics,
-            sensing: &mut self.sensing,
-        };
-        o.apply_to(slots, algo.name())
+    fn set(&mut self, setting: Setting) -> bool {
+        match setting {
+            Setting::Updates(n) => self.total_steps = n,
+            Setting::Seed(s) => self.seed = s,
+            Setting::LearnerThreads(n) => self.learner_threads = n,
+            Setting::EvalEvery(n) => self.eval_every = n,
+            Setting::Hidden(h) => self.policy_hidden = h,
+            Setting::Physics(p) => self.physics = p,
+            Setting::Sensing(s) => self.sensing = Some(s),
+            // SMILe's: Meta-BC has no compute budget, discriminator or SAC.
+            Setting::CpuBudget(_)
+            | Setting::GpWeight(_)
+            | Setting::RewardScale(_)
+            | Setting::BcWeight(_) => return false,
+        }
+        true
     }
 
-    fn budget(&self) -> Overrides {
-        Overrides {
-            updates: Some(self.total_steps),
-            ..Overrides::default()
-        }
+    fn budget(&self) -> Vec<Setting> {
+        vec![Setting::Updates(self.total_steps)]
     }
 
     fn validate(&self) -> Result<()> {

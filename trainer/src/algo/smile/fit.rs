@@ -8,7 +8,7 @@ use sim::Family;
 use super::{Smile, SmileConfig};
 use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
-use crate::algo::settings::{Overrides, Slots};
+use crate::algo::setting::Setting;
 use crate::data::better;
 use crate::error::{Error, Result};
 use crate::io::MetricsLog;
@@ -144,29 +144,28 @@ impl MetaSettings for SmileConfig {
         self.context.state_only = algo == Algo::SmileStateOnly;
     }
 
-    fn apply(&mut self, algo: Algo, o: &Overrides) -> Result<()> {
-        let slots = Slots {
-            updates: &mut self.total_updates,
-            cpu_budget_s: Some(&mut self.cpu_budget_s),
-            seed: &mut self.seed,
-            learner_threads: &mut self.learner_threads,
-            eval_every: &mut self.eval_every,
-            hidden: vec![&mut self.sac.hidden, &mut self.disc_hidden],
-            gp_weight: Some(&mut self.gp_weight),
-            reward_scale: Some(&mut self.sac.reward_scale),
-            bc_weight: Some(&mut self.bc_weight),
-            physics: &mut self.physics,
-            sensing: &mut self.sensing,
-        };
-        o.apply_to(slots, algo.name())
+    fn set(&mut self, setting: Setting) -> bool {
+        match setting {
+            Setting::Updates(n) => self.total_updates = n,
+            Setting::CpuBudget(s) => self.cpu_budget_s = s,
+            Setting::Seed(s) => self.seed = s,
+            Setting::LearnerThreads(n) => self.learner_threads = n,
+            Setting::EvalEvery(n) => self.eval_every = n,
+            Setting::Hidden(h) => (self.sac.hidden, self.disc_hidden) = (h.clone(), h),
+            Setting::GpWeight(w) => self.gp_weight = w,
+            Setting::RewardScale(r) => self.sac.reward_scale = r,
+            Setting::BcWeight(w) => self.bc_weight = w,
+            Setting::Physics(p) => self.physics = p,
+            Setting::Sensing(s) => self.sensing = Some(s),
+        }
+        true
     }
 
-    fn budget(&self) -> Overrides {
-        Overrides {
-            updates: Some(self.total_updates),
-            cpu_budget_s: Some(self.cpu_budget_s),
-            ..Overrides::default()
-        }
+    fn budget(&self) -> Vec<Setting> {
+        vec![
+            Setting::Updates(self.total_updates),
+            Setting::CpuBudget(self.cpu_budget_s),
+        ]
     }
 
     fn validate(&self) -> Result<()> {
