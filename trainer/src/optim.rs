@@ -7,7 +7,7 @@ use std::cell::RefCell;
 use candle_core::{DType, Device, Tensor, Var};
 
 use crate::error::Result;
-use crate::model::{OnSlices, SliceUpdate, check_shapes};
+use crate::model::{OnSlices, SliceUpdate, TensorLookup, check_shapes};
 
 /// Hyper-parameters of [`Adam`].
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -187,12 +187,7 @@ impl Adam {
 
     /// Restores what [`Adam::save_into`] wrote under `name` (`get` looks a checkpoint tensor up
     /// by name) with the step count `t`; shapes must match this optimiser's variables.
-    pub fn load_from(
-        &mut self,
-        name: &str,
-        get: &dyn Fn(&str) -> Result<Tensor>,
-        t: u64,
-    ) -> Result<()> {
+    pub fn load_from(&mut self, name: &str, get: TensorLookup, t: u64) -> Result<()> {
         let n = self.vars.len();
         let many = |moment: &str| -> Result<Vec<Tensor>> {
             (0..n)

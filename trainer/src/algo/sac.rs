@@ -20,7 +20,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::data::Batch;
 use crate::error::{Error, Result};
-use crate::model::{FrozenMlp, Input, Mlp, SharedCols, TanhGaussianPolicy, scalar};
+use crate::model::{FrozenMlp, Input, Mlp, SharedCols, TanhGaussianPolicy, TensorLookup, scalar};
 use crate::optim::{Adam, AdamConfig};
 
 /// SAC hyper-parameters. Every field has a default; sources: Haarnoja et al. 2018 (SAC v2,
@@ -492,11 +492,7 @@ impl Sac {
 
     /// Restore the state written by [`Sac::state_tensors`]; `get` looks a tensor up by name.
     /// Shapes must match this agent's configuration.
-    pub fn load_state(
-        &mut self,
-        get: &dyn Fn(&str) -> Result<Tensor>,
-        counters: SacCounters,
-    ) -> Result<()> {
+    pub fn load_state(&mut self, get: TensorLookup, counters: SacCounters) -> Result<()> {
         let many = |prefix: &str, n: usize| -> Result<Vec<Tensor>> {
             (0..n).map(|i| get(&format!("{prefix}.{i}"))).collect()
         };

@@ -12,7 +12,7 @@ use candle_core::{Device, Tensor};
 use rand::Rng;
 
 use crate::error::{Error, Result};
-use crate::model::SharedCols;
+use crate::model::{SharedCols, TensorLookup};
 
 /// A minibatch as tensors, ready for an update.
 #[derive(Debug, Clone)]
@@ -303,11 +303,7 @@ impl ReplayBuffer {
 
     /// Restore the contents written by [`ReplayBuffer::to_tensors`]; `get` looks a tensor up by
     /// name. Dimensions and capacity must match this buffer.
-    pub fn load_tensors(
-        &mut self,
-        prefix: &str,
-        get: &dyn Fn(&str) -> Result<Tensor>,
-    ) -> Result<()> {
+    pub fn load_tensors(&mut self, prefix: &str, get: TensorLookup) -> Result<()> {
         let c = get(&format!("{prefix}.counters"))?.to_vec1::<u32>()?;
         let [len, pos, cap] = c[..] else {
             return Err(Error::Shape(format!(
@@ -407,11 +403,7 @@ impl TaskReplay {
     }
 
     /// Restore every task buffer written by [`TaskReplay::to_tensors`].
-    pub fn load_tensors(
-        &mut self,
-        prefix: &str,
-        get: &dyn Fn(&str) -> Result<Tensor>,
-    ) -> Result<()> {
+    pub fn load_tensors(&mut self, prefix: &str, get: TensorLookup) -> Result<()> {
         for (i, b) in self.buffers.iter_mut().enumerate() {
             b.load_tensors(&format!("{prefix}.{i}"), get)?;
         }

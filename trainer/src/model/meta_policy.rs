@@ -10,9 +10,9 @@ use rand::Rng;
 use sim::{Family, Trajectory};
 
 use crate::error::Result;
-use crate::model::Mlp;
 use crate::model::TanhGaussianPolicy;
 use crate::model::{ContextEncoder, ObsNorm};
+use crate::model::{Mlp, TensorLookup};
 
 /// File name of a trained meta-policy inside a run directory.
 pub const META_POLICY_FILE: &str = "meta_policy.safetensors";
@@ -54,7 +54,7 @@ pub(crate) fn mlp_tensors(prefix: &str, m: &Mlp, out: &mut Vec<(String, Tensor)>
 }
 
 /// Loads `m`'s tensors written by [`mlp_tensors`] under `prefix`.
-pub(crate) fn mlp_load(prefix: &str, m: &Mlp, get: &dyn Fn(&str) -> Result<Tensor>) -> Result<()> {
+pub(crate) fn mlp_load(prefix: &str, m: &Mlp, get: TensorLookup) -> Result<()> {
     let ts = (0..m.vars().len())
         .map(|i| get(&format!("{prefix}.{i}")))
         .collect::<Result<Vec<_>>>()?;

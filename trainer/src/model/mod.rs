@@ -28,6 +28,9 @@ pub(crate) use mlp::check_shapes;
 pub use mlp::{FrozenMlp, Input, Mlp};
 pub use policy::{PolicySample, TanhGaussianPolicy};
 
+/// A checkpoint's tensors, looked up by name: what each saved state is restored through.
+pub(crate) type TensorLookup<'a> = &'a dyn Fn(&str) -> crate::error::Result<candle_core::Tensor>;
+
 /// The single value of a one-element tensor (a loss or a mean), for logging.
 pub(crate) fn scalar(t: &candle_core::Tensor) -> crate::error::Result<f32> {
     Ok(t.to_dtype(candle_core::DType::F32)?
