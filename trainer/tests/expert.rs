@@ -448,5 +448,16 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
     );
     assert_eq!(read(checkpoint::POLICY_FILE), policy);
     assert_eq!(read(trainer::METRICS_FILE), log);
+
+    // A meta-learner's run (it records run.json) is not an expert's to resume: named, kept.
+    std::fs::write(d.join(trainer::run::RUN_FILE), r#"{"algo": "meta-bc"}"#).unwrap();
+    let e = train_expert(&request(None), &mut |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("holds a meta-bc run") && e.contains("not an expert's"),
+        "{e}"
+    );
+    assert_eq!(read(trainer::METRICS_FILE), log);
     std::fs::remove_dir_all(&d).ok();
 }

@@ -10,7 +10,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{RunEvent, drive, open_dir, restarting};
+use super::{RUN_FILE, RunEvent, RunInfo, drive, open_dir, restarting};
 use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
 use crate::error::{Error, Result};
@@ -34,6 +34,15 @@ pub struct ExpertRequest {
 /// A failure during training says at which step, and where the last good checkpoint is.
 pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertConfig> {
     let dir = &req.out;
+    if req.config.is_none() && dir.join(RUN_FILE).exists() {
+        // A meta-learner's run records how it started; an expert's does not.
+        let algo = RunInfo::read(dir).map_or_else(|_| "meta-learner".into(), |r| r.algo);
+        return Err(Error::Usage(format!(
+            "{} holds a {algo} run ({RUN_FILE}), not an expert's: resume it as the {algo} run \
+             it is",
+            dir.display()
+        )));
+    }
     // A resume of a run killed before its first checkpoint starts it over with its recorded
     // configuration, as a meta-learner's does (`run::train`).
     let restart =
