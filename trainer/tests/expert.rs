@@ -211,7 +211,7 @@ fn non_finite_loss_names_the_update() {
     };
     let mut sac = trainer::sac::Sac::new(3, 1, cfg, &mut rng).unwrap();
     let mut rb = trainer::ReplayBuffer::new(3, 1, 10).unwrap();
-    rb.push(&[0.0; 3], &[0.0], f32::NAN, &[0.0; 3], false)
+    rb.push(&[0.0; 3], &[0.0], f32::NAN, &[0.0; 3], false, None)
         .unwrap();
     let b = rb.sample(4, &mut rng).unwrap();
     match sac.update(&b, &mut rng) {

@@ -33,7 +33,7 @@ fn sac_learns_contextual_bandit() {
             sac.actor.act(&[s], false, &mut rng).unwrap()
         };
         let r = -(a[0] - 0.5 * s).powi(2);
-        rb.push(&[s], &a, r, &[0.0], true).unwrap();
+        rb.push(&[s], &a, r, &[0.0], true, None).unwrap();
         if step >= 200 {
             let b = rb.sample(64, &mut rng).unwrap();
             sac.update(&b, &mut rng).unwrap();
@@ -72,7 +72,8 @@ fn sac_learns_point_1d() {
             sac.actor.act(&[x], false, &mut rng).unwrap()
         };
         let nx = step_env(x, a[0]);
-        rb.push(&[x], &a, -(nx - 0.5).abs(), &[nx], false).unwrap();
+        rb.push(&[x], &a, -(nx - 0.5).abs(), &[nx], false, None)
+            .unwrap();
         x = nx;
         if t >= 300 {
             let b = rb.sample(64, &mut rng).unwrap();
@@ -101,7 +102,7 @@ fn same_seed_same_update() {
         for _ in 0..100 {
             let o: Vec<f32> = (0..5).map(|_| rng.random_range(-1.0..1.0)).collect();
             let a: Vec<f32> = (0..2).map(|_| rng.random_range(-1.0..1.0)).collect();
-            rb.push(&o, &a, rng.random(), &o, false).unwrap();
+            rb.push(&o, &a, rng.random(), &o, false, None).unwrap();
         }
         let mut stats = Vec::new();
         for _ in 0..3 {
@@ -139,7 +140,7 @@ fn with_a_fixed_temperature_the_reward_scale_sets_the_entropy() {
         for step in 0..1200 {
             let s = rng.random_range(-1.0f32..1.0);
             let a = sac.actor.act(&[s], false, &mut rng).unwrap();
-            rb.push(&[s], &a, -(a[0] - 0.5 * s).powi(2), &[0.0], true)
+            rb.push(&[s], &a, -(a[0] - 0.5 * s).powi(2), &[0.0], true, None)
                 .unwrap();
             if step >= 100 {
                 let b = rb.sample(64, &mut rng).unwrap();

@@ -334,7 +334,7 @@ impl ExpertTrainer {
             let (reward, done, info) = (tr.reward, tr.done, tr.info);
             self.env.oracle_observation(&mut next)?;
             self.replay
-                .push(&obs, &action, reward, &next, info.terminated)?;
+                .push(&obs, &action, reward, &next, info.terminated, None)?;
             metric.record(&info);
             ret += reward;
             self.env_steps += 1;

@@ -264,11 +264,15 @@ impl Smile {
                 a.copy_from_slice(&actor.act(&x, false, rng)?);
                 Ok(())
             },
-            &mut |st| match st.sensed {
-                Some(view) => {
-                    replay.push_viewed(st.obs, st.action, 0.0, st.next_obs, st.terminated, view)
-                }
-                None => replay.push(st.obs, st.action, 0.0, st.next_obs, st.terminated),
+            &mut |st| {
+                replay.push(
+                    st.obs,
+                    st.action,
+                    0.0,
+                    st.next_obs,
+                    st.terminated,
+                    st.sensed,
+                )
             },
         )?;
         self.env_steps += ep.steps as u64;

@@ -130,7 +130,7 @@ impl ReplayBuffer {
     }
 
     /// An empty buffer that also keeps each transition's states as the policy read them
-    /// ([`Self::push_viewed`]; batches carry them in `view_obs` and `view_next_obs`).
+    /// (given to [`Self::push`]; batches carry them in `view_obs` and `view_next_obs`).
     pub fn with_views(obs_dim: usize, act_dim: usize, capacity: usize) -> Result<Self> {
         let mut b = Self::new(obs_dim, act_dim, capacity)?;
         b.keep_views();
@@ -173,7 +173,9 @@ impl ReplayBuffer {
         self.act_dim
     }
 
-    /// Store one transition, overwriting the oldest when full.
+    /// Store one transition, overwriting the oldest when full. `view`: the states as the
+    /// policy read them, `(s, s')`, which a buffer [`with views`](Self::with_views) keeps beside
+    /// them and needs (a buffer without views refuses them).
     pub fn push(
         &mut self,
         obs: &[f32],
@@ -181,60 +183,36 @@ impl ReplayBuffer {
         rew: f32,
         next_obs: &[f32],
         terminated: bool,
+        view: Option<(&[f32], &[f32])>,
     ) -> Result<()> {
-        if obs.len() != self.obs_dim || next_obs.len() != self.obs_dim || act.len() != self.act_dim
-        {
+        let (od, ad) = (self.obs_dim, self.act_dim);
+        let (vo, vn) = view.map_or((od, od), |(vo, vn)| (vo.len(), vn.len()));
+        if obs.len() != od || next_obs.len() != od || act.len() != ad || (vo, vn) != (od, od) {
             return Err(Error::Shape(format!(
-                "push: obs {}/{} act {} into buffer of obs {} act {}",
+                "push: obs {}/{} act {} views {vo}/{vn} into buffer of obs {od} act {ad}",
                 obs.len(),
                 next_obs.len(),
                 act.len(),
-                self.obs_dim,
-                self.act_dim
             )));
         }
-        let (i, od, ad) = (self.pos, self.obs_dim, self.act_dim);
+        if view.is_some() != self.views.is_some() {
+            return Err(Error::Replay(match view {
+                Some(_) => "views pushed into a buffer without views".into(),
+                None => "a buffer with views needs the policy's view of each transition".into(),
+            }));
+        }
+        let i = self.pos;
         self.obs[i * od..(i + 1) * od].copy_from_slice(obs);
         self.next_obs[i * od..(i + 1) * od].copy_from_slice(next_obs);
         self.act[i * ad..(i + 1) * ad].copy_from_slice(act);
         self.rew[i] = rew;
         self.done[i] = if terminated { 1.0 } else { 0.0 };
+        if let (Some((vo, vn)), Some((so, sn))) = (self.views.as_mut(), view) {
+            vo[i * od..(i + 1) * od].copy_from_slice(so);
+            vn[i * od..(i + 1) * od].copy_from_slice(sn);
+        }
         self.pos = (self.pos + 1) % self.capacity;
         self.len = (self.len + 1).min(self.capacity);
-        Ok(())
-    }
-
-    /// [`Self::push`] with the states as the policy read them, `view = (s, s')`, into a
-    /// buffer [`with views`](Self::with_views).
-    #[allow(clippy::too_many_arguments)]
-    pub fn push_viewed(
-        &mut self,
-        obs: &[f32],
-        act: &[f32],
-        rew: f32,
-        next_obs: &[f32],
-        terminated: bool,
-        view: (&[f32], &[f32]),
-    ) -> Result<()> {
-        let od = self.obs_dim;
-        if view.0.len() != od || view.1.len() != od {
-            return Err(Error::Shape(format!(
-                "push: views {}/{} into buffer of obs {od}",
-                view.0.len(),
-                view.1.len()
-            )));
-        }
-        if self.views.is_none() {
-            return Err(Error::Replay(
-                "push_viewed into a buffer without views".into(),
-            ));
-        }
-        let i = self.pos;
-        self.push(obs, act, rew, next_obs, terminated)?;
-        if let Some((vo, vn)) = self.views.as_mut() {
-            vo[i * od..(i + 1) * od].copy_from_slice(view.0);
-            vn[i * od..(i + 1) * od].copy_from_slice(view.1);
-        }
         Ok(())
     }
 
@@ -423,7 +401,7 @@ mod tests {
         let mut b = ReplayBuffer::new(2, 1, 3).unwrap();
         for i in 0..5 {
             let x = i as f32;
-            b.push(&[x, x], &[x], x, &[x + 1.0, x + 1.0], i == 4)
+            b.push(&[x, x], &[x], x, &[x + 1.0, x + 1.0], i == 4, None)
                 .unwrap();
         }
         assert_eq!(b.len(), 3);
@@ -455,15 +433,9 @@ mod tests {
         for i in 0..4 {
             let x = i as f32;
             let view = ([x + 0.5, x + 0.5], [x + 1.5, x + 1.5]);
-            b.push_viewed(
-                &[x, x],
-                &[x],
-                x,
-                &[x + 1.0, x + 1.0],
-                false,
-                (&view.0, &view.1),
-            )
-            .unwrap();
+            let view = Some((&view.0[..], &view.1[..]));
+            b.push(&[x, x], &[x], x, &[x + 1.0, x + 1.0], false, view)
+                .unwrap();
         }
         let mut v = BatchVecs::default();
         b.gather_into(&[0, 2], &mut v);
@@ -475,20 +447,26 @@ mod tests {
         let mut c = ReplayBuffer::with_views(2, 1, 3).unwrap();
         c.load_tensors("rb", &|n| Ok(map[n].clone())).unwrap();
         assert_eq!(b, c);
-        // A buffer without views refuses a viewed push; a views buffer needs the views saved.
+        // A buffer without views refuses a viewed push, a views buffer one without views (and
+        // the views of the wrong width), and a views buffer needs the views saved.
         let mut plain = ReplayBuffer::new(2, 1, 3).unwrap();
+        let view = Some((&[0.0; 2][..], &[0.0; 2][..]));
         assert!(
             plain
-                .push_viewed(
-                    &[0.0; 2],
-                    &[0.0],
-                    0.0,
-                    &[0.0; 2],
-                    false,
-                    (&[0.0; 2], &[0.0; 2])
-                )
+                .push(&[0.0; 2], &[0.0], 0.0, &[0.0; 2], false, view)
                 .is_err()
         );
+        let before = c.clone();
+        assert!(
+            c.push(&[0.0; 2], &[0.0], 0.0, &[0.0; 2], false, None)
+                .is_err()
+        );
+        let narrow = Some((&[0.0; 1][..], &[0.0; 2][..]));
+        assert!(
+            c.push(&[0.0; 2], &[0.0], 0.0, &[0.0; 2], false, narrow)
+                .is_err()
+        );
+        assert_eq!(c, before, "a refused push stores nothing");
         let saved: HashMap<String, Tensor> = plain.to_tensors("rb").unwrap().into_iter().collect();
         let e = c.load_tensors("rb", &|n| {
             saved

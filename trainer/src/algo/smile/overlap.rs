@@ -175,12 +175,9 @@ impl RolloutsDone {
                     &tr.act[r * ad..(r + 1) * ad],
                     &tr.next_obs[row.clone()],
                 );
-                if tr.view_obs.is_empty() {
-                    buf.push(o, a, 0.0, o2, term)?;
-                } else {
-                    let view = (&tr.view_obs[row.clone()], &tr.view_next_obs[row]);
-                    buf.push_viewed(o, a, 0.0, o2, term, view)?;
-                }
+                let view = (!tr.view_obs.is_empty())
+                    .then(|| (&tr.view_obs[row.clone()], &tr.view_next_obs[row]));
+                buf.push(o, a, 0.0, o2, term, view)?;
             }
         }
         Ok(())
