@@ -449,6 +449,24 @@ fn numeric_flags_are_validated_by_name() {
         assert!(e.contains(name), "{flag} {value}: {e}");
         assert!(!run.exists(), "{flag} {value} created the run directory");
     }
+    // A setting the algorithm lacks is refused by its flag (its place among the settings the
+    // flags gave maps back to it), and nothing is created.
+    let args = [
+        "--algo",
+        "meta-bc",
+        "--updates",
+        "5",
+        "--seed",
+        "3",
+        "--gp-weight",
+        "1",
+    ];
+    let e = err_of(&train_with(&[&args[..], &["--quiet"]].concat()));
+    assert!(
+        e.contains("--gp-weight is a SMILe setting") && e.contains("meta-bc"),
+        "{e}"
+    );
+    assert!(!run.exists(), "a refused setting created the run directory");
     // Config files: NaN and negative values are refused by key (log_std_min = nan panicked).
     for (text, key) in [
         ("gp_weight = nan\n", "gp_weight"),

@@ -1,7 +1,7 @@
 //! The settings a caller gives over a meta-learner's configuration file, typed.
 //!
 //! A run's configuration is its algorithm's defaults, under a TOML file, under a list of
-//! [`Setting`]s: the command line, a sweep's extension of a cell and the quickstart give one.
+//! [`Setting`]s: the command line and a sweep's extension of a cell give one.
 //! Each learner writes a setting into its own configuration
 //! ([`MetaSettings::set`](crate::MetaSettings::set), an exhaustive `match`: a new setting does
 //! not compile until every learner takes or refuses it), and one it has not is refused by name

@@ -186,10 +186,15 @@ impl ReplayBuffer {
         view: Option<(&[f32], &[f32])>,
     ) -> Result<()> {
         let (od, ad) = (self.obs_dim, self.act_dim);
-        let (vo, vn) = view.map_or((od, od), |(vo, vn)| (vo.len(), vn.len()));
-        if obs.len() != od || next_obs.len() != od || act.len() != ad || (vo, vn) != (od, od) {
+        let views = view.map(|(vo, vn)| (vo.len(), vn.len()));
+        if obs.len() != od
+            || next_obs.len() != od
+            || act.len() != ad
+            || views.is_some_and(|v| v != (od, od))
+        {
+            let views = views.map_or(String::new(), |(vo, vn)| format!(" views {vo}/{vn}"));
             return Err(Error::Shape(format!(
-                "push: obs {}/{} act {} views {vo}/{vn} into buffer of obs {od} act {ad}",
+                "push: obs {}/{} act {}{views} into buffer of obs {od} act {ad}",
                 obs.len(),
                 next_obs.len(),
                 act.len(),

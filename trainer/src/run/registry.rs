@@ -2,6 +2,8 @@
 //! and what the run driver and a sweep plan ask of an algorithm through it (a run, a
 //! configuration's check, the extension of a finished cell).
 
+use std::cmp::Ordering;
+
 use sim::Family;
 
 use super::{Run, RunEvent};
@@ -76,23 +78,23 @@ fn extension<C: MetaSettings>(algo: Algo, old: &str, new: &str) -> Option<Vec<Se
     }
     let old: C = toml::from_str(old).ok()?;
     let new: C = toml::from_str(new).ok()?;
-    let now = new.budget();
+    let (was, now) = (old.budget(), new.budget());
     let mut same = old.clone();
     same.apply(algo, &now).ok()?;
-    // Each part of the budget, in one order; a CPU-second budget of 0 (none) is unlimited.
-    let size = |s: &Setting| match *s {
-        Setting::Updates(n) => n as f64,
-        Setting::CpuBudget(c) if c > 0.0 => c,
-        _ => f64::INFINITY,
+    // Part by part (one type's budget: the same parts in the same order); a CPU-second budget
+    // of 0 (none) is unlimited.
+    let unlimited = |c: f64| if c > 0.0 { c } else { f64::INFINITY };
+    let order = |(w, n): (&Setting, &Setting)| match (w, n) {
+        (Setting::Updates(w), Setting::Updates(n)) => Some(n.cmp(w)),
+        (Setting::CpuBudget(w), Setting::CpuBudget(n)) => unlimited(*n).partial_cmp(&unlimited(*w)),
+        _ => None,
     };
-    let parts: Vec<(f64, f64)> = old
-        .budget()
-        .iter()
-        .map(size)
-        .zip(now.iter().map(size))
-        .collect();
-    let not_lower = parts.iter().all(|(was, now)| now >= was);
-    let higher = parts.iter().any(|(was, now)| now > was);
+    if was.len() != now.len() {
+        return None;
+    }
+    let parts: Vec<Ordering> = was.iter().zip(&now).map(order).collect::<Option<_>>()?;
+    let not_lower = parts.iter().all(|o| o.is_ge());
+    let higher = parts.iter().any(|o| o.is_gt());
     (same == new && not_lower && higher).then_some(now)
 }
 
@@ -136,6 +138,38 @@ mod tests {
             e.contains("smile-state-only") && e.contains("meta-dagger"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn a_raised_budget_extends_a_smile_run_and_nothing_else_does() {
+        let full = |extra: &str| {
+            let mut t = toml::Table::try_from(crate::algo::smile::SmileConfig::default()).unwrap();
+            for (k, v) in extra.parse::<toml::Table>().unwrap() {
+                t.insert(k, v);
+            }
+            t.to_string()
+        };
+        let e = |old: &str, new: &str| Algo::Smile.extension(&full(old), &full(new));
+        let raised = e("total_updates = 10", "total_updates = 20").unwrap();
+        assert_eq!(raised[0], Setting::Updates(20));
+        // 0 CPU-seconds is no budget: unlimited, so 10 -> 0 raises it.
+        let cpu = |u: u64, c: f64| format!("total_updates = {u}\ncpu_budget_s = {c:?}");
+        assert!(e(&cpu(10, 10.0), &cpu(10, 0.0)).is_some());
+        assert!(e(&cpu(10, 10.0), &cpu(10, 20.0)).is_some());
+        // One part up and one down, nothing up, or another setting changed: a new run.
+        assert!(e(&cpu(10, 20.0), &cpu(20, 10.0)).is_none());
+        assert!(e(&cpu(10, 0.0), &cpu(20, 10.0)).is_none());
+        assert!(e("total_updates = 10", "total_updates = 10").is_none());
+        assert!(e("total_updates = 20", "total_updates = 10").is_none());
+        assert!(e("total_updates = 10", "total_updates = 20\nseed = 3").is_none());
+        // Meta-BC's larger budget is another early-stopping selection, a new run.
+        let bc = |steps: u64| {
+            let mut t =
+                toml::Table::try_from(crate::algo::meta_bc::MetaBcConfig::default()).unwrap();
+            t.insert("total_steps".into(), toml::Value::Integer(steps as i64));
+            t.to_string()
+        };
+        assert!(Algo::MetaBc.extension(&bc(10), &bc(20)).is_none());
     }
 
     #[test]

@@ -222,6 +222,7 @@ fn with_flags(e: trainer::Error, given: &[Setting]) -> anyhow::Error {
             was,
             now,
         } => {
+            debug_assert!(blamed.iter().all(|&at| at < given.len()), "{blamed:?}");
             let flags: Vec<&str> = blamed
                 .iter()
                 .filter_map(|&at| given.get(at))
