@@ -119,14 +119,15 @@ pub fn scripted_target(oracle_obs: &[f32]) -> Result<[f32; 2], SimError> {
 }
 
 /// The scripted expert aims its ant-goal expert at the chosen target times this: a goal
-/// further out makes it walk through the decision radius sooner. Success of the scripted
-/// expert on the 32 meta-test tasks x 10 episodes with the shipped ant-goal expert (`smile
-/// expert --kind scripted-linclass --eval-episodes 10`), with the expert trained on the
-/// MuJoCo-held plant (2026-12-01): 0.84 at 1.0, 0.89 at 1.1, **1.00 at 1.2**, 0.75 at 1.3, 0.60
-/// at 1.4. (With the old plant's expert: 0.74 at 1.0, 0.88 at 1.2, 0.903 at 1.4, 0.31 at 1.6.)
-/// Every failure is a no-op (the right direction, too slow or past it), never the wrong target.
-/// The default of `smile expert --kind scripted-linclass --aim-scale`: the MuJoCo ant-goal
-/// expert wants its own (`assets/experts/ant-linclass-mujoco/README.md`).
+/// further out makes it walk through the decision radius sooner. Tuned on 2026-12-01 with the
+/// shipped ant-goal expert on the evaluation of `smile expert --kind scripted-linclass
+/// --eval-episodes 10` (1.00 at 1.2), whose 320 episodes are 20 distinct walks (its seeds
+/// repeat across tasks). On 320 distinct walks and today's float path (2026-12-07,
+/// `docs/results/linclass-walk-end/README.md`): 0.881 / 0.866 / 0.881 / 0.819 / 0.788 at
+/// 1.0 / 1.1 / 1.2 / 1.3 / 1.4, flat to 1.2. Every failure is a no-op (too slow, stopped short
+/// or beside, or past), never the wrong target. The default of `smile expert --kind
+/// scripted-linclass --aim-scale`: the MuJoCo ant-goal expert wants its own
+/// (`assets/experts/ant-linclass-mujoco/README.md`).
 pub const AIM_SCALE: f32 = 1.2;
 
 /// Writes the ant-goal oracle observation (the ant's 29 entries, then the goal (x, y)) that
