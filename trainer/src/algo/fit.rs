@@ -52,8 +52,12 @@ pub struct Evaluation {
     pub keep: bool,
     /// What to log.
     pub fields: Fields,
-    /// The event to report.
-    pub progress: Progress,
+    /// The family's metric now.
+    pub metric: f32,
+    /// The metric of the policy kept so far.
+    pub best: f32,
+    /// Meta-BC: the action MSE on the held-out tasks' demos.
+    pub val_mse: Option<f32>,
     /// Whether the learner's stopping rule ended training with this evaluation.
     pub stopped: bool,
 }
@@ -164,7 +168,12 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
                 on(Progress::Stopped(run.done()));
             }
             log.log(run.done(), &ev.fields)?;
-            on(ev.progress);
+            on(Progress::Eval {
+                step: run.done(),
+                metric: ev.metric,
+                best: ev.best,
+                val_mse: ev.val_mse,
+            });
         }
         if checkpoints.due(run.done(), finished) {
             run.save_checkpoint(dir)?;

@@ -102,12 +102,9 @@ impl Learner for ExpertTrainer {
                 ("eval/metric", ev.mean as f64),
                 ("eval/final_sample", ev.final_sample_mean as f64),
             ],
-            progress: Progress::Eval {
-                step: self.env_steps,
-                metric: ev.mean,
-                best: self.best.map_or(ev.mean, |b| b.metric),
-                val_mse: None,
-            },
+            metric: ev.mean,
+            best: self.best.map_or(ev.mean, |b| b.metric),
+            val_mse: None,
             stopped: false,
         }))
     }

@@ -107,12 +107,9 @@ impl Learner for MetaBc {
                 ("eval/val_best_mse", self.best_mse as f64),
                 ("eval/val_best_metric", self.best_metric as f64),
             ],
-            progress: Progress::Eval {
-                step: self.steps,
-                metric: val_metric,
-                best: self.best_metric,
-                val_mse: Some(val_mse),
-            },
+            metric: val_metric,
+            best: self.best_metric,
+            val_mse: Some(val_mse),
             stopped,
         }))
     }

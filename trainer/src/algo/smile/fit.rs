@@ -111,12 +111,9 @@ impl Learner for Smile {
                 ("eval/val_metric", m as f64),
                 ("eval/val_best", self.best as f64),
             ],
-            progress: Progress::Eval {
-                step: self.updates,
-                metric: m,
-                best: self.best,
-                val_mse: None,
-            },
+            metric: m,
+            best: self.best,
+            val_mse: None,
             stopped: false,
         }))
     }
