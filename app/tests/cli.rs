@@ -152,6 +152,51 @@ fn expert_resume_demos_pipeline() {
     std::fs::remove_dir_all(&d).ok();
 }
 
+/// `--distinct-starts` evaluates the scripted classifier from every task's own reset seeds and
+/// says so in `eval.json`; without it the evaluation's seeds are shared across tasks.
+#[test]
+fn the_scripted_classifier_is_evaluated_from_distinct_starts_when_asked() {
+    let d = tmp("linclass-distinct");
+    let goal = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts/ant-goal");
+    let mut evals = Vec::new();
+    for (name, extra) in [
+        ("shared", &[][..]),
+        ("distinct", &["--distinct-starts"][..]),
+    ] {
+        let out = d.join(name);
+        let base = [
+            "expert",
+            "--kind",
+            "scripted-linclass",
+            "--eval-episodes",
+            "1",
+            "--quiet",
+        ];
+        let paths = [
+            "--goal-expert",
+            goal.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        let res = smile(&[&base[..], &paths, extra].concat());
+        assert!(
+            res.status.success(),
+            "{}",
+            String::from_utf8_lossy(&res.stderr)
+        );
+        let text = std::fs::read_to_string(out.join("eval.json")).unwrap();
+        evals.push(serde_json::from_str::<serde_json::Value>(&text).unwrap());
+    }
+    assert_eq!(evals[0]["distinct_starts"], false);
+    assert_eq!(evals[1]["distinct_starts"], true);
+    // The same tasks, other walks: the per-task successes differ somewhere.
+    assert_ne!(
+        evals[0]["report"]["per_task"],
+        evals[1]["report"]["per_task"]
+    );
+    std::fs::remove_dir_all(&d).ok();
+}
+
 #[test]
 fn unknown_config_key_is_rejected() {
     let d = tmp("badcfg");

@@ -124,10 +124,10 @@ pub fn scripted_target(oracle_obs: &[f32]) -> Result<[f32; 2], SimError> {
 /// --eval-episodes 10` (1.00 at 1.2), whose 320 episodes are 20 distinct walks (its seeds
 /// repeat across tasks). On 320 distinct walks and today's float path (2026-12-07,
 /// `docs/results/linclass-walk-end/README.md`): 0.881 / 0.866 / 0.881 / 0.819 / 0.788 at
-/// 1.0 / 1.1 / 1.2 / 1.3 / 1.4, flat to 1.2. Every failure is a no-op (too slow, stopped short
-/// or beside, or past), never the wrong target. The default of `smile expert --kind
-/// scripted-linclass --aim-scale`: the MuJoCo ant-goal expert wants its own
-/// (`assets/experts/ant-linclass-mujoco/README.md`).
+/// 1.0 / 1.1 / 1.2 / 1.3 / 1.4 (`smile expert --distinct-starts`), flat to 1.2. A failure is a
+/// no-op (too slow, stopped short or beside, or past), the wrong target on at most 1 walk in
+/// 320. The default of `smile expert --kind scripted-linclass --aim-scale`: the MuJoCo ant-goal
+/// expert wants its own (`assets/experts/ant-linclass-mujoco/README.md`).
 pub const AIM_SCALE: f32 = 1.2;
 
 /// Writes the ant-goal oracle observation (the ant's 29 entries, then the goal (x, y)) that

@@ -1,7 +1,7 @@
 //! Where the scripted ant-linclass classifier's episodes end. Its evaluations (`smile expert
-//! --kind scripted-linclass`) show that it never reaches the wrong target: every failure is a
-//! no-op, the torso never entering the correct target's decision radius within the 50 steps
-//! (`docs/results/ant-goal-mujoco-3m/README.md`). They do not show why. This example replays
+//! --kind scripted-linclass`) show that it (nearly) never reaches the wrong target: a failure
+//! is a no-op, the torso never entering the correct target's decision radius within the 50
+//! steps (`docs/results/ant-goal-mujoco-3m/README.md`). They do not show why. This example replays
 //! the same episodes (the scripted expert written as that command writes it, the 32 meta-test
 //! hyperplanes, reset seeds `EXPERT_EVAL_SEED + k`) and follows the torso's distance to the
 //! correct target at every step: a failure still closing in at the end was too slow; one
@@ -89,12 +89,12 @@ fn parse() -> Result<Args, String> {
     })
 }
 
-/// One episode: whether it decided correctly, and the torso's distance to the correct target
-/// after each step.
+/// One episode: its decision, and the torso's distance to the correct target after each step.
 struct Walk {
     target: [f32; 2],
     episode: u64,
-    correct: bool,
+    /// The latched decision at the end: 1 the correct target, -1 the wrong one, 0 none.
+    decision: f32,
     distance: Vec<f32>,
 }
 
@@ -149,7 +149,7 @@ fn walks(args: &Args, expert: &Expert) -> Result<Vec<Walk>, Box<dyn std::error::
             let mut walk = Walk {
                 target: env.correct_target(),
                 episode: k,
-                correct: false,
+                decision: 0.0,
                 distance: Vec::new(),
             };
             loop {
@@ -157,7 +157,7 @@ fn walks(args: &Args, expert: &Expert) -> Result<Vec<Walk>, Box<dyn std::error::
                 expert.act(&oracle, &mut action)?;
                 let tr = env.step(&action)?;
                 let done = tr.done;
-                walk.correct = tr.info.metric_sample > 0.0;
+                walk.decision = tr.info.metric_sample;
                 let ([x, y], [tx, ty]) = (env.torso_xy(), env.correct_target());
                 walk.distance.push((x - tx).hypot(y - ty));
                 if done {
@@ -187,17 +187,23 @@ fn report(what: &str, walks: &[Walk]) {
             None => distinct.push((w, 1)),
         }
     }
-    let (ok, failed): (Vec<&Walk>, Vec<&Walk>) = walks.iter().partition(|w| w.correct);
-    // A failure's kind: still closing in at the end (too slow); its closest approach earlier
-    // and the end within STALLED of it (it stopped short or beside); or further (past, around).
+    let (ok, failed): (Vec<&Walk>, Vec<&Walk>) = walks.iter().partition(|w| w.decision > 0.0);
+    let wrong = failed.iter().filter(|w| w.decision < 0.0).count();
+    // A no-op's kind: still closing in at the end (too slow); its closest approach earlier and
+    // the end within STALLED of it (it stopped short or beside); or further (past, around).
     const STALLED: f32 = 0.1;
     let kind = |w: &Walk| {
         let (closest, step) = w.closest();
         let end = w.distance.last().copied().unwrap_or(f32::NAN);
-        match (step == w.distance.len(), end - closest < STALLED) {
-            (true, _) => 0,
-            (false, true) => 1,
-            (false, false) => 2,
+        match (
+            w.decision < 0.0,
+            step == w.distance.len(),
+            end - closest < STALLED,
+        ) {
+            (true, _, _) => 3,
+            (false, true, _) => 0,
+            (false, false, true) => 1,
+            (false, false, false) => 2,
         }
     };
     let count = |k| failed.iter().filter(|w| kind(w) == k).count();
@@ -210,14 +216,14 @@ fn report(what: &str, walks: &[Walk]) {
     let late = entered.iter().filter(|s| **s > 40.0).count();
     println!("### {what}\n");
     println!(
-        "| episodes | distinct walks | success | failed: still closing in at the end | stopped \
+        "| episodes | distinct walks | success | failed: the wrong target | still closing in at the end | stopped \
          short or beside (ends within {STALLED} m of its closest) | past or around | failures' \
          closest approach, median (m) | successes' entry step, median | successes entering \
          after step 40 |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     println!(
-        "| {n} | {} | {:.4} | {} | {} | {} | {closest:.3} | {} | {late} |\n",
+        "| {n} | {} | {:.4} | {wrong} | {} | {} | {} | {closest:.3} | {} | {late} |\n",
         distinct.len(),
         ok.len() as f32 / n as f32,
         count(0),
@@ -230,7 +236,7 @@ fn report(what: &str, walks: &[Walk]) {
         "| target | episode k | episodes | closest to the target (m) | at step | at the end (m) |"
     );
     println!("|---|---|---|---|---|---|");
-    for (w, count) in distinct.iter().filter(|(w, _)| !w.correct) {
+    for (w, count) in distinct.iter().filter(|(w, _)| w.decision <= 0.0) {
         let (d, step) = w.closest();
         let end = w.distance.last().copied().unwrap_or(f32::NAN);
         let [x, y] = w.target;

@@ -389,6 +389,31 @@ fn the_scripted_linclass_expert_drives_the_shipped_ant_goal_expert_to_the_correc
     std::fs::remove_dir_all(&d).ok();
 }
 
+/// An evaluation from distinct starts resets task i's episode k with seed `1_000_000 + i *
+/// episodes + k`: the first task's episodes are the plain evaluation's, the others' are not.
+#[test]
+fn an_evaluation_from_distinct_starts_reseeds_every_task_but_the_first() {
+    trainer::threads::set_compute_threads(1);
+    let assets = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../assets/experts");
+    let ex = Expert::load(&assets.join("ant-goal")).unwrap();
+    let tasks = Family::ANT_GOAL.test_tasks()[..3].to_vec();
+    let env = EnvConfig::new(Some(20), sim::Physics::Rapier);
+    let shared = expert::evaluate(&ex, &tasks, 2, env).unwrap();
+    let distinct = expert::evaluate_distinct(&ex, &tasks, 2, env).unwrap();
+    assert_eq!(distinct.per_task[0], shared.per_task[0]);
+    for i in 1..3 {
+        assert_ne!(distinct.per_task[i], shared.per_task[i], "task {i}");
+    }
+    // Task 1's two episodes are the plain evaluation's episodes 2 and 3 of that task.
+    let four = expert::evaluate(&ex, &tasks[1..2], 4, env).unwrap();
+    let (first_two, all) = (shared.per_task[1], four.per_task[0]);
+    assert!(
+        (2.0 * all - first_two - distinct.per_task[1]).abs() < 1e-5,
+        "{all} {first_two} {}",
+        distinct.per_task[1]
+    );
+}
+
 /// A resume of an expert run killed before its first checkpoint starts it over with its
 /// recorded `config.toml`, as a meta-learner's does: the same policy as the uninterrupted run,
 /// the dead run's files cleared. A finished run whose checkpoint is gone is refused, its files

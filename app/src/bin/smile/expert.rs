@@ -107,6 +107,11 @@ pub struct ExpertArgs {
     /// write a metric no episode measured).
     #[arg(long, default_value_t = 2, value_parser = crate::positive)]
     eval_episodes: usize,
+    /// Evaluate every task's episodes from reset seeds of its own, not the same seeds in every
+    /// task: for --kind scripted-linclass, whose 32 tasks x 10 episodes are otherwise 20
+    /// distinct walks (it sees the hyperplane only through one of two targets).
+    #[arg(long)]
+    distinct_starts: bool,
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
@@ -178,7 +183,7 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         trainer::checkpoint::ensure_fresh_run_dir(&dir)?;
         std::fs::create_dir_all(&dir)?;
         expert::export_scripted_pd(&dir)?;
-        return finish(&dir, a.eval_episodes, None, EnvConfig::default());
+        return finish(&dir, &a, None, EnvConfig::default());
     }
     if a.kind == ExpertKind::ScriptedLinclass {
         let env = a.env.unwrap_or(Family::ANT_LINCLASS);
@@ -199,7 +204,7 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         std::fs::create_dir_all(&dir)?;
         expert::export_scripted_linclass(goal, a.aim_scale, &dir)
             .with_context(|| format!("--goal-expert {}", goal.display()))?;
-        return finish(&dir, a.eval_episodes, None, EnvConfig::default());
+        return finish(&dir, &a, None, EnvConfig::default());
     }
     if a.goal_expert.is_some() {
         bail!("--goal-expert is for --kind scripted-linclass");
@@ -239,7 +244,7 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         (None, None) => None,
         _ => Some(cfg.tasks()?),
     };
-    finish(&req.out, a.eval_episodes, tasks, env_cfg)
+    finish(&req.out, &a, tasks, env_cfg)
 }
 
 /// Trains the run `req` describes, rendering its progress.
@@ -283,14 +288,15 @@ fn train(req: &ExpertRequest, quiet: bool) -> Result<ExpertConfig> {
     }
 }
 
-/// Evaluate the exported expert deterministically (episodes as in training) and write
-/// `eval.json`.
+/// Evaluate the exported expert deterministically (episodes as in training, or from distinct
+/// starts) and write `eval.json`.
 fn finish(
     dir: &Path,
-    episodes: usize,
+    a: &ExpertArgs,
     own_tasks: Option<Vec<sim::Task>>,
     env_cfg: EnvConfig,
 ) -> Result<()> {
+    let episodes = a.eval_episodes;
     let ex = Expert::load(dir)?;
     let family = ex.family();
     // The expert is evaluated on the plant it was trained on.
@@ -302,22 +308,31 @@ fn finish(
         Some(t) => (t, "its own task"),
         None => (family.test_tasks(), "meta-test tasks"),
     };
-    let rep = expert::evaluate(&ex, &tasks, episodes, env_cfg)?;
+    let rep = match a.distinct_starts {
+        true => expert::evaluate_distinct(&ex, &tasks, episodes, env_cfg)?,
+        false => expert::evaluate(&ex, &tasks, episodes, env_cfg)?,
+    };
     let kind = format!("{:?}", family.metric_kind());
     println!(
         "{} expert in {}: {kind} = {:.4}, last-step sample {:.4} (mean over {} {label}, \
-         {episodes} deterministic episodes each)",
+         {episodes} deterministic episodes each{})",
         ex.name(),
         dir.display(),
         rep.mean,
         rep.final_sample_mean,
-        tasks.len()
+        tasks.len(),
+        if a.distinct_starts {
+            ", from distinct starts"
+        } else {
+            ""
+        }
     );
     let json = serde_json::json!({
         "expert": ex.name(), "env": family.name(), "physics": ex.physics().name(),
         "metric": kind, "report": rep,
         "tasks": tasks.iter().map(|t| t.label()).collect::<Vec<_>>(),
         "episodes_per_task": episodes, "horizon": env_cfg.horizon,
+        "distinct_starts": a.distinct_starts,
     });
     std::fs::write(
         dir.join("eval.json"),

@@ -218,7 +218,7 @@ pub struct EvalReport {
 }
 
 /// The family's metric over `tasks`, `episodes` deterministic rollouts each (reset seeds
-/// `1_000_000 + k`).
+/// `1_000_000 + k`, the same in every task).
 pub fn evaluate(
     expert: &Expert,
     tasks: &[Task],
@@ -226,6 +226,21 @@ pub fn evaluate(
     env_cfg: EnvConfig,
 ) -> Result<EvalReport> {
     evaluate_under_noise(expert, tasks, episodes, env_cfg, 0.0)
+}
+
+/// [`evaluate`] with reset seeds of each task's own (`1_000_000 + i * episodes + k` for task
+/// `i`), as demos' distinct starts. Where the task reaches an expert only through a few
+/// choices, the same seeds in every task walk the same walks: ant-linclass's scripted expert
+/// sees its hyperplane only through one of two targets, so [`evaluate`]'s 32 tasks x 10
+/// episodes are 20 distinct walks, and these are 320.
+pub fn evaluate_distinct(
+    expert: &Expert,
+    tasks: &[Task],
+    episodes: usize,
+    env_cfg: EnvConfig,
+) -> Result<EvalReport> {
+    let seeds = |task: usize, k: usize| (task * episodes + k) as u64;
+    evaluate_episodes(expert, tasks, episodes, env_cfg, 0.0, &seeds)
 }
 
 /// [`evaluate`] with Gaussian noise of standard deviation `action_noise` added to every
@@ -237,6 +252,20 @@ pub fn evaluate_under_noise(
     env_cfg: EnvConfig,
     action_noise: f32,
 ) -> Result<EvalReport> {
+    evaluate_episodes(expert, tasks, episodes, env_cfg, action_noise, &|_, k| {
+        k as u64
+    })
+}
+
+/// The evaluation, episode `k` of task `i` reset with seed `1_000_000 + seed(i, k)`.
+fn evaluate_episodes(
+    expert: &Expert,
+    tasks: &[Task],
+    episodes: usize,
+    env_cfg: EnvConfig,
+    action_noise: f32,
+    seed: &dyn Fn(usize, usize) -> u64,
+) -> Result<EvalReport> {
     let family = expert.family();
     let what = || format!("the {} expert", expert.name());
     Error::same_plant(what, expert.physics(), env_cfg.physics)?;
@@ -245,10 +274,10 @@ pub fn evaluate_under_noise(
     let mut action = vec![0.0f32; family.act_dim()];
     let mut per_task = Vec::with_capacity(tasks.len());
     let (mut final_sum, mut n) = (0.0f32, 0usize);
-    for task in tasks {
+    for (i, task) in tasks.iter().enumerate() {
         let mut sum = 0.0f32;
         for k in 0..episodes {
-            let seed = sim::seeds::EXPERT_EVAL_SEED + k as u64;
+            let seed = sim::seeds::EXPERT_EVAL_SEED + seed(i, k);
             env.reset(task, seed)?;
             let mut noise = crate::data::ActionNoise::new(action_noise, seed);
             let mut m = EpisodeMetric::new(family);
