@@ -308,9 +308,10 @@ fn finish(
         Some(t) => (t, "its own task"),
         None => (family.test_tasks(), "meta-test tasks"),
     };
-    let rep = match a.distinct_starts {
-        true => expert::evaluate_distinct(&ex, &tasks, episodes, env_cfg)?,
-        false => expert::evaluate(&ex, &tasks, episodes, env_cfg)?,
+    let rep = if a.distinct_starts {
+        expert::evaluate_distinct(&ex, &tasks, episodes, env_cfg)?
+    } else {
+        expert::evaluate(&ex, &tasks, episodes, env_cfg)?
     };
     let kind = format!("{:?}", family.metric_kind());
     println!(
