@@ -29,7 +29,7 @@ use std::process::ExitCode;
 
 use sim::ant_linclass::{AntLinClassEnv, DECISION_RADIUS};
 use sim::{EnvConfig, Environment, Family, Physics};
-use trainer::expert::{Expert, export_scripted_linclass};
+use trainer::expert::{Expert, eval_seed, export_scripted_linclass};
 
 /// Which scripted experts to replay.
 enum Source {
@@ -44,7 +44,7 @@ struct Args {
     /// The plant, when given: it must be the expert's (default: the expert's).
     physics: Option<Physics>,
     episodes: u64,
-    /// Reset seeds of their own per task (`EXPERT_EVAL_SEED + task * episodes + k`), as demos'
+    /// Reset seeds of their own per task (`trainer::expert::eval_seed`), as demos'
     /// `--distinct-starts`: the evaluation's seeds repeat across tasks, so its episodes are
     /// only as many distinct walks as targets times episodes.
     distinct_starts: bool,
@@ -146,17 +146,13 @@ fn walks(args: &Args, expert: &Expert) -> Result<Vec<Walk>, Box<dyn std::error::
         vec![0.0; family.act_dim()],
     );
     let mut out = Vec::new();
+    let episodes = args.episodes as usize;
     for (i, task) in family.test_tasks().into_iter().enumerate() {
-        let first = if args.distinct_starts {
-            i as u64 * args.episodes
-        } else {
-            0
-        };
-        for k in 0..args.episodes {
-            env.reset(&task, sim::seeds::EXPERT_EVAL_SEED + first + k)?;
+        for k in 0..episodes {
+            env.reset(&task, eval_seed(i, k, episodes, args.distinct_starts))?;
             let mut walk = Walk {
                 target: env.correct_target(),
-                episode: k,
+                episode: k as u64,
                 decision: 0.0,
                 distance: Vec::new(),
             };

@@ -466,9 +466,12 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
     // Finished, then its checkpoint lost: nothing to continue, and nothing is removed.
     std::fs::remove_file(d.join(checkpoint::CHECKPOINT_FILE)).unwrap();
     let log = read(trainer::METRICS_FILE);
-    let e = train_expert(&request(None), &mut |_| {})
-        .unwrap_err()
-        .to_string();
+    let refusal = || {
+        train_expert(&request(None), &mut |_| {})
+            .unwrap_err()
+            .to_string()
+    };
+    let e = refusal();
     assert!(
         e.contains("holds a finished run") && e.contains("is kept"),
         "{e}"
@@ -478,9 +481,7 @@ fn a_resume_without_a_checkpoint_starts_the_recorded_run_over() {
 
     // A meta-learner's run (it records run.json) is not an expert's to resume: named, kept.
     std::fs::write(d.join(trainer::run::RUN_FILE), r#"{"algo": "meta-bc"}"#).unwrap();
-    let e = train_expert(&request(None), &mut |_| {})
-        .unwrap_err()
-        .to_string();
+    let e = refusal();
     assert!(
         e.contains("holds a meta-bc run") && e.contains("not an expert's"),
         "{e}"

@@ -28,8 +28,8 @@ use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::threads::LearnerPool;
 pub use demos::{DemoSpec, record, record_with};
 pub use set::{
-    EvalReport, ExpertSet, SCRIPTED_PD, evaluate, evaluate_distinct, evaluate_under_noise,
-    trained_task_value,
+    EvalReport, ExpertSet, SCRIPTED_PD, eval_seed, evaluate, evaluate_distinct,
+    evaluate_under_noise, trained_task_value,
 };
 
 mod fit;

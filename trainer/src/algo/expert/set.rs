@@ -228,19 +228,18 @@ pub fn evaluate(
     evaluate_under_noise(expert, tasks, episodes, env_cfg, 0.0)
 }
 
-/// [`evaluate`] with reset seeds of each task's own (`1_000_000 + i * episodes + k` for task
-/// `i`), as demos' distinct starts. Where the task reaches an expert only through a few
-/// choices, the same seeds in every task walk the same walks: ant-linclass's scripted expert
-/// sees its hyperplane only through one of two targets, so [`evaluate`]'s 32 tasks x 10
-/// episodes are 20 distinct walks, and these are 320.
+/// [`evaluate`] with reset seeds of each task's own ([`eval_seed`] with `distinct_starts`), as
+/// demos' distinct starts. Where the task reaches an expert only through a few choices, the
+/// same seeds in every task walk the same walks: ant-linclass's scripted expert sees its
+/// hyperplane only through one of two targets, so [`evaluate`]'s 32 tasks x 10 episodes are 20
+/// distinct walks, and these are 320.
 pub fn evaluate_distinct(
     expert: &Expert,
     tasks: &[Task],
     episodes: usize,
     env_cfg: EnvConfig,
 ) -> Result<EvalReport> {
-    let seeds = |task: usize, k: usize| (task * episodes + k) as u64;
-    evaluate_episodes(expert, tasks, episodes, env_cfg, 0.0, &seeds)
+    evaluate_episodes(expert, tasks, episodes, env_cfg, 0.0, true)
 }
 
 /// [`evaluate`] with Gaussian noise of standard deviation `action_noise` added to every
@@ -252,19 +251,25 @@ pub fn evaluate_under_noise(
     env_cfg: EnvConfig,
     action_noise: f32,
 ) -> Result<EvalReport> {
-    evaluate_episodes(expert, tasks, episodes, env_cfg, action_noise, &|_, k| {
-        k as u64
-    })
+    evaluate_episodes(expert, tasks, episodes, env_cfg, action_noise, false)
 }
 
-/// The evaluation, episode `k` of task `i` reset with seed `1_000_000 + seed(i, k)`.
+/// The reset seed of an expert evaluation's episode `k` of task `task` (of `episodes` a
+/// task): `1_000_000 + k` in every task, or with `distinct_starts` `1_000_000 + task *
+/// episodes + k`.
+pub fn eval_seed(task: usize, k: usize, episodes: usize, distinct_starts: bool) -> u64 {
+    let first = if distinct_starts { task * episodes } else { 0 };
+    sim::seeds::EXPERT_EVAL_SEED + (first + k) as u64
+}
+
+/// The evaluation, episode `k` of task `i` reset with [`eval_seed`].
 fn evaluate_episodes(
     expert: &Expert,
     tasks: &[Task],
     episodes: usize,
     env_cfg: EnvConfig,
     action_noise: f32,
-    seed: &dyn Fn(usize, usize) -> u64,
+    distinct_starts: bool,
 ) -> Result<EvalReport> {
     let family = expert.family();
     let what = || format!("the {} expert", expert.name());
@@ -277,7 +282,7 @@ fn evaluate_episodes(
     for (i, task) in tasks.iter().enumerate() {
         let mut sum = 0.0f32;
         for k in 0..episodes {
-            let seed = sim::seeds::EXPERT_EVAL_SEED + seed(i, k);
+            let seed = eval_seed(i, k, episodes, distinct_starts);
             env.reset(task, seed)?;
             let mut noise = crate::data::ActionNoise::new(action_noise, seed);
             let mut m = EpisodeMetric::new(family);
