@@ -73,8 +73,8 @@ pub use algo::expert::{DemoSpec, record as record_demos, record_with as record_d
 pub use algo::distill::{DistillConfig, DistillReport, distill_through_sensing};
 /// Demos, the meta-train split, rollouts and replay.
 pub use data::{
-    ActFn, ActionNoise, Batch, BatchVecs, Episode, MetaData, ReplayBuffer, Step, TaskReplay,
-    better, quick_eval, read_demos, read_demos_of, run_episode,
+    ActFn, ActionNoise, Batch, BatchVecs, Episode, HeldOut, MetaData, ReplayBuffer, Step,
+    TaskReplay, better, quick_eval, read_demos, read_demos_of, run_episode,
 };
 /// Training through the device's senses: a learner's `[sensing]` section and the rollout that
 /// reads the plant as firmware-sim's loop does.

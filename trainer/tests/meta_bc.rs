@@ -111,7 +111,7 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
         select_by: meta_bc::Selection::Rollouts,
         ..tiny(false)
     };
-    let env_cfg = cfg.env_config();
+    let (env_cfg, held_out) = (cfg.env_config(), cfg.held_out());
     let mut run = MetaBc::new(cfg, run_data(), None).unwrap();
     let mut metrics = Vec::new();
     trainer::fit(&mut run, &dir, &mut |e| {
@@ -123,7 +123,7 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
     // Min distance: lower is better. The kept policy reproduces the best held-out value.
     let best = metrics.iter().cloned().fold(f32::INFINITY, f32::min);
     let kept = MetaPolicy::load(&dir).unwrap();
-    let again = trainer::quick_eval(&kept, &run_data().val, 2, 1, 1, env_cfg).unwrap();
+    let again = trainer::quick_eval(&kept, &run_data().val, held_out, env_cfg).unwrap();
     assert_eq!(again, best, "kept {again}, evaluations {metrics:?}");
     // It is not simply the last evaluation (otherwise the test proves nothing).
     assert_ne!(best, *metrics.last().unwrap(), "{metrics:?}");

@@ -122,14 +122,16 @@ impl ExpertConfig {
     /// Rejects values that cannot train: a positive step budget, replay, update rate and
     /// evaluation, an episode of at least one step, valid SAC settings and thread count.
     pub fn validate(&self) -> Result<()> {
-        crate::io::require_budget(&[("total_steps", self.total_steps)])?;
-        crate::io::require_positive(&[
-            ("updates_per_step", self.updates_per_step as u64),
-            ("buffer_capacity", self.buffer_capacity as u64),
-            ("eval_episodes", self.eval_episodes as u64),
-        ])?;
-        crate::io::require_horizon(self.horizon)?;
-        crate::threads::check_learner_threads(self.learner_threads)?;
+        crate::io::require_run(
+            ("total_steps", self.total_steps),
+            &[
+                ("updates_per_step", self.updates_per_step),
+                ("buffer_capacity", self.buffer_capacity),
+                ("eval_episodes", self.eval_episodes),
+            ],
+            self.horizon,
+            self.learner_threads,
+        )?;
         if self.learning_starts >= self.total_steps && self.init_from.is_none() {
             // Every step would act at random and no update would run: a run that trains
             // nothing and still writes an expert (issue 72, item 4).

@@ -387,13 +387,12 @@ impl Smile {
     /// Deterministic evaluation on the held-out train tasks (contexts of
     /// `eval_context_size` trajectories).
     pub fn validate(&self) -> Result<f32> {
+        let cfg = &self.cfg;
         quick_eval(
             &self.meta_policy(),
             &self.data.val,
-            self.cfg.eval_contexts,
-            self.cfg.eval_context_size,
-            self.cfg.eval_episodes,
-            self.cfg.env_config(),
+            cfg.held_out(),
+            cfg.env_config(),
         )
     }
 }

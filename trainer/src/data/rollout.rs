@@ -100,17 +100,44 @@ pub fn run_episode(
     }
 }
 
-/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `contexts` draws of
-/// `context_size` context trajectories (draw d: trajectories d*k .. d*k + k, wrapping) and
-/// `episodes` rollouts each; z = posterior mean.
+/// How a meta-learner's held-out evaluation draws its contexts and rollouts: its
+/// configuration's `eval_contexts`, `eval_context_size` and `eval_episodes`, the same keys in
+/// SMILe's and Meta-BC's.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct HeldOut {
+    /// Context draws per task.
+    pub contexts: usize,
+    /// Trajectories in a context (at most the task's demos).
+    pub context_size: usize,
+    /// Rollouts per context.
+    pub episodes: usize,
+}
+
+impl HeldOut {
+    /// Refuses a zero (or absurd) count, naming its configuration key.
+    pub(crate) fn check(&self) -> Result<()> {
+        crate::io::require_positive(&[
+            ("eval_contexts", self.contexts as u64),
+            ("eval_context_size", self.context_size as u64),
+            ("eval_episodes", self.episodes as u64),
+        ])
+    }
+}
+
+/// Mean metric of deterministic rollouts of `mp` on `tasks`: per task, `protocol.contexts`
+/// draws of `protocol.context_size` context trajectories (draw d: trajectories d*k .. d*k + k,
+/// wrapping) and `protocol.episodes` rollouts each; z = posterior mean.
 pub fn quick_eval(
     mp: &MetaPolicy,
     tasks: &[TaskDemos],
-    contexts: usize,
-    context_size: usize,
-    episodes: usize,
+    protocol: HeldOut,
     env_cfg: EnvConfig,
 ) -> Result<f32> {
+    let HeldOut {
+        contexts,
+        context_size,
+        episodes,
+    } = protocol;
     if tasks.is_empty() {
         return Ok(f32::NAN);
     }

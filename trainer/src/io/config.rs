@@ -84,7 +84,7 @@ pub(crate) fn require_positive(counts: &[(&str, u64)]) -> crate::error::Result<(
 }
 
 /// [`require_positive`] for training budgets, at most [`MAX_STEPS`].
-pub(crate) fn require_budget(counts: &[(&str, u64)]) -> crate::error::Result<()> {
+fn require_budget(counts: &[(&str, u64)]) -> crate::error::Result<()> {
     require_within(counts, MAX_STEPS)
 }
 
@@ -97,8 +97,24 @@ fn require_within(counts: &[(&str, u64)], max: u64) -> crate::error::Result<()> 
     }
 }
 
+/// The checks every learner's configuration makes alike, each naming its key: the training
+/// `budget` (1 to [`MAX_STEPS`]), its `counts` (each 1 to [`MAX_COUNT`]), the episode-length
+/// override and the learner's thread count. A learner's own rules follow in its `validate`.
+pub(crate) fn require_run(
+    budget: (&str, u64),
+    counts: &[(&str, usize)],
+    horizon: Option<usize>,
+    learner_threads: usize,
+) -> crate::error::Result<()> {
+    require_budget(&[budget])?;
+    let counts: Vec<(&str, u64)> = counts.iter().map(|&(k, v)| (k, v as u64)).collect();
+    require_positive(&counts)?;
+    require_horizon(horizon)?;
+    crate::threads::check_learner_threads(learner_threads)
+}
+
 /// An episode-length override must be 1 to [`MAX_HORIZON`] steps (`None`: the family's own).
-pub(crate) fn require_horizon(horizon: Option<usize>) -> crate::error::Result<()> {
+fn require_horizon(horizon: Option<usize>) -> crate::error::Result<()> {
     match horizon {
         Some(h) if h == 0 || h > MAX_HORIZON => Err(crate::error::Error::Config(format!(
             "horizon must be 1 to {MAX_HORIZON} steps (leave it out for the family's own \

@@ -15,6 +15,6 @@ pub mod run_dir;
 
 pub use config::{MAX_COUNT, MAX_HORIZON, MAX_STEPS};
 pub use config::{from_toml_over_defaults, set_key};
-pub(crate) use config::{require_budget, require_horizon, require_positive};
+pub(crate) use config::{require_positive, require_run};
 pub use lock::DirLock;
 pub use metrics::{METRICS_FILE, MetricsLog};

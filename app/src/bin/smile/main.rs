@@ -23,12 +23,10 @@ mod report;
 mod sweep;
 mod train;
 
+/// SMILe: meta-train a few-shot imitation policy (SMILe, Meta-BC, Meta-DAgger), evaluate it and
+/// export it to a no_std device blob
 #[derive(Parser, Debug)]
-#[command(
-    name = "smile",
-    version,
-    about = "SMILe: meta-train a few-shot imitation policy (SMILe, Meta-BC, Meta-DAgger), evaluate it and export it to a no_std device blob"
-)]
+#[command(name = "smile", version)]
 struct Cli {
     /// Threads for candle's matmul, 1 to 64 (1 is fastest on 2 vCPUs shared with rollouts).
     #[arg(long, global = true, default_value_t = 1, value_parser = parse_threads)]

@@ -11,12 +11,9 @@ use firmware_sim::{DeviceConfig, LoopConfig, SessionConfig, ram_needed, run_sess
 use serde::Serialize;
 use sim::{DemoDataset, EnvConfig, ExportReport, Family, Task, TaskDemos};
 
+/// Run a SMILe policy blob on a simulated microcontroller
 #[derive(Parser, Debug)]
-#[command(
-    name = "firmware-sim",
-    version,
-    about = "Run a SMILe policy blob on a simulated microcontroller"
-)]
+#[command(version)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,

@@ -3,7 +3,7 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
-use crate::data::{ContextDraw, EarlyWeight};
+use crate::data::{ContextDraw, EarlyWeight, HeldOut};
 use crate::error::{Error, Result};
 use crate::model::ContextConfig;
 
@@ -159,6 +159,16 @@ impl MetaBcConfig {
         }
     }
 
+    /// The held-out evaluation's contexts and rollouts (`eval_contexts`,
+    /// `eval_context_size`, `eval_episodes`).
+    pub fn held_out(&self) -> HeldOut {
+        HeldOut {
+            contexts: self.eval_contexts,
+            context_size: self.eval_context_size,
+            episodes: self.eval_episodes,
+        }
+    }
+
     /// Episode options (the horizon override).
     pub fn env_config(&self) -> EnvConfig {
         EnvConfig::new(self.horizon, self.physics)
@@ -166,17 +176,17 @@ impl MetaBcConfig {
 
     /// Checks the values: positive batch sizes and rates, a finite positive learning rate.
     pub fn validate(&self) -> Result<()> {
-        crate::io::require_budget(&[("total_steps", self.total_steps)])?;
-        crate::io::require_positive(&[
-            ("eval_episodes", self.eval_episodes as u64),
-            ("tasks_per_batch", self.tasks_per_batch as u64),
-            ("per_task", self.per_task as u64),
-            ("max_context", self.max_context as u64),
-            ("eval_context_size", self.eval_context_size as u64),
-            ("eval_contexts", self.eval_contexts as u64),
-        ])?;
-        crate::io::require_horizon(self.horizon)?;
-        crate::threads::check_learner_threads(self.learner_threads)?;
+        crate::io::require_run(
+            ("total_steps", self.total_steps),
+            &[
+                ("tasks_per_batch", self.tasks_per_batch),
+                ("per_task", self.per_task),
+                ("max_context", self.max_context),
+            ],
+            self.horizon,
+            self.learner_threads,
+        )?;
+        self.held_out().check()?;
         if !(self.lr.is_finite() && self.lr > 0.0) {
             return Err(Error::Config(format!(
                 "meta-bc lr must be positive, got {}",

@@ -75,9 +75,7 @@ impl Learner for MetaBc {
         let val_metric = quick_eval(
             &self.meta_policy(),
             &self.data.val,
-            cfg.eval_contexts,
-            cfg.eval_context_size,
-            cfg.eval_episodes,
+            cfg.held_out(),
             cfg.env_config(),
         )?;
         let improved = match cfg.select_by {

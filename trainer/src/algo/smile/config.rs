@@ -4,7 +4,7 @@ use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
 use crate::algo::sac::SacConfig;
-use crate::data::ContextDraw;
+use crate::data::{ContextDraw, HeldOut};
 use crate::error::{Error, Result};
 use crate::model::ContextConfig;
 
@@ -213,24 +213,34 @@ impl SmileConfig {
         }
     }
 
+    /// The held-out evaluation's contexts and rollouts (`eval_contexts`,
+    /// `eval_context_size`, `eval_episodes`).
+    pub fn held_out(&self) -> HeldOut {
+        HeldOut {
+            contexts: self.eval_contexts,
+            context_size: self.eval_context_size,
+            episodes: self.eval_episodes,
+        }
+    }
+
     /// Reject values that cannot train.
     pub fn validate(&self) -> Result<()> {
         self.sac.validate()?;
-        crate::io::require_budget(&[("total_updates", self.total_updates)])?;
-        crate::io::require_positive(&[
-            ("tasks_per_batch", self.tasks_per_batch as u64),
-            ("disc_per_task", self.disc_per_task as u64),
-            ("sac_per_task", self.sac_per_task as u64),
-            ("updates_per_iter", self.updates_per_iter as u64),
-            ("max_context", self.max_context as u64),
-            ("eval_context_size", self.eval_context_size as u64),
-            ("replay_per_task", self.replay_per_task as u64),
-            ("rollouts_per_iter", self.rollouts_per_iter as u64),
-            ("eval_episodes", self.eval_episodes as u64),
-            ("eval_contexts", self.eval_contexts as u64),
-        ])?;
-        crate::io::require_horizon(self.horizon)?;
-        crate::threads::check_learner_threads(self.learner_threads)?;
+        crate::io::require_run(
+            ("total_updates", self.total_updates),
+            &[
+                ("tasks_per_batch", self.tasks_per_batch),
+                ("disc_per_task", self.disc_per_task),
+                ("sac_per_task", self.sac_per_task),
+                ("updates_per_iter", self.updates_per_iter),
+                ("max_context", self.max_context),
+                ("replay_per_task", self.replay_per_task),
+                ("rollouts_per_iter", self.rollouts_per_iter),
+            ],
+            self.horizon,
+            self.learner_threads,
+        )?;
+        self.held_out().check()?;
         for (key, v, min_ok) in [
             ("gp_weight", self.gp_weight, self.gp_weight >= 0.0),
             ("logit_clamp", self.logit_clamp, self.logit_clamp > 0.0),
