@@ -196,14 +196,20 @@ impl EpisodeClock {
     }
 }
 
-/// Rejects a task of the wrong family.
-pub(crate) fn check_family(env_family: Family, task: &Task) -> Result<(), SimError> {
-    if task.family() == env_family {
-        Ok(())
-    } else {
-        Err(SimError::TaskFamilyMismatch {
+/// Rejects a task of the wrong family, or one whose value is not finite.
+pub(crate) fn check_task(env_family: Family, task: &Task) -> Result<(), SimError> {
+    if task.family() != env_family {
+        return Err(SimError::TaskFamilyMismatch {
             env_family: env_family.name(),
             task_family: task.family().name(),
-        })
+        });
     }
+    if !task.value().is_finite() {
+        // `Task::new` takes any number; a NaN goal or velocity would poison every reward.
+        return Err(SimError::InvalidTask {
+            family: env_family.name(),
+            reason: format!("its value {} is not finite", task.value()),
+        });
+    }
+    Ok(())
 }

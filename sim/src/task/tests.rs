@@ -164,3 +164,24 @@ fn the_nominal_walker_seed_is_the_unmodified_robot_in_neither_split() {
     assert!(nominal.label().contains("nominal"));
     assert_eq!(Task::cheetah_vel(1.0).walker_dynamics(), None);
 }
+
+#[test]
+fn every_family_refuses_a_task_whose_value_is_not_finite() {
+    // `Task::new` takes any number; a reset must refuse a NaN goal, velocity or seed before it
+    // poisons the rewards (point-goal used to take one).
+    for family in Family::BUILTIN {
+        let mut env = crate::make_env(family, crate::EnvConfig::default()).unwrap();
+        for value in [f64::NAN, f64::INFINITY] {
+            let err = env.reset(&Task::new(family, value), 0).unwrap_err();
+            assert!(
+                matches!(&err, SimError::InvalidTask { family: f, reason } if *f == family.name() && reason.contains("not finite")),
+                "{family}: {err:?}"
+            );
+        }
+        let task = family.train_tasks()[0];
+        assert!(
+            env.reset(&task, 0).is_ok(),
+            "{family}: a finite task still resets"
+        );
+    }
+}
