@@ -13,7 +13,7 @@
 
 use std::path::{Path, PathBuf};
 
-use sim::{DemoDataset, Family, Physics};
+use sim::{DemoDataset, Family};
 
 use crate::algo::expert::ExpertSet;
 use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Progress, Setting, fit};
@@ -108,42 +108,40 @@ pub fn algo_of(req: &TrainRequest) -> Result<Algo> {
 
 /// Starts or resumes the run `req` describes and trains it to its budget or stopping rule.
 pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
-    let (family, ds) = match req.family {
-        Some(family) => (family, read_demos_of(&req.demos, Input::Demos, family)?),
-        None => {
-            let ds = read_demos(&req.demos, Input::Demos)?;
-            (ds.family, ds)
-        }
+    // A demo file of another family than the one asked for is refused here.
+    let ds = match req.family {
+        Some(family) => read_demos_of(&req.demos, Input::Demos, family)?,
+        None => read_demos(&req.demos, Input::Demos)?,
     };
     let demos_sha = checkpoint::sha256_file(&req.demos)?;
     let algo = algo_of(req)?;
-    let mut expert = req.expert.clone();
     // A run killed before its first checkpoint left nothing to continue: `--resume` starts it
     // over with its recorded configuration (a sweep's rerun does the same without the flag).
     let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
+    let learner = registry::Meta::of(algo);
     if restart {
         let cfg = run_dir::restart_config(&req.out)?;
-        on(restarting(&req.out, &cfg, "update"));
+        on(restarting(&req.out, &cfg, learner.unit.word));
     }
-    if req.resume {
+    let expert = if req.resume {
         let rec = RunInfo::read(&req.out)?;
         if let Some(warning) = rec.check_demos(&req.out, &req.demos, &demos_sha)? {
             on(RunEvent::Note(warning));
         }
-        expert = expert.or(rec.expert_path());
+        req.expert.clone().or(rec.expert_path())
     } else {
         checkpoint::ensure_fresh_run_dir(&req.out)?;
-    }
+        req.expert.clone()
+    };
     let run = Run {
         req,
         restart,
         algo,
-        family,
         ds: &ds,
         demos_sha,
         expert,
     };
-    (registry::Meta::of(algo).train)(&run, on)
+    (learner.train)(&run, on)
 }
 
 /// The note of a `--resume` that starts the run in `dir`, killed before its first checkpoint,
@@ -163,7 +161,6 @@ struct Run<'a> {
     /// A `--resume` of a run that has no checkpoint: started over with its configuration.
     restart: bool,
     algo: Algo,
-    family: Family,
     ds: &'a DemoDataset,
     demos_sha: String,
     expert: Option<PathBuf>,
@@ -197,12 +194,12 @@ impl Run<'_> {
         };
         let table = text.parse::<toml::Table>().unwrap_or_default();
         // The family comes from the demos; a file naming another would be silently ignored.
-        if let (Some(env), Some(p)) = (registry::other_env(&table, self.family), &file) {
+        if let (Some(env), Some(p)) = (registry::other_env(&table, self.ds.family), &file) {
             return Err(Error::Config(format!(
                 "{} sets env = {env} but the run is on {} (its demos, {}); remove the key or \
                  give {env} demos",
                 p.display(),
-                self.family,
+                self.ds.family,
                 req.demos.display()
             )));
         }
@@ -215,7 +212,7 @@ impl Run<'_> {
         let mut cfg: C = crate::io::from_toml_over_defaults(&text)
             .map_err(|e| Error::Config(format!("{what}: {e}")))?;
         cfg.apply(self.algo, &settings)?;
-        cfg.configure(self.algo, self.family);
+        cfg.configure(self.algo, self.ds.family);
         Ok(cfg)
     }
 
@@ -223,7 +220,7 @@ impl Run<'_> {
     fn relabelling_expert(&self, on: &mut dyn FnMut(RunEvent)) -> Result<Option<ExpertSet>> {
         let algo = self.algo;
         if algo.needs_expert() {
-            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), self.family)?;
+            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), self.ds.family)?;
             on(RunEvent::Note(format!("{algo}: {note}")));
             return Ok(Some(set));
         }
@@ -243,11 +240,7 @@ impl Run<'_> {
     /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
     /// nothing behind) and records the run. The returned lock is held for the whole
     /// training: a second writer is refused.
-    fn start_dir(
-        &self,
-        physics: Physics,
-        on: &mut dyn FnMut(RunEvent),
-    ) -> Result<crate::io::DirLock> {
+    fn start_dir(&self, on: &mut dyn FnMut(RunEvent)) -> Result<crate::io::DirLock> {
         let out = &self.req.out;
         let lock = open_dir(out, self.resumes(), !self.restart, on)?;
         // The expert it records: the one given, else the default (point-goal's scripted PD).
@@ -256,6 +249,7 @@ impl Run<'_> {
             .needs_expert()
             .then(|| self.expert.clone().unwrap_or_else(|| SCRIPTED_PD.into()));
         let algo = self.algo.name();
+        let physics = self.ds.physics;
         RunInfo::new(algo, expert.as_deref(), self.demos_sha.clone(), physics).write(out)?;
         Ok(lock)
     }
@@ -274,7 +268,7 @@ impl Run<'_> {
         let cfg: L::Config = self.config()?;
         let expert = self.relabelling_expert(on)?;
         let data =
-            MetaData::from_dataset(self.ds, self.family, cfg.holdout_every()).map_err(|e| {
+            MetaData::from_dataset(self.ds, self.ds.family, cfg.holdout_every()).map_err(|e| {
                 Error::input(
                     Input::Demos,
                     format!("the demos {}: {e}", req.demos.display()),
@@ -294,7 +288,7 @@ impl Run<'_> {
         } else {
             L::start(cfg, inputs)?
         };
-        let lock = self.start_dir(self.ds.physics, on)?;
+        let lock = self.start_dir(on)?;
         drive(run, &req.out, what, self.resumes(), lock, on).map(drop)
     }
 }

@@ -83,15 +83,24 @@ fn early_stopping_and_dagger_relabelling() {
     let expert = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
     let mut run = MetaBc::new(cfg, run_data(), Some(expert.into())).unwrap();
     let before = run.dataset_size();
-    let mut stopped = None;
-    trainer::fit(&mut run, &dir, &mut |e| {
-        if let Progress::Stopped(s) = e {
-            stopped = Some(s);
-        }
+    let (mut stopped, mut evals) = (Vec::new(), Vec::new());
+    trainer::fit(&mut run, &dir, &mut |e| match e {
+        Progress::Stopped(s) => stopped.push(s),
+        Progress::Eval { step, .. } => evals.push(step),
+        _ => {}
     })
     .unwrap();
-    let s = stopped.expect("early stop");
-    assert!(s < 2000 && run.steps() == s);
+    // Stopped once, at the evaluation that ran out of patience: no step, rollout or
+    // evaluation after it.
+    let [s] = stopped[..] else {
+        panic!("one early stop, got {stopped:?}")
+    };
+    assert!(
+        s < 2000 && run.steps() == s,
+        "stopped at {s}, ran {}",
+        run.steps()
+    );
+    assert_eq!(evals.last(), Some(&s), "{evals:?}");
     // One 30-step relabelled rollout every 50 steps.
     assert_eq!(run.dataset_size(), before + 30 * (s as usize).div_ceil(50));
     let err = MetaBc::new(tiny(true), run_data(), None).err().unwrap();

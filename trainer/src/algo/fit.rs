@@ -58,8 +58,6 @@ pub struct Evaluation {
     pub best: f32,
     /// Meta-BC: the action MSE on the held-out tasks' demos.
     pub val_mse: Option<f32>,
-    /// Whether the learner's stopping rule ended training with this evaluation.
-    pub stopped: bool,
 }
 
 /// When a learner wants its evaluations and checkpoints, in its own units of work.
@@ -164,7 +162,10 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
             if ev.keep {
                 run.save_kept(dir)?;
             }
-            if ev.stopped {
+            // The learner's stopping rule (Meta-BC's patience) ended training here: no further
+            // unit of work.
+            if !finished && run.finished() {
+                finished = true;
                 on(Progress::Stopped(run.done()));
             }
             log.log(run.done(), &ev.fields)?;

@@ -81,11 +81,8 @@ impl FromStr for Algo {
             .into_iter()
             .find(|a| a.name() == s)
             .ok_or_else(|| {
-                let names: Vec<&str> = Algo::ALL.iter().map(|a| a.name()).collect();
-                Error::Config(format!(
-                    "unknown algo {s:?}; expected one of {}",
-                    names.join(", ")
-                ))
+                let names = Algo::ALL.map(Algo::name).join(", ");
+                Error::Config(format!("unknown algo {s:?}; expected one of {names}"))
             })
     }
 }
@@ -119,6 +116,7 @@ pub struct MetaInputs {
 ///     cpu_seconds_mut        (the run's CPU-seconds, counted and logged: charts/cpu_s)
 ///     log the metrics        (with the units per second, charts/sps)
 ///     if an evaluation is due: evaluate; save_kept if best; log; report
+///                            (finished now: the learner's stopping rule ended it here)
 ///     if a checkpoint is due: save_checkpoint; report
 /// finish                     (the final policy files)
 /// ```

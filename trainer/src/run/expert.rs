@@ -11,8 +11,8 @@
 use std::path::{Path, PathBuf};
 
 use super::{RUN_FILE, RunEvent, RunInfo, drive, open_dir, restarting};
-use crate::algo::Progress;
 use crate::algo::expert::{ExpertConfig, ExpertTrainer};
+use crate::algo::{Learner, Progress};
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::run_dir;
@@ -52,7 +52,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
         None if restart => {
             let (cfg, path) = recorded_config(dir, req.total_steps)?;
             let run = start(dir, &cfg, on)?;
-            on(restarting(dir, &path, "step"));
+            on(restarting(dir, &path, ExpertTrainer::UNIT.word));
             run
         }
         None => ExpertTrainer::resume(dir, req.total_steps)?,

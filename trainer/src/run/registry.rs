@@ -9,13 +9,15 @@ use sim::Family;
 use super::{Run, RunEvent};
 use crate::algo::meta_bc::MetaBc;
 use crate::algo::smile::Smile;
-use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Setting};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Setting, Unit};
 use crate::error::{Error, Result};
 
 /// One meta-learner type's part in the driver and in sweeps, as plain functions.
 pub(super) struct Meta {
     /// Trains a run with this learner type ([`Run::train`]).
     pub train: fn(&Run<'_>, &mut dyn FnMut(RunEvent)) -> Result<()>,
+    /// What its budget counts.
+    pub unit: Unit,
     check: fn(Algo, &str, Family) -> Result<()>,
     extension: fn(Algo, &str, &str) -> Option<Vec<Setting>>,
 }
@@ -36,6 +38,7 @@ impl Meta {
     {
         Self {
             train: |run, on| run.train::<L>(on),
+            unit: L::UNIT,
             check: check::<L::Config>,
             extension: extension::<L::Config>,
         }
@@ -89,13 +92,9 @@ fn extension<C: MetaSettings>(algo: Algo, old: &str, new: &str) -> Option<Vec<Se
         (Setting::CpuBudget(w), Setting::CpuBudget(n)) => unlimited(*n).partial_cmp(&unlimited(*w)),
         _ => None,
     };
-    if was.len() != now.len() {
-        return None;
-    }
     let parts: Vec<Ordering> = was.iter().zip(&now).map(order).collect::<Option<_>>()?;
-    let not_lower = parts.iter().all(|o| o.is_ge());
-    let higher = parts.iter().any(|o| o.is_gt());
-    (same == new && not_lower && higher).then_some(now)
+    let raised = parts.iter().all(|o| o.is_ge()) && parts.iter().any(|o| o.is_gt());
+    (same == new && raised).then_some(now)
 }
 
 /// The `env` a configuration table names when it is not `family`: the family comes from the

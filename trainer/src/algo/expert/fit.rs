@@ -105,7 +105,6 @@ impl Learner for ExpertTrainer {
             metric: ev.mean,
             best: self.best.map_or(ev.mean, |b| b.metric),
             val_mse: None,
-            stopped: false,
         }))
     }
 

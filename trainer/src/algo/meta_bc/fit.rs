@@ -86,15 +86,14 @@ impl Learner for MetaBc {
         };
         // Without held-out tasks the last policy is the one kept.
         let keep = improved || (self.data.val.is_empty() && at_end);
-        let mut stopped = false;
         if keep {
             (self.best_mse, self.best_metric) = (val_mse, val_metric);
             self.bad_evals = 0;
         } else {
             self.bad_evals += 1;
             if cfg.patience > 0 && self.bad_evals >= cfg.patience {
+                // The stopping rule: `finished` now tells the loop.
                 self.stopped = true;
-                stopped = true;
             }
         }
         Ok(Some(Evaluation {
@@ -108,7 +107,6 @@ impl Learner for MetaBc {
             metric: val_metric,
             best: self.best_metric,
             val_mse: Some(val_mse),
-            stopped,
         }))
     }
 

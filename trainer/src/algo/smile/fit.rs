@@ -10,7 +10,7 @@ use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::setting::Setting;
 use crate::data::better;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::io::MetricsLog;
 use crate::model::DiscStats;
 
@@ -23,12 +23,10 @@ impl Learner for Smile {
     };
 
     fn start(cfg: SmileConfig, inputs: MetaInputs) -> Result<Self> {
-        refuse_expert(cfg.algo_name(), inputs.expert.is_some())?;
         Smile::new(cfg, inputs.data)
     }
 
     fn resume(dir: &Path, inputs: MetaInputs, wanted: &SmileConfig) -> Result<Self> {
-        refuse_expert("smile", inputs.expert.is_some())?;
         let mut run = Smile::resume(dir, inputs.data, Some(wanted.total_updates))?;
         run.set_cpu_budget(wanted.cpu_budget_s)?;
         Ok(run)
@@ -114,7 +112,6 @@ impl Learner for Smile {
             metric: m,
             best: self.best,
             val_mse: None,
-            stopped: false,
         }))
     }
 
@@ -172,14 +169,4 @@ impl MetaSettings for SmileConfig {
     fn holdout_every(&self) -> usize {
         self.holdout_every
     }
-}
-
-/// Refuses an expert given to an algorithm that learns from the demos alone.
-fn refuse_expert(algo: &str, given: bool) -> Result<()> {
-    if given {
-        return Err(Error::Config(format!(
-            "{algo} learns from the demos alone and takes no expert (Meta-DAgger does)"
-        )));
-    }
-    Ok(())
 }
