@@ -5,7 +5,6 @@
 //! steps on this reward alone (docs/RESULTS.md).
 
 use crate::ant::AntEpisode;
-use crate::env::check_task;
 use crate::error::SimError;
 use crate::family::{EnvConfig, Environment, Family, FamilySpec, RunView, Task, Transition};
 use crate::render::Frame;
@@ -74,7 +73,7 @@ impl Environment for AntGoalEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_task(Family::ANT_GOAL, task)?;
+        Family::ANT_GOAL.check_task(task)?;
         self.task = *task;
         self.goal = task.goal().unwrap_or_default();
         self.ant.reset(seed);

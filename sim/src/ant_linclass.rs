@@ -27,7 +27,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use crate::ant::AntEpisode;
-use crate::env::check_task;
 use crate::error::SimError;
 use crate::family::{
     EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task, Transition,
@@ -217,7 +216,7 @@ impl Environment for AntLinClassEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_task(Family::ANT_LINCLASS, task)?;
+        Family::ANT_LINCLASS.check_task(task)?;
         let (Some(normal), Some(hyperplane_seed)) =
             (task.linclass_normal(), task.hyperplane_seed())
         else {

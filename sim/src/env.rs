@@ -2,7 +2,7 @@
 //! environments share (the interface itself, [`Environment`], is in `family.rs`).
 
 use crate::error::SimError;
-use crate::family::{EnvConfig, Environment, Family, MetricKind, StepInfo, Task, Transition};
+use crate::family::{EnvConfig, Environment, Family, MetricKind, StepInfo, Transition};
 
 /// The latched classification decision of an ant-linclass episode, as the per-step metric
 /// sample encodes it (and [`EpisodeMetric`] decodes it).
@@ -194,22 +194,4 @@ impl EpisodeClock {
             },
         }
     }
-}
-
-/// Rejects a task of the wrong family, or one whose value is not finite.
-pub(crate) fn check_task(env_family: Family, task: &Task) -> Result<(), SimError> {
-    if task.family() != env_family {
-        return Err(SimError::TaskFamilyMismatch {
-            env_family: env_family.name(),
-            task_family: task.family().name(),
-        });
-    }
-    if !task.value().is_finite() {
-        // `Task::new` takes any number; a NaN goal or velocity would poison every reward.
-        return Err(SimError::InvalidTask {
-            family: env_family.name(),
-            reason: format!("its value {} is not finite", task.value()),
-        });
-    }
-    Ok(())
 }

@@ -310,6 +310,8 @@ pub trait Environment: Send {
     /// The current task.
     fn task(&self) -> &Task;
     /// Starts an episode of `task` with seeded initial-state noise; returns the observation.
+    /// A task of another family, or whose value is not finite, is refused
+    /// ([`Family::check_task`]).
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError>;
     /// Applies one action (clipped to [-1, 1]) for one control step.
     fn step(&mut self, action: &[f32]) -> Result<Transition<'_>, SimError>;

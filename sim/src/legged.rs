@@ -1,6 +1,6 @@
 //! cheetah-vel and walker-dyn: the planar legged robots as [`Environment`]s.
 
-use crate::env::{EpisodeClock, check_task, clip_action};
+use crate::env::{EpisodeClock, clip_action};
 use crate::error::SimError;
 use crate::family::{EnvConfig, Environment, Family, Task};
 use crate::kinds::Physics;
@@ -139,7 +139,7 @@ impl Environment for PlanarLeggedEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_task(self.family, task)?;
+        self.family.check_task(task)?;
         self.plant.reset(seed, task.walker_dynamics().as_ref());
         self.task = *task;
         self.clock.restart();

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rapier2d::prelude::*;
 
-use crate::env::{EpisodeClock, check_task, clip_action};
+use crate::env::{EpisodeClock, clip_action};
 use crate::error::SimError;
 use crate::family::{
     EnvConfig, Environment, EvalDefaults, Family, FamilySpec, MetricKind, RunView, Task, Transition,
@@ -151,7 +151,7 @@ impl Environment for PointGoalEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        check_task(Family::POINT_GOAL, task)?;
+        Family::POINT_GOAL.check_task(task)?;
         self.place(task, seed);
         Ok(&self.obs)
     }

@@ -81,6 +81,25 @@ impl Family {
         (self.spec().task_from_value)(value).map_err(invalid)
     }
 
+    /// What an environment's `reset` checks first: `task` is of this family and its value is
+    /// finite (`Task::new` takes any number; a NaN goal or velocity would poison every
+    /// reward). A family of your own calls it too.
+    pub fn check_task(self, task: &Task) -> Result<(), SimError> {
+        if task.family() != self {
+            return Err(SimError::TaskFamilyMismatch {
+                env_family: self.name(),
+                task_family: task.family().name(),
+            });
+        }
+        if !task.value().is_finite() {
+            return Err(SimError::InvalidTask {
+                family: self.name(),
+                reason: format!("its {} {} is not finite", self.value_name(), task.value()),
+            });
+        }
+        Ok(())
+    }
+
     /// How far a number may be from a task's value and still name it: [`TASK_VALUE_TOLERANCE`]
     /// for point-goal, ant-goal and cheetah-vel, 0 for walker-dyn and ant-linclass (seeds are
     /// integers).

@@ -293,6 +293,14 @@ impl Error {
         }
     }
 
+    /// An expert given to `algo`, a learner of the demos alone: refused, not ignored (the run
+    /// driver refuses it earlier, naming the expert's path; this is the library's own check).
+    pub(crate) fn takes_no_expert(algo: &str) -> Self {
+        Error::Config(format!(
+            "{algo} learns from the demos alone and takes no expert (Meta-DAgger does)"
+        ))
+    }
+
     /// The one plant check: an input made on the `found` plant serves a run on `expected` only
     /// when they are the same (its observations mean other things on another plant); `what`
     /// names the input for a person.

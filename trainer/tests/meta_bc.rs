@@ -108,6 +108,15 @@ fn early_stopping_and_dagger_relabelling() {
         matches!(&err, trainer::Error::Config(m) if m.contains("meta-dagger needs a relabelling expert")),
         "{err:?}"
     );
+    // Meta-BC refuses an expert it would not use, as SMILe does: not ignored.
+    let pd = Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+    let err = MetaBc::new(tiny(false), run_data(), Some(pd.into()))
+        .err()
+        .unwrap();
+    assert!(
+        matches!(&err, trainer::Error::Config(m) if m.contains("meta-bc learns from the demos alone")),
+        "{err:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

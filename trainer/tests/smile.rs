@@ -214,6 +214,22 @@ fn demos_of_another_family_are_a_typed_error() {
             .contains("family point-goal, expected cheetah-vel"),
         "{e}"
     );
+    // An expert given through the library is refused, not ignored (SMILe learns from the demos
+    // alone; the run driver refuses one before this).
+    let data = MetaData::from_dataset(&demos(8, 2, 30), Family::POINT_GOAL, 4).unwrap();
+    let pd = trainer::expert::Expert::ScriptedPd(sim::PointGoalPdExpert::default());
+    let inputs = trainer::MetaInputs {
+        data,
+        expert: Some(pd.into()),
+    };
+    let Err(e) = <Smile as trainer::Learner>::start(tiny(true), inputs) else {
+        panic!("an expert given to SMILe was ignored")
+    };
+    assert!(
+        e.to_string()
+            .contains("smile-state-only learns from the demos alone"),
+        "{e}"
+    );
 }
 
 #[test]

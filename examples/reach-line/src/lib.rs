@@ -155,12 +155,7 @@ impl Environment for ReachLineEnv {
     }
 
     fn reset(&mut self, task: &Task, seed: u64) -> Result<&[f32], SimError> {
-        if task.family() != REACH_LINE {
-            return Err(SimError::TaskFamilyMismatch {
-                env_family: REACH_LINE.name(),
-                task_family: task.family().name(),
-            });
-        }
+        REACH_LINE.check_task(task)?;
         self.place(task, seed);
         Ok(&self.obs)
     }

@@ -67,6 +67,13 @@ fn the_name_is_known_once_registered_and_refused_to_another_declaration() {
         family,
         "registering twice is a no-op"
     );
+    // Its reset refuses a task value that is not finite, as the built-ins' do.
+    let mut env = sim::make_env(family, sim::EnvConfig::default()).unwrap();
+    let nan = sim::Task::new(family, f64::NAN);
+    assert!(
+        matches!(env.reset(&nan, 0), Err(sim::SimError::InvalidTask { .. })),
+        "a NaN task"
+    );
     // A second declaration under a built-in's name is refused, naming it.
     static CLASH: sim::FamilySpec = sim::FamilySpec {
         name: "cheetah-vel",

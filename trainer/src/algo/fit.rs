@@ -39,7 +39,8 @@ pub enum Progress {
     },
     /// A checkpoint was written at this step.
     Checkpoint(u64),
-    /// The learner's stopping rule ended training at this step (Meta-BC's patience).
+    /// The learner's stopping rule ended training at this step (Meta-BC's patience), before
+    /// its budget; reported after the evaluation that decided it.
     Stopped(u64),
 }
 
@@ -150,7 +151,8 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
             *count = cpu_s;
             fields.push(("charts/cpu_s", cpu_s));
         }
-        finished = run.finished() || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
+        let ended = run.finished();
+        finished = ended || (cadence.cpu_budget_s > 0.0 && cpu_s >= cadence.cpu_budget_s);
         if !fields.is_empty() {
             let secs = t0.elapsed().as_secs_f64().max(1e-9);
             fields.push(("charts/sps", run.done().saturating_sub(done0) as f64 / secs));
@@ -162,12 +164,6 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
             if ev.keep {
                 run.save_kept(dir)?;
             }
-            // The learner's stopping rule (Meta-BC's patience) ended training here: no further
-            // unit of work.
-            if !finished && run.finished() {
-                finished = true;
-                on(Progress::Stopped(run.done()));
-            }
             log.log(run.done(), &ev.fields)?;
             on(Progress::Eval {
                 step: run.done(),
@@ -175,6 +171,12 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
                 best: ev.best,
                 val_mse: ev.val_mse,
             });
+            // The learner's stopping rule (Meta-BC's patience) ended training with this
+            // evaluation: no further unit of work.
+            if !ended && run.finished() {
+                finished = true;
+                on(Progress::Stopped(run.done()));
+            }
         }
         if checkpoints.due(run.done(), finished) {
             run.save_checkpoint(dir)?;

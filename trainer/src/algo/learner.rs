@@ -101,7 +101,8 @@ pub struct Unit {
 pub struct MetaInputs {
     /// The meta-train tasks and their held-out part.
     pub data: MetaData,
-    /// Meta-DAgger's relabelling expert; `None` for the learners of demos alone.
+    /// Meta-DAgger's relabelling expert; `None` for the learners of demos alone (they refuse
+    /// one).
     pub expert: Option<ExpertSet>,
 }
 
@@ -205,8 +206,9 @@ pub trait MetaSettings: Clone + PartialEq + Default + Serialize + DeserializeOwn
         Ok(())
     }
 
-    /// The training budget as settings (its updates, and the CPU-seconds where the algorithm
-    /// has that budget): what a resume may change, and what a sweep extends a finished cell
+    /// The training budget as settings, the same parts in the same order for every
+    /// configuration of a type (its updates, and the CPU-seconds where the algorithm has that
+    /// budget): what a resume may change, and what a sweep extends a finished cell
     /// with where [`MetaSettings::EXTENDS`].
     fn budget(&self) -> Vec<Setting>;
 

@@ -83,23 +83,22 @@ impl MetaBc {
     pub fn new(cfg: MetaBcConfig, data: MetaData, expert: Option<ExpertSet>) -> Result<Self> {
         let family = cfg.env;
         data.ensure_fits(family, cfg.physics)?;
-        if cfg.dagger {
-            match &expert {
-                None => {
-                    return Err(Error::Config(format!(
-                        "meta-dagger needs a relabelling expert for {family}"
-                    )));
-                }
-                Some(e) if e.family() != family => {
-                    return Err(Error::Config(format!(
-                        "meta-dagger on {family} demos needs a {family} expert; the expert \
-                         given ({}) is a {} expert",
-                        e.name(),
-                        e.family()
-                    )));
-                }
-                Some(_) => {}
+        match (&expert, cfg.dagger) {
+            (None, true) => {
+                return Err(Error::Config(format!(
+                    "meta-dagger needs a relabelling expert for {family}"
+                )));
             }
+            (Some(e), true) if e.family() != family => {
+                return Err(Error::Config(format!(
+                    "meta-dagger on {family} demos needs a {family} expert; the expert given \
+                     ({}) is a {} expert",
+                    e.name(),
+                    e.family()
+                )));
+            }
+            (Some(_), false) => return Err(Error::takes_no_expert("meta-bc")),
+            _ => {}
         }
         if let Some(set) = expert.as_ref().filter(|_| cfg.dagger) {
             let what = || "meta-dagger's relabelling expert".into();

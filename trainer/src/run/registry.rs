@@ -12,7 +12,7 @@ use crate::algo::smile::Smile;
 use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Setting, Unit};
 use crate::error::{Error, Result};
 
-/// One meta-learner type's part in the driver and in sweeps, as plain functions.
+/// One meta-learner type's part in the driver and in sweeps: plain functions and its unit.
 pub(super) struct Meta {
     /// Trains a run with this learner type ([`Run::train`]).
     pub train: fn(&Run<'_>, &mut dyn FnMut(RunEvent)) -> Result<()>,

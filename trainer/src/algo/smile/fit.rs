@@ -10,7 +10,7 @@ use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
 use crate::algo::learner::{Algo, Learner, MetaInputs, MetaSettings, Unit};
 use crate::algo::setting::Setting;
 use crate::data::better;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::io::MetricsLog;
 use crate::model::DiscStats;
 
@@ -23,10 +23,16 @@ impl Learner for Smile {
     };
 
     fn start(cfg: SmileConfig, inputs: MetaInputs) -> Result<Self> {
+        if inputs.expert.is_some() {
+            return Err(Error::takes_no_expert(cfg.algo_name()));
+        }
         Smile::new(cfg, inputs.data)
     }
 
     fn resume(dir: &Path, inputs: MetaInputs, wanted: &SmileConfig) -> Result<Self> {
+        if inputs.expert.is_some() {
+            return Err(Error::takes_no_expert(wanted.algo_name()));
+        }
         let mut run = Smile::resume(dir, inputs.data, Some(wanted.total_updates))?;
         run.set_cpu_budget(wanted.cpu_budget_s)?;
         Ok(run)
