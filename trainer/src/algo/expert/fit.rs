@@ -128,13 +128,11 @@ impl Learner for ExpertTrainer {
         let last = self.evaluate_now()?;
         log.log(self.env_steps, &[("eval/metric", last.mean as f64)])?;
         if better(self.family.metric_kind(), best.metric, last.mean) {
-            let io = |e: std::io::Error| Error::Io {
-                path: dir.join(POLICY_FILE),
+            let bytes = std::fs::read(&best_file).map_err(|e| Error::Io {
+                path: best_file.clone(),
                 source: e,
-            };
-            let tmp = dir.join(".policy-best-copy");
-            std::fs::copy(&best_file, &tmp).map_err(io)?;
-            std::fs::rename(&tmp, dir.join(POLICY_FILE)).map_err(io)
+            })?;
+            crate::io::checkpoint::write_atomic(&dir.join(POLICY_FILE), &bytes)
         } else {
             self.export_policy(dir)
         }
