@@ -11,6 +11,10 @@
 #
 #   docs/scripts/alc-early.sh [RUNS_DIR] [PER_TASK] [STARTS]   # default runs/alc-early 16 shared
 #
+# EXPERT=<dir> records the train demos with another scripted classifier (a `smile expert --kind
+# scripted-linclass` run directory; default the shipped one); the test contexts stay the shipped
+# file's, so that only the train demos change.
+#
 # Each RUNS_DIR holds one kind of train demos: finished runs in it are reused, so another
 # PER_TASK or STARTS needs another RUNS_DIR (refused otherwise).
 set -euo pipefail
@@ -25,6 +29,7 @@ case $starts in
 esac
 bin=${SMILE_BIN:-target/release/smile}
 E=assets/experts/ant-linclass
+expert=${EXPERT:-$E}
 mkdir -p "$R"
 train=$R/demos-train-${n}x-sub1$suffix.safetensors
 for other in "$R"/demos-train-*.safetensors; do
@@ -35,7 +40,7 @@ for other in "$R"/demos-train-*.safetensors; do
 done
 # The scripted expert's demos, every step kept (seconds; shared starts: the shipped sub-5 files' seeds).
 [ -f "$train" ] || "$bin" demos --env ant-linclass --split train --per-task "$n" --subsample 1 ${flag[@]+"${flag[@]}"} \
-  --seed 0 --expert $E -o "$train"
+  --seed 0 --expert "$expert" -o "$train"
 policies=()
 for s in 0 1 2; do
   run=$R/meta-bc-early-s$s
