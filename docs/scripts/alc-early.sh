@@ -13,7 +13,9 @@
 #
 # EXPERT=<dir> records the train demos with another scripted classifier (a `smile expert --kind
 # scripted-linclass` run directory; default the shipped one); the test contexts stay the shipped
-# file's, so that only the train demos change.
+# file's, so that only the train demos change. CONTEXTS=<file> evaluates on other test contexts
+# (MuJoCo: assets/experts/ant-linclass-mujoco/demos-test-16x-sub5.safetensors, with a MuJoCo
+# expert and SMILE_BIN a `--features mujoco` build).
 #
 # Each RUNS_DIR holds one kind of train demos: finished runs in it are reused, so another
 # PER_TASK or STARTS needs another RUNS_DIR (refused otherwise).
@@ -30,6 +32,7 @@ esac
 bin=${SMILE_BIN:-target/release/smile}
 E=assets/experts/ant-linclass
 expert=${EXPERT:-$E}
+contexts=${CONTEXTS:-$E/demos-test-16x-sub5.safetensors}
 mkdir -p "$R"
 train=$R/demos-train-${n}x-sub1$suffix.safetensors
 for other in "$R"/demos-train-*.safetensors; do
@@ -47,8 +50,8 @@ for s in 0 1 2; do
   [ -f "$run/meta_policy.safetensors" ] || nice "$bin" train --algo meta-bc --env ant-linclass \
     --demos "$train" --config docs/configs/alc-bc-early.toml --seed $s -o "$run" --quiet
   [ -f "$run/eval/eval.json" ] || nice "$bin" eval --policy "$run" --env ant-linclass --split test \
-    --contexts $E/demos-test-16x-sub5.safetensors -o "$run/eval" --quiet
+    --contexts "$contexts" -o "$run/eval" --quiet
   policies+=(--policy "early-s$s=$run")
 done
-nice "$bin" linclass-diagnose --contexts $E/demos-test-16x-sub5.safetensors --train-demos "$train" \
+nice "$bin" linclass-diagnose --contexts "$contexts" --train-demos "$train" \
   --rollouts-on-train "${policies[@]}" -o "$R/diagnose"
