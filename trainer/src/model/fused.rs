@@ -79,6 +79,65 @@ impl<U: SliceUpdate> InplaceOp2 for OnSlices<U> {
     }
 }
 
+/// A fused op of three f32 CPU tensors, as its arithmetic alone: [`OnValues3`] makes it a
+/// candle `CustomOp3`, so that the storage unpacking and candle's signatures stand in one place
+/// (as [`OnSlices`] does for in-place updates).
+pub(crate) trait Fused3 {
+    /// The op's name in candle's errors.
+    fn name(&self) -> &'static str;
+
+    /// The output's values and shape from the inputs' contiguous values and shapes.
+    fn forward(&self, inputs: [(&[f32], &Shape); 3]) -> candle_core::Result<(Vec<f32>, Shape)>;
+
+    /// The gradients of the inputs from the output `res` and its gradient `grad`, each only
+    /// where autograd wants it (`None` elsewhere).
+    fn backward(&self, inputs: [&Tensor; 3], res: &Tensor, grad: &Tensor) -> Grads3;
+}
+
+/// What [`Fused3::backward`] returns: one gradient per input.
+pub(crate) type Grads3 = candle_core::Result<[Option<Tensor>; 3]>;
+
+/// A [`Fused3`] as a candle `CustomOp3` on contiguous f32 CPU tensors (other devices keep
+/// candle's refusal).
+pub(crate) struct OnValues3<F>(pub F);
+
+impl<F: Fused3 + Send + Sync> CustomOp3 for OnValues3<F> {
+    fn name(&self) -> &'static str {
+        self.0.name()
+    }
+
+    fn cpu_fwd(
+        &self,
+        s1: &CpuStorage,
+        l1: &Layout,
+        s2: &CpuStorage,
+        l2: &Layout,
+        s3: &CpuStorage,
+        l3: &Layout,
+    ) -> candle_core::Result<(CpuStorage, Shape)> {
+        let inputs = [values(s1, l1)?, values(s2, l2)?, values(s3, l3)?];
+        let (out, shape) = self.0.forward(inputs)?;
+        Ok((CpuStorage::F32(out), shape))
+    }
+
+    fn bwd(
+        &self,
+        a: &Tensor,
+        b: &Tensor,
+        c: &Tensor,
+        res: &Tensor,
+        grad_res: &Tensor,
+    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+        let [da, db, dc] = self.0.backward([a, b, c], res, grad_res)?;
+        Ok((da, db, dc))
+    }
+}
+
+/// A CPU storage's contiguous f32 values with its shape.
+fn values<'a>(s: &'a CpuStorage, l: &'a Layout) -> candle_core::Result<(&'a [f32], &'a Shape)> {
+    Ok((f32_slice(s, l)?, l.shape()))
+}
+
 /// Runs `f` on a CPU tensor's values in place (made contiguous first; no copy when it is).
 fn with_values<R>(
     t: &Tensor,
@@ -337,26 +396,18 @@ pub struct Linear {
     pub shared: Option<SharedCols>,
 }
 
-impl CustomOp3 for Linear {
+impl Fused3 for Linear {
     fn name(&self) -> &'static str {
         if self.relu { "linear-relu" } else { "linear" }
     }
 
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-        s3: &CpuStorage,
-        l3: &Layout,
-    ) -> candle_core::Result<(CpuStorage, Shape)> {
-        let (rows, d_in) = l1.shape().dims2()?;
-        let (w_in, d_out) = l2.shape().dims2()?;
-        if w_in != d_in || l3.shape().elem_count() != d_out {
+    fn forward(&self, [x, w, b]: [(&[f32], &Shape); 3]) -> candle_core::Result<(Vec<f32>, Shape)> {
+        let (rows, d_in) = x.1.dims2()?;
+        let (w_in, d_out) = w.1.dims2()?;
+        if w_in != d_in || b.1.elem_count() != d_out {
             return Err(msg("shape mismatch"));
         }
-        let (x, w, b) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
+        let (x, w, b) = (x.0, w.0, b.0);
         // x W into a fresh buffer, then bias and ReLU in one pass over it (a bias-filled
         // buffer accumulated into, then a ReLU pass, went over the output three times).
         let Some(sc) = self.shared else {
@@ -364,7 +415,7 @@ impl CustomOp3 for Linear {
             for row in y.chunks_exact_mut(d_out) {
                 bias_act(row, b, self.relu);
             }
-            return Ok((CpuStorage::F32(y), Shape::from((rows, d_out))));
+            return Ok((y, Shape::from((rows, d_out))));
         };
         sc.groups(rows, d_in).map_err(|e| msg(&e))?;
         debug_assert!(sc.holds(x, d_in), "shared columns differ within a group");
@@ -379,22 +430,15 @@ impl CustomOp3 for Linear {
                 bias_act(row, &zb, self.relu);
             }
         }
-        Ok((CpuStorage::F32(y), Shape::from((rows, d_out))))
+        Ok((y, Shape::from((rows, d_out))))
     }
 
-    fn bwd(
-        &self,
-        x: &Tensor,
-        w: &Tensor,
-        _b: &Tensor,
-        res: &Tensor,
-        grad_res: &Tensor,
-    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+    fn backward(&self, [x, w, _b]: [&Tensor; 3], res: &Tensor, grad_res: &Tensor) -> Grads3 {
         let (rows, d_in) = x.dims2()?;
         let d_out = w.dim(1)?;
         let (want_dx, want_dw) = (x.track_op(), w.track_op());
         if !want_dx && !want_dw {
-            return Ok((None, None, None));
+            return Ok([None, None, None]);
         }
         // g = dL/dy * 1[y > 0], and (for dW) its column sums in the same pass over the rows (only a
         // ReLU layer needs g as a buffer of its own; without ReLU g is dL/dy as it is). The
@@ -482,7 +526,7 @@ impl CustomOp3 for Linear {
             } else {
                 (None, None)
             };
-            Ok((dx, dw, db))
+            Ok([dx, dw, db])
         })
     }
 }
@@ -514,7 +558,8 @@ pub fn linear_shared(
     relu: bool,
     shared: Option<SharedCols>,
 ) -> candle_core::Result<Tensor> {
-    x.contiguous()?.apply_op3(w, b, Linear { relu, shared })
+    x.contiguous()?
+        .apply_op3(w, b, OnValues3(Linear { relu, shared }))
 }
 
 /// One step of the gradient penalty's input-gradient chain as one autograd node (see the
@@ -527,26 +572,18 @@ pub fn linear_shared(
 #[derive(Debug, Clone, Copy)]
 pub struct MaskedMatmulT;
 
-impl CustomOp3 for MaskedMatmulT {
+impl Fused3 for MaskedMatmulT {
     fn name(&self) -> &'static str {
         "masked-matmul-t"
     }
 
-    fn cpu_fwd(
-        &self,
-        s1: &CpuStorage,
-        l1: &Layout,
-        s2: &CpuStorage,
-        l2: &Layout,
-        s3: &CpuStorage,
-        l3: &Layout,
-    ) -> candle_core::Result<(CpuStorage, Shape)> {
-        let (rows, d_out) = l1.shape().dims2()?;
-        let (d_in, w_out) = l3.shape().dims2()?;
-        if l2.shape().dims2()? != (rows, d_out) || w_out != d_out {
+    fn forward(&self, [g, y, w]: [(&[f32], &Shape); 3]) -> candle_core::Result<(Vec<f32>, Shape)> {
+        let (rows, d_out) = g.1.dims2()?;
+        let (d_in, w_out) = w.1.dims2()?;
+        if y.1.dims2()? != (rows, d_out) || w_out != d_out {
             return Err(msg("masked matmul: shape mismatch"));
         }
-        let (g, y, w) = (f32_slice(s1, l1)?, f32_slice(s2, l2)?, f32_slice(s3, l3)?);
+        let (g, y, w) = (g.0, y.0, w.0);
         let masked: Vec<f32> = g.iter().zip(y).map(|(g, y)| relu_mask(*g, *y)).collect();
         // out (rows x in) = G (rows x out) W^T (out x in); W^T[o][i] = W[i * out + o]
         let out = gemm_new(
@@ -556,22 +593,15 @@ impl CustomOp3 for MaskedMatmulT {
             Mat::rows(&masked, d_out),
             Mat::t(w, d_out),
         );
-        Ok((CpuStorage::F32(out), Shape::from((rows, d_in))))
+        Ok((out, Shape::from((rows, d_in))))
     }
 
-    fn bwd(
-        &self,
-        g: &Tensor,
-        y: &Tensor,
-        w: &Tensor,
-        _res: &Tensor,
-        grad_res: &Tensor,
-    ) -> candle_core::Result<(Option<Tensor>, Option<Tensor>, Option<Tensor>)> {
+    fn backward(&self, [g, y, w]: [&Tensor; 3], _res: &Tensor, grad_res: &Tensor) -> Grads3 {
         let (rows, d_out) = g.dims2()?;
         let d_in = w.dim(0)?;
         let (want_dg, want_dw) = (g.track_op(), w.track_op());
         if !want_dg && !want_dw {
-            return Ok((None, None, None));
+            return Ok([None, None, None]);
         }
         let dev = g.device();
         let (dg, dw) = with_values(grad_res, |dout| {
@@ -614,14 +644,14 @@ impl CustomOp3 for MaskedMatmulT {
                 Ok((dg, dw))
             })
         })?;
-        Ok((dg, None, dw))
+        Ok([dg, None, dw])
     }
 }
 
 /// `(g . 1[y > 0]) W^T` as one autograd node ([`MaskedMatmulT`]); `y` is not differentiated.
 pub fn masked_matmul_t(g: &Tensor, y: &Tensor, w: &Tensor) -> candle_core::Result<Tensor> {
     g.contiguous()?
-        .apply_op3(&y.detach().contiguous()?, w, MaskedMatmulT)
+        .apply_op3(&y.detach().contiguous()?, w, OnValues3(MaskedMatmulT))
 }
 
 mod tanh_gaussian;
