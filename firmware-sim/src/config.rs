@@ -120,7 +120,7 @@ pub enum Sensing {
     /// velocities with a constant-velocity Kalman filter per position.
     Positions {
         /// Std of the unmodelled acceleration (filter tuning); `None`: the family's
-        /// [`default_accel_std`].
+        /// [`default_accel_std`](crate::estimation::default_accel_std).
         accel_std: Option<f32>,
         /// Std of a reading's noise as the filter assumes it; `None`: the loop's sensor
         /// noise and ADC step, `sqrt(noise^2 + lsb^2 / 12)`.

@@ -5,6 +5,9 @@
 //! Thread layout: the learner runs candle single-threaded (`--threads`, default 1); see
 //! `trainer::threads` for why.
 
+// The flags' doc comments are clap's help text (`runs/expert-<env>`), not rustdoc HTML.
+#![allow(rustdoc::invalid_html_tags)]
+
 use anyhow::Result;
 use clap::{Parser, Subcommand};
 
