@@ -100,7 +100,8 @@ impl MetaBc {
             (Some(_), false) => return Err(Error::takes_no_expert("meta-bc")),
             _ => {}
         }
-        if let Some(set) = expert.as_ref().filter(|_| cfg.dagger) {
+        // Only Meta-DAgger holds one here: the match above refused it to Meta-BC.
+        if let Some(set) = &expert {
             let what = || "meta-dagger's relabelling expert".into();
             Error::same_plant(what, set.physics(), cfg.physics)?;
             // Every meta-train task needs its relabelling expert: fail now, not mid-run.
