@@ -132,14 +132,13 @@ pub fn log_line(e: &trainer::run::RunEvent) -> Option<String> {
             total,
             done,
             unit,
-            word,
             resumed,
         } => {
             let head = match resumed {
-                true => format!("resuming from {word} {done}\n"),
+                true => format!("resuming from {} {done}\n", unit.word),
                 false => String::new(),
             };
-            Some(format!("{head}{what}; {total} {unit}"))
+            Some(format!("{head}{what}; {total} {}", unit.plural))
         }
         RunEvent::Progress(
             Progress::Eval {

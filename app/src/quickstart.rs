@@ -415,7 +415,7 @@ fn train_learner<C: serde::Serialize>(
     let mut pb = None;
     trainer::run::train(&req, &mut |e| match e {
         RunEvent::Started { total, unit, .. } => {
-            pb = Some(bars.add(bar(total, args.quiet, &format!("{label} {unit}"))));
+            pb = Some(bars.add(bar(total, args.quiet, &format!("{label} {}", unit.plural))));
         }
         RunEvent::Progress(p, _) => {
             let Some(pb) = &pb else { return };

@@ -293,12 +293,16 @@ impl Error {
         }
     }
 
-    /// An expert given to `algo`, a learner of the demos alone: refused, not ignored (the run
-    /// driver refuses it earlier, naming the expert's path; this is the library's own check).
+    /// An expert given to `algo`, a learner of the demos alone: refused, not ignored (by the
+    /// run driver before it loads one, and by the learner's own start).
     pub(crate) fn takes_no_expert(algo: &str) -> Self {
-        Error::Config(format!(
-            "{algo} learns from the demos alone and takes no expert (Meta-DAgger does)"
-        ))
+        Error::input(
+            Input::Expert,
+            format!(
+                "{algo} learns from the demos alone and takes no expert (drop the expert, or \
+                 train meta-dagger, which relabels its rollouts with one)"
+            ),
+        )
     }
 
     /// The one plant check: an input made on the `found` plant serves a run on `expected` only

@@ -1,5 +1,5 @@
-//! A meta-learner's run directory, started or resumed: what `smile train` and a sweep's cells
-//! both call.
+//! The one run driver: a run directory started or resumed, what `smile train`, `smile expert`,
+//! a sweep's cells and the quickstart call.
 //!
 //! [`train`] reads the demos, builds the configuration (a TOML file over the algorithm's
 //! defaults, the caller's keys over both), loads Meta-DAgger's relabelling expert, starts the
@@ -7,23 +7,21 @@
 //! ([`RUN_FILE`], `config.toml`), holds the directory's lock, and trains the [`Learner`]
 //! through the one fit loop, reporting [`RunEvent`]s. A resumed run keeps the configuration it
 //! started with: only its budget ([`MetaSettings::budget`]) may change, and other demos than
-//! the run's are refused. [`train_expert`] is the same driver for a SAC expert: both end in
-//! one tail (`drive`: the recorded configuration, the start event, the loop, a failure named
+//! the run's are refused. [`train_expert`] is the same driver for a SAC expert (no demos,
+//! no run record: its configuration is given or recorded): both end in one tail (`drive`: the recorded configuration, the start event, the loop, a failure named
 //! with its step and last checkpoint).
 
 use std::path::{Path, PathBuf};
 
 use sim::{DemoDataset, Family};
 
-use crate::algo::expert::ExpertSet;
-use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Progress, Setting, fit};
+use crate::algo::expert::{ExpertConfig, ExpertSet, ExpertTrainer};
+use crate::algo::{Algo, Learner, MetaInputs, MetaSettings, Progress, Setting, Unit, fit};
 use crate::data::{MetaData, read_demos, read_demos_of};
 use crate::error::{Error, Input, Result};
 use crate::io::{checkpoint, run_dir};
 
-mod expert;
 mod registry;
-pub use expert::{ExpertRequest, train_expert};
 
 // The run directory's record, read and written in `io` (the run's files).
 pub use crate::io::run_dir::{RUN_FILE, RunInfo};
@@ -71,10 +69,8 @@ pub enum RunEvent {
         total: u64,
         /// Updates already done (a resume), else 0.
         done: u64,
-        /// What the budget counts ("update pairs", "steps").
-        unit: &'static str,
-        /// One unit in messages ("update", "step").
-        word: &'static str,
+        /// What the budget counts ("update pairs", one "update").
+        unit: Unit,
         /// Whether the run resumed from a checkpoint.
         resumed: bool,
     },
@@ -118,11 +114,9 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
     // A run killed before its first checkpoint left nothing to continue: `--resume` starts it
     // over with its recorded configuration (a sweep's rerun does the same without the flag).
     let restart = req.resume && !req.out.join(checkpoint::CHECKPOINT_FILE).exists();
-    let learner = registry::Meta::of(algo);
-    if restart {
-        let cfg = run_dir::restart_config(&req.out)?;
-        on(restarting(&req.out, &cfg, learner.unit.word));
-    }
+    let restart = restart
+        .then(|| run_dir::restart_config(&req.out))
+        .transpose()?;
     let expert = if req.resume {
         let rec = RunInfo::read(&req.out)?;
         if let Some(warning) = rec.check_demos(&req.out, &req.demos, &demos_sha)? {
@@ -141,25 +135,15 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
         demos_sha,
         expert,
     };
-    (learner.train)(&run, on)
-}
-
-/// The note of a `--resume` that starts the run in `dir`, killed before its first checkpoint,
-/// over from its recorded configuration `cfg` (`word`: one unit of its budget).
-fn restarting(dir: &Path, cfg: &Path, word: &str) -> RunEvent {
-    RunEvent::Note(format!(
-        "{} has no checkpoint yet (its run was interrupted before the first one): starting it \
-         over from {word} 0 with its recorded configuration ({})",
-        dir.display(),
-        cfg.display()
-    ))
+    (registry::Meta::of(algo).train)(&run, on)
 }
 
 /// A request with its inputs read.
 struct Run<'a> {
     req: &'a TrainRequest,
-    /// A `--resume` of a run that has no checkpoint: started over with its configuration.
-    restart: bool,
+    /// A `--resume` of a run that has no checkpoint: started over with its recorded
+    /// configuration, this file.
+    restart: Option<PathBuf>,
     algo: Algo,
     ds: &'a DemoDataset,
     demos_sha: String,
@@ -184,79 +168,43 @@ impl Run<'_> {
             })?,
             None => String::new(),
         };
-        let what = match (&file, req.resume) {
+        let name = match (&file, req.resume) {
             (Some(p), true) => format!(
-                "parsing {} (its {RUN_FILE} names the algorithm whose config this must be)",
+                "{} (its {RUN_FILE} names the algorithm whose config this must be)",
                 p.display()
             ),
-            (Some(p), false) => format!("parsing {}", p.display()),
-            (None, _) => "reading the defaults".into(),
+            (Some(p), false) => p.display().to_string(),
+            (None, _) => "the defaults".into(),
         };
-        let table = text.parse::<toml::Table>().unwrap_or_default();
-        // The family comes from the demos; a file naming another would be silently ignored.
-        if let (Some(env), Some(p)) = (registry::other_env(&table, self.ds.family), &file) {
-            return Err(Error::Config(format!(
-                "{} sets env = {env} but the run is on {} (its demos, {}); remove the key or \
-                 give {env} demos",
-                p.display(),
-                self.ds.family,
-                req.demos.display()
-            )));
-        }
+        let family = self.ds.family;
+        let demos = format!("{family} (its demos, {})", req.demos.display());
+        let mut cfg: C = registry::parse(&text, Some(&name), &demos, family)?;
         let mut settings = req.settings.clone();
         // A new run on MuJoCo demos runs on MuJoCo without being told twice.
         let physics_given = settings.iter().any(|s| matches!(s, Setting::Physics(_)));
-        if !physics_given && !table.contains_key("physics") {
+        if !physics_given
+            && !text
+                .parse::<toml::Table>()
+                .is_ok_and(|t| t.contains_key("physics"))
+        {
             settings.push(Setting::Physics(self.ds.physics));
         }
-        let mut cfg: C = crate::io::from_toml_over_defaults(&text)
-            .map_err(|e| Error::Config(format!("{what}: {e}")))?;
         cfg.apply(self.algo, &settings)?;
         cfg.configure(self.algo, self.ds.family);
         Ok(cfg)
     }
 
-    /// Meta-DAgger's relabelling expert; none for the others, which refuse one.
+    /// Meta-DAgger's relabelling expert; the others refuse one.
     fn relabelling_expert(&self, on: &mut dyn FnMut(RunEvent)) -> Result<Option<ExpertSet>> {
-        let algo = self.algo;
-        if algo.needs_expert() {
-            let (set, note) = ExpertSet::relabelling(self.expert.as_deref(), self.ds.family)?;
-            on(RunEvent::Note(format!("{algo}: {note}")));
-            return Ok(Some(set));
+        match (self.algo.needs_expert(), &self.expert) {
+            (true, given) => {
+                let (set, note) = ExpertSet::relabelling(given.as_deref(), self.ds.family)?;
+                on(RunEvent::Note(format!("{}: {note}", self.algo)));
+                Ok(Some(set))
+            }
+            (false, Some(_)) => Err(Error::takes_no_expert(self.algo.name())),
+            (false, None) => Ok(None),
         }
-        match &self.expert {
-            Some(p) => Err(Error::input(
-                Input::Expert,
-                format!(
-                    "the expert {} would relabel Meta-DAgger's rollouts; {algo} learns from the \
-                     demos alone (drop the expert, or train meta-dagger)",
-                    p.display()
-                ),
-            )),
-            None => Ok(None),
-        }
-    }
-
-    /// Creates the run directory (only once the inputs were accepted, so a refused run leaves
-    /// nothing behind) and records the run. The returned lock is held for the whole
-    /// training: a second writer is refused.
-    fn start_dir(&self, on: &mut dyn FnMut(RunEvent)) -> Result<crate::io::DirLock> {
-        let out = &self.req.out;
-        let lock = open_dir(out, self.resumes(), !self.restart, on)?;
-        // The expert it records: the one given, else the default (point-goal's scripted PD).
-        let expert = self
-            .algo
-            .needs_expert()
-            .then(|| self.expert.clone().unwrap_or_else(|| SCRIPTED_PD.into()));
-        let algo = self.algo.name();
-        let physics = self.ds.physics;
-        RunInfo::new(algo, expert.as_deref(), self.demos_sha.clone(), physics).write(out)?;
-        Ok(lock)
-    }
-
-    /// Whether the run continues from its checkpoint.
-    fn resumes(&self) -> bool {
-        self.req.resume && !self.restart
     }
 
     fn train<L>(&self, on: &mut dyn FnMut(RunEvent)) -> Result<()>
@@ -281,16 +229,121 @@ impl Run<'_> {
             data.val.len()
         );
         let inputs = MetaInputs { data, expert };
-        let run = if self.resumes() {
+        let resumes = req.resume && self.restart.is_none();
+        let run = if resumes {
             let run = L::resume(&req.out, inputs, &cfg)?;
             check_resume(req, &cfg, run.config())?;
             run
         } else {
             L::start(cfg, inputs)?
         };
-        let lock = self.start_dir(on)?;
-        drive(run, &req.out, what, self.resumes(), lock, on).map(drop)
+        // The directory is written only once the inputs were accepted: a refused run leaves
+        // nothing behind. The expert recorded: the one given, else the default (point-goal's
+        // scripted PD).
+        let lock = open_dir(&req.out, resumes, self.restart.as_deref(), L::UNIT, on)?;
+        let expert = (self.algo.needs_expert())
+            .then(|| self.expert.clone().unwrap_or_else(|| SCRIPTED_PD.into()));
+        let (sha, physics) = (self.demos_sha.clone(), self.ds.physics);
+        RunInfo::new(self.algo.name(), expert.as_deref(), sha, physics).write(&req.out)?;
+        drive(run, &req.out, what, resumes, lock, on).map(drop)
     }
+}
+
+/// An expert run to start or resume.
+#[derive(Debug, Clone, Default)]
+pub struct ExpertRequest {
+    /// The run directory.
+    pub out: PathBuf,
+    /// A new run's configuration; `None` resumes the run in `out` from its checkpoint (one
+    /// killed before its first checkpoint starts over with its recorded configuration).
+    pub config: Option<ExpertConfig>,
+    /// On a resume: the step budget (`None`: the run's), raised to train longer.
+    pub total_steps: Option<u64>,
+}
+
+/// Starts or resumes the expert run `req` describes, trains it to its step budget, and
+/// returns the configuration it trained with (the policy is in `out/policy.safetensors`).
+/// A failure during training says at which step, and where the last good checkpoint is.
+pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertConfig> {
+    let dir = &req.out;
+    if req.config.is_none() && dir.join(RUN_FILE).exists() {
+        // A meta-learner's run records how it started; an expert's does not.
+        let algo = RunInfo::read(dir).map_or_else(|_| "meta-learner".into(), |r| r.algo);
+        return Err(Error::Usage(format!(
+            "{} holds a {algo} run ({RUN_FILE}), not an expert's: resume it as the {algo} run \
+             it is",
+            dir.display()
+        )));
+    }
+    // A resume of a run killed before its first checkpoint starts it over with its recorded
+    // configuration, as a meta-learner's does (`run::train`).
+    let restart =
+        req.config.is_none() && dir.is_dir() && !dir.join(checkpoint::CHECKPOINT_FILE).exists();
+    let mut recorded = None;
+    let run = match &req.config {
+        Some(cfg) => start(dir, cfg, on)?,
+        None if restart => {
+            let (cfg, path) = recorded_config(dir, req.total_steps)?;
+            recorded = Some(path);
+            start(dir, &cfg, on)?
+        }
+        None => ExpertTrainer::resume(dir, req.total_steps)?,
+    };
+    let resumes = req.config.is_none() && !restart;
+    let lock = open_dir(dir, resumes, recorded.as_deref(), ExpertTrainer::UNIT, on)?;
+    let cfg = run.config();
+    let what = format!("a SAC expert on {} ({})", cfg.env, cfg.physics);
+    // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
+    let mut on = |e: RunEvent| match e {
+        RunEvent::Progress(
+            Progress::Eval {
+                step, metric, best, ..
+            },
+            _,
+        ) => on(RunEvent::Note(format!(
+            "step {step}: deterministic evaluation {metric:.4} (best {best:.4})"
+        ))),
+        e => on(e),
+    };
+    let run = drive(run, dir, what, resumes, lock, &mut on)?;
+    if let Some(b) = run.best_eval() {
+        on(RunEvent::Note(format!(
+            "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
+             policy.safetensors holds whichever of it and the final weights evaluated better",
+            b.metric, b.env_steps
+        )));
+    }
+    Ok(run.config().clone())
+}
+
+/// A new run in `dir`, which must not hold one.
+fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertTrainer> {
+    checkpoint::ensure_fresh_run_dir(dir)?;
+    if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
+        // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
+        on(RunEvent::Note(format!(
+            "task value {v}: a per-task expert on {} (value {})",
+            task.label(),
+            task.value()
+        )));
+    }
+    ExpertTrainer::new(cfg.clone())
+}
+
+/// The configuration a resume of the run in `dir`, killed before its first checkpoint, starts
+/// over with, and its file: the recorded `config.toml` ([`run_dir::restart_config`], which
+/// refuses a finished run whose checkpoint is gone, and a run that recorded no configuration),
+/// its step budget replaced by `total_steps` if given.
+fn recorded_config(dir: &Path, total_steps: Option<u64>) -> Result<(ExpertConfig, PathBuf)> {
+    let path = run_dir::restart_config(dir)?;
+    let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
+        path: path.clone(),
+        source: e,
+    })?;
+    let mut cfg: ExpertConfig = crate::io::from_toml_over_defaults(&text)
+        .map_err(|e| Error::Config(format!("parsing {}: {e}", path.display())))?;
+    cfg.total_steps = total_steps.unwrap_or(cfg.total_steps);
+    Ok((cfg, path))
 }
 
 /// The tail every run driver ends in, under the run directory's `lock`: records the
@@ -311,8 +364,7 @@ fn drive<L: Learner>(
         what,
         total: run.cadence().total,
         done: run.done(),
-        unit: unit.plural,
-        word: unit.word,
+        unit,
         resumed,
     });
     let trained = fit(&mut run, dir, &mut |p| on(RunEvent::Progress(p, unit.word)));
@@ -329,29 +381,39 @@ fn drive<L: Learner>(
     Ok(run)
 }
 
-/// Holds `out`'s lock for the run ([`run_dir::lock_for_run`]), saying what a new run cleared
-/// there (when `tell`).
+/// Holds `out`'s lock for the whole training ([`run_dir::lock_for_run`]: a second writer is
+/// refused), saying when a run interrupted before its first checkpoint starts over: on a
+/// `--resume`, from its recorded configuration `restart`, else what a new run cleared there.
 fn open_dir(
     out: &Path,
     resumes: bool,
-    tell: bool,
+    restart: Option<&Path>,
+    unit: Unit,
     on: &mut dyn FnMut(RunEvent),
 ) -> Result<crate::io::DirLock> {
     let (lock, removed) = run_dir::lock_for_run(out, resumes)?;
-    if !removed.is_empty() && tell {
-        on(RunEvent::Note(format!(
-            "{} held a run interrupted before its first checkpoint (nothing to resume); \
+    let (out, word) = (out.display(), unit.word);
+    let note = match restart {
+        Some(cfg) => format!(
+            "{out} has no checkpoint yet (its run was interrupted before the first one): \
+             starting it over from {word} 0 with its recorded configuration ({})",
+            cfg.display()
+        ),
+        None if removed.is_empty() => return Ok(lock),
+        None => format!(
+            "{out} held a run interrupted before its first checkpoint (nothing to resume); \
              starting over: removed {}",
-            out.display(),
             removed.join(", ")
-        )));
-    }
+        ),
+    };
+    on(RunEvent::Note(note));
     Ok(lock)
 }
 
 /// On a resume: the configuration asked for must agree with the one the run continues (its
 /// checkpoint's, with the budget asked for), and so must its `config.toml` (a reader trusts
-/// that file to describe the run).
+/// that file to describe the run). The refusal blames the caller's settings (beyond the
+/// budget) that alone change the first key that differs; none: the `config.toml` changed it.
 fn check_resume<C: MetaSettings>(req: &TrainRequest, given: &C, running: &C) -> Result<()> {
     let table = |c: &C| -> Result<toml::Table> {
         toml::Table::try_from(c).map_err(|e| Error::Serialise {
@@ -360,37 +422,20 @@ fn check_resume<C: MetaSettings>(req: &TrainRequest, given: &C, running: &C) -> 
         })
     };
     let (g, r) = (table(given)?, table(running)?);
-    for (key, theirs) in &r {
-        let ours = g.get(key);
-        if ours != Some(theirs) {
-            return Err(Error::ResumeChanges {
-                run: req.out.clone(),
-                key: key.clone(),
-                given: changed_by(req, running, key, &r).into(),
-                was: theirs.to_string(),
-                now: ours.map_or("missing".into(), ToString::to_string),
-            });
-        }
-    }
-    Ok(())
-}
-
-/// The positions of the caller's settings (beyond the budget) that alone change `key` of
-/// `running`, whose table is `r`: what a resume's refusal blames (none: the run's `config.toml`
-/// changed it).
-fn changed_by<C: MetaSettings>(
-    req: &TrainRequest,
-    running: &C,
-    key: &str,
-    r: &toml::Table,
-) -> Vec<usize> {
+    let Some((key, was)) = r.iter().find(|(k, v)| g.get(*k) != Some(*v)) else {
+        return Ok(());
+    };
     let changes = |s: &Setting| {
         let mut c = running.clone();
-        c.set(s.clone()) && toml::Table::try_from(&c).is_ok_and(|t| t.get(key) != r.get(key))
+        c.set(s.clone()) && table(&c).is_ok_and(|t| t.get(key) != Some(was))
     };
-    let given = req.settings.iter().enumerate();
-    given
-        .filter(|(_, s)| !s.is_budget() && changes(s))
-        .map(|(at, _)| at)
-        .collect()
+    let blamed = req.settings.iter().enumerate();
+    let blamed = blamed.filter(|(_, s)| !s.is_budget() && changes(s));
+    Err(Error::ResumeChanges {
+        run: req.out.clone(),
+        key: key.clone(),
+        given: blamed.map(|(at, _)| at).collect::<Vec<_>>().into(),
+        was: was.to_string(),
+        now: g.get(key).map_or("missing".into(), ToString::to_string),
+    })
 }

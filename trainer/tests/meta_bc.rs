@@ -114,7 +114,7 @@ fn early_stopping_and_dagger_relabelling() {
         .err()
         .unwrap();
     assert!(
-        matches!(&err, trainer::Error::Config(m) if m.contains("meta-bc learns from the demos alone")),
+        matches!(&err, trainer::Error::Input { problem, .. } if problem.contains("meta-bc learns from the demos alone")),
         "{err:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();

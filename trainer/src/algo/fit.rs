@@ -1,9 +1,7 @@
-//! The one fit loop every learner trains through (SAC experts, SMILe, Meta-BC, Meta-DAgger), in
-//! the way of burn's `Learner::fit` or SB3's `learn`: the metrics log, the cadence of
-//! held-out evaluations and checkpoints, keeping the best policy, progress, and the end of the
-//! run are here once, and so is the compute budget (CPU-seconds across the run's processes). A
-//! learner is its unit of work, its evaluation, its state and its policy files, behind
-//! [`Learner`] (whose doc shows the loop).
+//! The one fit loop every learner trains through, as burn's `Learner::fit` or SB3's `learn`:
+//! the metrics log, evaluations, checkpoints, the kept policy, progress, the compute budget
+//! (CPU-seconds across the run's processes) and the end of the run are here once; the outline
+//! is [`Learner`]'s doc.
 
 use std::path::Path;
 
@@ -184,28 +182,4 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
         }
     }
     run.finish(dir, &mut log)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn a_schedule_falls_due_once_per_multiple_and_at_the_end() {
-        let mut s = Schedule::new(100, 0, true);
-        let due: Vec<u64> = [50, 100, 150, 250, 260, 300]
-            .into_iter()
-            .filter(|&d| s.due(d, false))
-            .collect();
-        // 250 passes 200 (once), the next multiple after 250 is 300.
-        assert_eq!(due, [100, 250, 300]);
-        assert!(s.due(301, true), "the end is due when asked");
-        assert!(!Schedule::new(100, 0, false).due(1, true));
-        // Resumed at a multiple: the next one is due, not the one it stands on.
-        let mut r = Schedule::new(100, 200, false);
-        assert!(!r.due(201, false) && r.due(300, false));
-        // every 0: never, even at the end.
-        let mut never = Schedule::new(0, 0, true);
-        assert!(!never.due(u64::MAX - 1, true));
-    }
 }

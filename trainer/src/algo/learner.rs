@@ -1,17 +1,9 @@
-//! The one interface of a learner: [`Learner`] is what SMILe, Meta-BC (Meta-DAgger its option)
-//! and the SAC expert implement, [`fit`](crate::fit) the one loop they train through,
-//! [`Algo`] names the meta-learners on the command line and in plans.
-//!
-//! In the way of burn's `Learner`: the loop owns the metrics log, the cadence of evaluations and
-//! checkpoints, keeping the best policy, the compute budget and the end of the run; a learner
-//! supplies its unit of work, its evaluation, its state and its files. A run driver
-//! ([`run::train`](crate::run::train), [`run::train_expert`](crate::run::train_expert)) starts
-//! or resumes one, holds its directory and calls the loop.
-//!
-//! Adding a meta-learner: its file(s) under `algo/` with `impl Learner` for its run type and
-//! `impl MetaSettings` for its configuration, one [`Algo`] variant (with its name in
-//! [`Algo::name`]) and one arm in the run driver's map to its learner type (ARCHITECTURE.md,
-//! "An algorithm").
+//! The one interface of a learner, [`Learner`], which SMILe, Meta-BC (Meta-DAgger its option)
+//! and the SAC expert implement and [`fit`](crate::fit) trains, as in burn: the loop owns the
+//! log, the cadence, keeping the best, the budget and the end; a learner supplies its unit of
+//! work, evaluation, state and files. [`MetaSettings`] is a meta-learner's configuration as the
+//! run driver and sweeps set it, [`Algo`] the meta-learners by name. Adding one: ARCHITECTURE.md,
+//! "An algorithm".
 
 use std::fmt;
 use std::path::Path;

@@ -30,10 +30,12 @@ use rand_chacha::ChaCha8Rng;
 use sim::{Environment, TaskDemos};
 
 use crate::algo::expert::ExpertSet;
-use crate::data::{MetaData, distinct_tasks, sample_context, sensed_episode};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+use crate::algo::learner::{Learner, MetaInputs, Unit};
+use crate::data::{MetaData, better, distinct_tasks, quick_eval, sample_context, sensed_episode};
 use crate::error::{Error, Result};
-use crate::io::checkpoint;
 use crate::io::checkpoint::rng_state;
+use crate::io::{MetricsLog, checkpoint};
 use crate::model::{
     ContextEncoder, ContextSpec, MetaPolicy, TanhGaussianPolicy, TrainingMark, mlp_load,
     mlp_tensors, scalar,
@@ -42,7 +44,6 @@ use crate::optim::{Adam, AdamConfig};
 use crate::threads::LearnerPool;
 
 mod config;
-mod fit;
 
 pub use crate::data::EarlyWeight;
 pub use config::{MetaBcConfig, Selection};
@@ -427,6 +428,117 @@ impl MetaBc {
         run.stopped = ck.meta_field("stopped")?;
         run.rng = ck.meta_rng("rng")?;
         Ok(run)
+    }
+}
+
+// The run in the one fit loop: a gradient step (after DAgger's rollouts when due) is its unit
+// of work, the held-out evaluation with the patience rule its evaluation.
+impl Learner for MetaBc {
+    type Config = MetaBcConfig;
+    type Inputs = MetaInputs;
+    const UNIT: Unit = Unit {
+        plural: "steps",
+        word: "step",
+    };
+
+    fn start(cfg: MetaBcConfig, inputs: MetaInputs) -> Result<Self> {
+        MetaBc::new(cfg, inputs.data, inputs.expert)
+    }
+
+    fn resume(dir: &Path, inputs: MetaInputs, wanted: &MetaBcConfig) -> Result<Self> {
+        MetaBc::resume(dir, inputs.data, inputs.expert, Some(wanted.total_steps))
+    }
+
+    fn config(&self) -> &MetaBcConfig {
+        &self.cfg
+    }
+
+    fn done(&self) -> u64 {
+        self.steps
+    }
+
+    fn cadence(&self) -> Cadence {
+        Cadence {
+            total: self.cfg.total_steps,
+            eval_every: self.cfg.eval_every,
+            eval_at_end: true,
+            checkpoint_every: self.cfg.checkpoint_every,
+            cpu_budget_s: 0.0,
+        }
+    }
+
+    fn finished(&self) -> bool {
+        self.steps >= self.cfg.total_steps || self.stopped
+    }
+
+    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
+        let cfg = &self.cfg;
+        if cfg.dagger && self.steps.is_multiple_of(cfg.dagger_every.max(1)) {
+            self.dagger_rollouts(cfg.dagger_rollouts)?;
+        }
+        let mse = self.step()?;
+        on(Progress::Steps(self.steps));
+        if !self.steps.is_multiple_of(50) {
+            return Ok(Vec::new());
+        }
+        Ok(vec![
+            ("losses/bc_mse", mse as f64),
+            ("charts/dataset_size", self.dataset_size() as f64),
+        ])
+    }
+
+    fn evaluate(&mut self) -> Result<Option<Evaluation>> {
+        let at_end = self.steps >= self.cfg.total_steps;
+        let cfg = &self.cfg;
+        let val_mse = self.val_mse()?;
+        let val_metric = quick_eval(
+            &self.meta_policy(),
+            &self.data.val,
+            cfg.held_out(),
+            cfg.env_config(),
+        )?;
+        let improved = match cfg.select_by {
+            Selection::Mse => val_mse < self.best_mse,
+            Selection::Rollouts => {
+                better(self.data.family.metric_kind(), val_metric, self.best_metric)
+            }
+        };
+        // Without held-out tasks the last policy is the one kept.
+        let keep = improved || (self.data.val.is_empty() && at_end);
+        if keep {
+            (self.best_mse, self.best_metric) = (val_mse, val_metric);
+            self.bad_evals = 0;
+        } else {
+            self.bad_evals += 1;
+            if cfg.patience > 0 && self.bad_evals >= cfg.patience {
+                // The stopping rule: `finished` now tells the loop.
+                self.stopped = true;
+            }
+        }
+        Ok(Some(Evaluation {
+            keep,
+            fields: vec![
+                ("eval/val_mse", val_mse as f64),
+                ("eval/val_metric", val_metric as f64),
+                ("eval/val_best_mse", self.best_mse as f64),
+                ("eval/val_best_metric", self.best_metric as f64),
+            ],
+            metric: val_metric,
+            best: self.best_metric,
+            val_mse: Some(val_mse),
+        }))
+    }
+
+    fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        MetaBc::save_checkpoint(self, dir)
+    }
+
+    fn save_kept(&self, dir: &Path) -> Result<()> {
+        self.meta_policy().save_marked(dir, Some(self.mark(false)))
+    }
+
+    fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
+        self.meta_policy().save_final(dir, self.mark(true), false)
     }
 }
 

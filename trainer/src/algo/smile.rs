@@ -40,13 +40,16 @@
 //! w(u) = bc_weight (1 - u / bc_decay_updates)+   (or bc_weight when bc_decay_updates = 0)
 //! ```
 //!
-//! This file is the algorithm, read top to bottom: the run, its rollouts and iteration, the
-//! update pair, then the pair's two halves with each loss above its optimiser step (the
+//! This file is the algorithm, read top to bottom: the run, its rollouts and iteration, its
+//! hooks in the one fit loop ([`Learner`]), then the update pair's two halves with each loss above its optimiser step (the
 //! discriminator's here; SAC's critic, actor and temperature steps called in order, their
 //! arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term here). No thread is named in
 //! the math: around it, `batch` draws both halves' batches, `overlap` runs a pair's halves, the
 //! discriminator loss's parts and the rollouts at once on N learner threads, `persist`
-//! checkpoints a run, `fit` puts it in the shared fit loop and `config` holds its settings.
+//! checkpoints a run and `config` holds its settings (and how the typed settings land in them,
+//! [`MetaSettings`](crate::MetaSettings)).
+
+use std::path::Path;
 
 use candle_core::backprop::GradStore;
 use candle_core::{DType, Device, Tensor};
@@ -56,7 +59,6 @@ use sim::Environment;
 
 mod batch;
 mod config;
-mod fit;
 mod overlap;
 mod persist;
 #[cfg(test)]
@@ -65,9 +67,12 @@ mod tests;
 pub use batch::DiscBatch;
 pub use config::SmileConfig;
 
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+use crate::algo::learner::{Learner, MetaInputs, Unit};
 use crate::algo::sac::{ActorStep, Sac, SacStats};
-use crate::data::{MetaData, TaskReplay, quick_eval, sample_context, sensed_episode};
+use crate::data::{MetaData, TaskReplay, better, quick_eval, sample_context, sensed_episode};
 use crate::error::{Error, Result};
+use crate::io::MetricsLog;
 use crate::model::{
     ContextEncoder, DiscInput, DiscStats, Discriminator, Input, MetaPolicy, SharedCols,
     TanhGaussianPolicy, TrainingMark, bce_with_logits, scalar,
@@ -394,6 +399,132 @@ impl Smile {
             cfg.held_out(),
             cfg.env_config(),
         )
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The run in the one fit loop: Algorithm 1's iteration is its unit of work, the held-out
+// metric its evaluation (keep-best), its checkpoint and meta-policy files its state.
+
+impl Learner for Smile {
+    type Config = SmileConfig;
+    type Inputs = MetaInputs;
+    const UNIT: Unit = Unit {
+        plural: "update pairs",
+        word: "update",
+    };
+
+    fn start(cfg: SmileConfig, inputs: MetaInputs) -> Result<Self> {
+        if inputs.expert.is_some() {
+            return Err(Error::takes_no_expert(cfg.algo_name()));
+        }
+        Smile::new(cfg, inputs.data)
+    }
+
+    fn resume(dir: &Path, inputs: MetaInputs, wanted: &SmileConfig) -> Result<Self> {
+        if inputs.expert.is_some() {
+            return Err(Error::takes_no_expert(wanted.algo_name()));
+        }
+        let mut run = Smile::resume(dir, inputs.data, Some(wanted.total_updates))?;
+        run.set_cpu_budget(wanted.cpu_budget_s)?;
+        Ok(run)
+    }
+
+    fn config(&self) -> &SmileConfig {
+        &self.cfg
+    }
+
+    fn done(&self) -> u64 {
+        self.updates
+    }
+
+    fn cadence(&self) -> Cadence {
+        Cadence {
+            total: self.cfg.total_updates,
+            eval_every: self.cfg.eval_every,
+            eval_at_end: true,
+            checkpoint_every: self.cfg.checkpoint_every,
+            cpu_budget_s: self.cfg.cpu_budget_s,
+        }
+    }
+
+    fn begin(&mut self, log: &mut MetricsLog) -> Result<()> {
+        if self.updates == 0 && self.replay.total_len() == 0 {
+            self.warm_start()?;
+        }
+        if !self.data.val.is_empty() && self.updates == 0 {
+            // The untrained policy as the first point of the validation curve.
+            let m = self.validate()?;
+            log.log(0, &[("eval/val_metric", m as f64)])?;
+        }
+        Ok(())
+    }
+
+    fn cpu_seconds_mut(&mut self) -> Option<&mut f64> {
+        Some(&mut self.cpu_s)
+    }
+
+    // Algorithm 1: each iteration adds m trajectories to the task replays, then alternates d
+    // times between the discriminator (+ encoder) and the policy.
+    fn advance(&mut self, on: &mut dyn FnMut(Progress)) -> Result<Fields> {
+        let report = self.iteration(&mut |u| on(Progress::Steps(u)))?;
+        let (ds, ss, rm) = match report.last {
+            Some((d, s, r)) => (d, Some(s), r),
+            None => (DiscStats::default(), None, 0.0),
+        };
+        let cfg = &self.cfg;
+        let mut fields = vec![
+            ("losses/disc_bce", ds.bce as f64),
+            ("losses/disc_gp", ds.gp as f64),
+            ("charts/disc_acc_expert", ds.acc_expert as f64),
+            ("charts/disc_acc_policy", ds.acc_policy as f64),
+            ("charts/reward_mean", rm as f64),
+            ("charts/env_steps", self.env_steps as f64),
+        ];
+        if let Some(s) = &ss {
+            fields.extend(s.fields());
+        }
+        if cfg.bc_weight > 0.0 {
+            // The weight of the pair just done.
+            let w = cfg.bc_weight_at(self.updates.saturating_sub(1));
+            fields.push(("charts/bc_weight", w as f64));
+        }
+        Ok(fields)
+    }
+
+    fn evaluate(&mut self) -> Result<Option<Evaluation>> {
+        if self.data.val.is_empty() {
+            return Ok(None);
+        }
+        let m = self.validate()?;
+        let keep = better(self.data.family.metric_kind(), m, self.best);
+        if keep {
+            self.best = m;
+        }
+        Ok(Some(Evaluation {
+            keep,
+            fields: vec![
+                ("eval/val_metric", m as f64),
+                ("eval/val_best", self.best as f64),
+            ],
+            metric: m,
+            best: self.best,
+            val_mse: None,
+        }))
+    }
+
+    fn save_checkpoint(&self, dir: &Path) -> Result<()> {
+        Smile::save_checkpoint(self, dir)
+    }
+
+    fn save_kept(&self, dir: &Path) -> Result<()> {
+        self.meta_policy().save_marked(dir, Some(self.mark(false)))
+    }
+
+    fn finish(&mut self, dir: &Path, _log: &mut MetricsLog) -> Result<()> {
+        let replaces = self.data.val.is_empty();
+        self.meta_policy()
+            .save_final(dir, self.mark(true), replaces)
     }
 }
 

@@ -121,7 +121,7 @@ pub fn run(a: TrainArgs) -> Result<()> {
             RunEvent::Started {
                 total, done, unit, ..
             } => {
-                let bar = smile_app::progress::bar(*total, a.quiet, unit);
+                let bar = smile_app::progress::bar(*total, a.quiet, unit.plural);
                 bar.set_position(*done);
                 pb = Some(bar);
             }

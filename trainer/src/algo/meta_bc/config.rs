@@ -3,6 +3,8 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
+use crate::algo::learner::{Algo, MetaSettings};
+use crate::algo::setting::Setting;
 use crate::data::{ContextDraw, EarlyWeight, HeldOut};
 use crate::error::{Error, Result};
 use crate::model::ContextConfig;
@@ -217,5 +219,46 @@ impl MetaBcConfig {
             ));
         }
         Ok(())
+    }
+}
+
+impl MetaSettings for MetaBcConfig {
+    // Its policy is the one early stopping on held-out data picked: more steps are another
+    // selection, a new run.
+    const EXTENDS: bool = false;
+
+    fn configure(&mut self, algo: Algo, family: Family) {
+        self.env = family;
+        self.dagger = algo == Algo::MetaDagger;
+    }
+
+    fn set(&mut self, setting: Setting) -> bool {
+        match setting {
+            Setting::Updates(n) => self.total_steps = n,
+            Setting::Seed(s) => self.seed = s,
+            Setting::LearnerThreads(n) => self.learner_threads = n,
+            Setting::EvalEvery(n) => self.eval_every = n,
+            Setting::Hidden(h) => self.policy_hidden = h,
+            Setting::Physics(p) => self.physics = p,
+            Setting::Sensing(s) => self.sensing = Some(s),
+            // SMILe's: Meta-BC has no compute budget, discriminator or SAC.
+            Setting::CpuBudget(_)
+            | Setting::GpWeight(_)
+            | Setting::RewardScale(_)
+            | Setting::BcWeight(_) => return false,
+        }
+        true
+    }
+
+    fn budget(&self) -> Vec<Setting> {
+        vec![Setting::Updates(self.total_steps)]
+    }
+
+    fn validate(&self) -> Result<()> {
+        MetaBcConfig::validate(self)
+    }
+
+    fn holdout_every(&self) -> usize {
+        self.holdout_every
     }
 }

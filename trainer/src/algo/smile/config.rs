@@ -3,7 +3,9 @@
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Family};
 
+use crate::algo::learner::{Algo, MetaSettings};
 use crate::algo::sac::SacConfig;
+use crate::algo::setting::Setting;
 use crate::data::{ContextDraw, HeldOut};
 use crate::error::{Error, Result};
 use crate::model::ContextConfig;
@@ -305,5 +307,46 @@ impl SmileConfig {
         } else {
             "smile"
         }
+    }
+}
+
+impl MetaSettings for SmileConfig {
+    const EXTENDS: bool = true;
+
+    fn configure(&mut self, algo: Algo, family: Family) {
+        self.env = family;
+        self.context.state_only = algo == Algo::SmileStateOnly;
+    }
+
+    fn set(&mut self, setting: Setting) -> bool {
+        match setting {
+            Setting::Updates(n) => self.total_updates = n,
+            Setting::CpuBudget(s) => self.cpu_budget_s = s,
+            Setting::Seed(s) => self.seed = s,
+            Setting::LearnerThreads(n) => self.learner_threads = n,
+            Setting::EvalEvery(n) => self.eval_every = n,
+            Setting::Hidden(h) => (self.sac.hidden, self.disc_hidden) = (h.clone(), h),
+            Setting::GpWeight(w) => self.gp_weight = w,
+            Setting::RewardScale(r) => self.sac.reward_scale = r,
+            Setting::BcWeight(w) => self.bc_weight = w,
+            Setting::Physics(p) => self.physics = p,
+            Setting::Sensing(s) => self.sensing = Some(s),
+        }
+        true
+    }
+
+    fn budget(&self) -> Vec<Setting> {
+        vec![
+            Setting::Updates(self.total_updates),
+            Setting::CpuBudget(self.cpu_budget_s),
+        ]
+    }
+
+    fn validate(&self) -> Result<()> {
+        SmileConfig::validate(self)
+    }
+
+    fn holdout_every(&self) -> usize {
+        self.holdout_every
     }
 }
