@@ -140,19 +140,15 @@ pub fn log_line(e: &trainer::run::RunEvent) -> Option<String> {
             };
             Some(format!("{head}{what}; {total} {}", unit.plural))
         }
-        RunEvent::Progress(
-            Progress::Eval {
-                step,
-                metric,
-                best,
-                val_mse,
-            },
-            word,
-        ) => Some(match val_mse {
-            Some(mse) => format!("{word} {step}: val mse {mse:.5}, held-out metric {metric:.4}"),
-            None => {
-                format!("{word} {step}: held-out train-task metric {metric:.4} (best {best:.4})")
-            }
+        RunEvent::Progress(Progress::Eval { step, score: s }, word) => Some(match s.val_mse {
+            Some(mse) => format!(
+                "{word} {step}: val mse {mse:.5}, {} {:.4}",
+                s.what, s.metric
+            ),
+            None => format!(
+                "{word} {step}: {} {:.4} (best {:.4})",
+                s.what, s.metric, s.best
+            ),
         }),
         RunEvent::Progress(Progress::Stopped(s), word) => Some(format!(
             "early stop at {word} {s}: the held-out selection metric stopped improving"

@@ -421,14 +421,9 @@ fn train_learner<C: serde::Serialize>(
             let Some(pb) = &pb else { return };
             match p {
                 Progress::Steps(s) => pb.set_position(s),
-                Progress::Eval {
-                    metric: m,
-                    best,
-                    val_mse,
-                    ..
-                } => pb.set_message(match val_mse {
-                    Some(mse) => format!("val mse {mse:.4}, held-out train tasks {m:.3}"),
-                    None => format!("held-out train tasks {m:.3} (best {best:.3})"),
+                Progress::Eval { score: s, .. } => pb.set_message(match s.val_mse {
+                    Some(mse) => format!("val mse {mse:.4}, held-out train tasks {:.3}", s.metric),
+                    None => format!("held-out train tasks {:.3} (best {:.3})", s.metric, s.best),
                 }),
                 Progress::Stopped(s) => pb.set_message(format!("early stop at step {s}")),
                 Progress::Checkpoint(_) | Progress::Episode { .. } => {}

@@ -464,10 +464,10 @@ const PLUMBING: [&str; 5] = [
 ];
 /// Its lines now (issue 71 asks for at most 1,001, half of df45b69's): a ratchet, lowered as
 /// the plumbing shrinks, so that it does not grow back unseen.
-const PLUMBING_LINES: usize = 1025;
+const PLUMBING_LINES: usize = 998;
 /// The run directory's records (`run.json`, `config.toml`, the lock, the restart checks), which
 /// were in `run.rs` at df45b69: counted with the plumbing, its ratchet.
-const PLUMBING_WITH_RECORDS: usize = 1232;
+const PLUMBING_WITH_RECORDS: usize = 1205;
 
 #[test]
 fn the_trainers_plumbing_does_not_grow() {

@@ -285,6 +285,14 @@ impl Input {
 }
 
 impl Error {
+    /// An I/O failure on `path`, as `map_err` takes it: `.map_err(Error::io(&path))`.
+    pub(crate) fn io(path: &std::path::Path) -> impl Fn(std::io::Error) -> Error + Copy + '_ {
+        move |source| Error::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+
     /// An [`Error::Input`].
     pub fn input(input: Input, problem: impl Into<String>) -> Self {
         Error::Input {

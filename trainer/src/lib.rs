@@ -49,8 +49,8 @@ pub mod threads;
 // Algorithms: each module holds its configuration and its run type, a `Learner` trained by
 // `fit`; the meta-learners' configurations are `MetaSettings`, named by `Algo`.
 pub use algo::{
-    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Setting, Unit,
-    expert, fit, meta_bc, sac, smile,
+    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Score, Setting,
+    Unit, expert, fit, meta_bc, sac, smile,
 };
 
 /// Errors and the result alias.

@@ -162,10 +162,7 @@ impl Run<'_> {
             req.config_file.clone()
         };
         let text = match &file {
-            Some(p) => std::fs::read_to_string(p).map_err(|e| Error::Io {
-                path: p.clone(),
-                source: e,
-            })?,
+            Some(p) => std::fs::read_to_string(p).map_err(Error::io(p))?,
             None => String::new(),
         };
         let name = match (&file, req.resume) {
@@ -179,17 +176,13 @@ impl Run<'_> {
         let family = self.ds.family;
         let demos = format!("{family} (its demos, {})", req.demos.display());
         let mut cfg: C = registry::parse(&text, Some(&name), &demos, family)?;
-        let mut settings = req.settings.clone();
-        // A new run on MuJoCo demos runs on MuJoCo without being told twice.
-        let physics_given = settings.iter().any(|s| matches!(s, Setting::Physics(_)));
-        if !physics_given
-            && !text
-                .parse::<toml::Table>()
-                .is_ok_and(|t| t.contains_key("physics"))
-        {
-            settings.push(Setting::Physics(self.ds.physics));
+        // A new run on MuJoCo demos runs on MuJoCo without being told twice (a file's plant,
+        // and then the caller's, still win).
+        let table = text.parse::<toml::Table>();
+        if !table.is_ok_and(|t| t.contains_key("physics")) {
+            cfg.set(Setting::Physics(self.ds.physics));
         }
-        cfg.apply(self.algo, &settings)?;
+        cfg.apply(self.algo, &req.settings)?;
         cfg.configure(self.algo, self.ds.family);
         Ok(cfg)
     }
@@ -281,11 +274,11 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
         req.config.is_none() && dir.is_dir() && !dir.join(checkpoint::CHECKPOINT_FILE).exists();
     let mut recorded = None;
     let run = match &req.config {
-        Some(cfg) => start(dir, cfg, on)?,
+        Some(cfg) => start(dir, cfg)?,
         None if restart => {
             let (cfg, path) = recorded_config(dir, req.total_steps)?;
             recorded = Some(path);
-            start(dir, &cfg, on)?
+            start(dir, &cfg)?
         }
         None => ExpertTrainer::resume(dir, req.total_steps)?,
     };
@@ -293,19 +286,7 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
     let lock = open_dir(dir, resumes, recorded.as_deref(), ExpertTrainer::UNIT, on)?;
     let cfg = run.config();
     let what = format!("a SAC expert on {} ({})", cfg.env, cfg.physics);
-    // An expert is evaluated on its own task (or the meta-test tasks), not held-out ones.
-    let mut on = |e: RunEvent| match e {
-        RunEvent::Progress(
-            Progress::Eval {
-                step, metric, best, ..
-            },
-            _,
-        ) => on(RunEvent::Note(format!(
-            "step {step}: deterministic evaluation {metric:.4} (best {best:.4})"
-        ))),
-        e => on(e),
-    };
-    let run = drive(run, dir, what, resumes, lock, &mut on)?;
+    let run = drive(run, dir, what, resumes, lock, on)?;
     if let Some(b) = run.best_eval() {
         on(RunEvent::Note(format!(
             "best periodic evaluation: {:.4} at env step {} (policy-best.safetensors); \
@@ -317,16 +298,8 @@ pub fn train_expert(req: &ExpertRequest, on: &mut dyn FnMut(RunEvent)) -> Result
 }
 
 /// A new run in `dir`, which must not hold one.
-fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result<ExpertTrainer> {
+fn start(dir: &Path, cfg: &ExpertConfig) -> Result<ExpertTrainer> {
     checkpoint::ensure_fresh_run_dir(dir)?;
-    if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
-        // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
-        on(RunEvent::Note(format!(
-            "task value {v}: a per-task expert on {} (value {})",
-            task.label(),
-            task.value()
-        )));
-    }
     ExpertTrainer::new(cfg.clone())
 }
 
@@ -336,10 +309,7 @@ fn start(dir: &Path, cfg: &ExpertConfig, on: &mut dyn FnMut(RunEvent)) -> Result
 /// its step budget replaced by `total_steps` if given.
 fn recorded_config(dir: &Path, total_steps: Option<u64>) -> Result<(ExpertConfig, PathBuf)> {
     let path = run_dir::restart_config(dir)?;
-    let text = std::fs::read_to_string(&path).map_err(|e| Error::Io {
-        path: path.clone(),
-        source: e,
-    })?;
+    let text = std::fs::read_to_string(&path).map_err(Error::io(&path))?;
     let mut cfg: ExpertConfig = crate::io::from_toml_over_defaults(&text)
         .map_err(|e| Error::Config(format!("parsing {}: {e}", path.display())))?;
     cfg.total_steps = total_steps.unwrap_or(cfg.total_steps);

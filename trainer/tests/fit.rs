@@ -7,7 +7,7 @@ use std::path::Path;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 use serde::{Deserialize, Serialize};
-use trainer::{Cadence, Evaluation, Fields, Learner, MetricsLog, Progress, Result, Unit};
+use trainer::{Cadence, Evaluation, Fields, Learner, MetricsLog, Progress, Result, Score, Unit};
 
 /// The counter's budget and cadence.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -96,9 +96,12 @@ impl Learner for Counter {
         Ok(Some(Evaluation {
             keep,
             fields: vec![("eval/metric", metric as f64)],
-            metric,
-            best: self.best,
-            val_mse: None,
+            score: Score {
+                what: "count",
+                metric,
+                best: self.best,
+                val_mse: None,
+            },
         }))
     }
 
@@ -154,7 +157,7 @@ fn plan(metrics: &[f32]) -> Plan {
 
 fn evals(seen: &[Progress]) -> Vec<(u64, f32)> {
     let at = |p: &Progress| match p {
-        Progress::Eval { step, best, .. } => Some((*step, *best)),
+        Progress::Eval { step, score } => Some((*step, score.best)),
         _ => None,
     };
     seen.iter().filter_map(at).collect()
@@ -198,25 +201,22 @@ fn the_learners_stopping_rule_ends_the_run_after_the_evaluation_that_decided_it(
     let mut run = Counter::start(stops, 0).unwrap();
     let (seen, _) = fit(&mut run);
     // No unit of work, evaluation or second stop after it; the checkpoint is the end's.
-    assert_eq!(
-        seen,
-        [
-            Progress::Eval {
-                step: 300,
-                metric: 0.4,
-                best: 0.4,
-                val_mse: None
-            },
-            Progress::Eval {
-                step: 600,
-                metric: 0.1,
-                best: 0.4,
-                val_mse: None
-            },
-            Progress::Stopped(600),
-            Progress::Checkpoint(600),
-        ]
-    );
+    let eval = |step, metric, best| Progress::Eval {
+        step,
+        score: Score {
+            what: "count",
+            metric,
+            best,
+            val_mse: None,
+        },
+    };
+    let want = [
+        eval(300, 0.4, 0.4),
+        eval(600, 0.1, 0.4),
+        Progress::Stopped(600),
+        Progress::Checkpoint(600),
+    ];
+    assert_eq!(seen, want);
     assert_eq!((run.done, run.finished_at), (600, Some(600)));
 }
 

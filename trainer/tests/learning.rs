@@ -115,8 +115,8 @@ fn smile_learns_point_goal_from_demos_and_uses_the_context() {
     let untrained = test_metric(&mut run.meta_policy(), &test);
     let t0 = std::time::Instant::now();
     trainer::fit(&mut run, &dir, &mut |e| {
-        if let Progress::Eval { step, metric, .. } = e {
-            eprintln!("update {step}: held-out train goals {metric:.3}");
+        if let Progress::Eval { step, score } = e {
+            eprintln!("update {step}: held-out train goals {:.3}", score.metric);
         }
     })
     .unwrap();

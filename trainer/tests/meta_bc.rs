@@ -5,9 +5,9 @@ mod common;
 use sim::{DemoDataset, Family};
 use trainer::MetaData;
 use trainer::MetaPolicy;
-use trainer::Progress;
 use trainer::expert::Expert;
 use trainer::meta_bc::{self, MetaBc, MetaBcConfig};
+use trainer::{Progress, Score};
 
 fn demos(tasks: usize, per_task: usize, horizon: usize) -> DemoDataset {
     common::train_demos(tasks, per_task, horizon)
@@ -48,7 +48,10 @@ fn meta_bc_fits_and_saves_a_loadable_policy_and_a_resumable_run() {
     let mut vals = Vec::new();
     trainer::fit(&mut run, &dir, &mut |e| {
         if let Progress::Eval {
-            val_mse: Some(m), ..
+            score: Score {
+                val_mse: Some(m), ..
+            },
+            ..
         } = e
         {
             vals.push(m);
@@ -133,8 +136,8 @@ fn rollout_selection_keeps_the_best_held_out_rollouts() {
     let mut run = MetaBc::new(cfg, run_data(), None).unwrap();
     let mut metrics = Vec::new();
     trainer::fit(&mut run, &dir, &mut |e| {
-        if let Progress::Eval { metric, .. } = e {
-            metrics.push(metric);
+        if let Progress::Eval { score, .. } = e {
+            metrics.push(score.metric);
         }
     })
     .unwrap();
@@ -219,8 +222,9 @@ fn meta_bc_keeps_the_weights_of_its_best_validation_step() {
     trainer::fit(&mut run, &full, &mut |e| {
         if let Progress::Eval {
             step,
-            val_mse: Some(m),
-            ..
+            score: Score {
+                val_mse: Some(m), ..
+            },
         } = e
         {
             vals.push((step, m));

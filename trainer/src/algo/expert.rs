@@ -18,7 +18,7 @@ use rand_chacha::ChaCha8Rng;
 use serde::{Deserialize, Serialize};
 use sim::{EnvConfig, Environment, EpisodeMetric, Family, Physics, Task};
 
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Score};
 use crate::algo::learner::{Learner, Unit};
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::{ReplayBuffer, better};
@@ -551,9 +551,12 @@ impl Learner for ExpertTrainer {
                 ("eval/metric", ev.mean as f64),
                 ("eval/final_sample", ev.final_sample_mean as f64),
             ],
-            metric: ev.mean,
-            best: self.best.map_or(ev.mean, |b| b.metric),
-            val_mse: None,
+            score: Score {
+                what: "deterministic evaluation",
+                metric: ev.mean,
+                best: self.best.map_or(ev.mean, |b| b.metric),
+                val_mse: None,
+            },
         }))
     }
 
@@ -577,10 +580,7 @@ impl Learner for ExpertTrainer {
         let last = self.evaluate_now()?;
         log.log(self.env_steps, &[("eval/metric", last.mean as f64)])?;
         if better(self.family.metric_kind(), best.metric, last.mean) {
-            let bytes = std::fs::read(&best_file).map_err(|e| Error::Io {
-                path: best_file.clone(),
-                source: e,
-            })?;
+            let bytes = std::fs::read(&best_file).map_err(Error::io(&best_file))?;
             crate::io::checkpoint::write_atomic(&dir.join(POLICY_FILE), &bytes)
         } else {
             self.export_policy(dir)

@@ -24,16 +24,12 @@ pub enum Progress {
         /// The family's metric for the episode.
         metric: f32,
     },
-    /// A held-out evaluation.
+    /// An evaluation, after this many units of work.
     Eval {
         /// Units of work done.
         step: u64,
-        /// The family's metric now.
-        metric: f32,
-        /// The metric of the policy kept so far.
-        best: f32,
-        /// Meta-BC: the action MSE on the held-out tasks' demos.
-        val_mse: Option<f32>,
+        /// What it found.
+        score: Score,
     },
     /// A checkpoint was written at this step.
     Checkpoint(u64),
@@ -45,12 +41,21 @@ pub enum Progress {
 /// Metric names and values for one line of the metrics log.
 pub type Fields = Vec<(&'static str, f64)>;
 
-/// One held-out evaluation, as a learner judged it.
+/// One evaluation, as a learner judged it.
 pub struct Evaluation {
     /// Whether the current policy is now the one to keep.
     pub keep: bool,
     /// What to log.
     pub fields: Fields,
+    /// What to report.
+    pub score: Score,
+}
+
+/// What an evaluation found, for a person.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Score {
+    /// What the metric measures ("held-out train-task metric", "deterministic evaluation").
+    pub what: &'static str,
     /// The family's metric now.
     pub metric: f32,
     /// The metric of the policy kept so far.
@@ -165,9 +170,7 @@ pub fn fit<L: Learner>(run: &mut L, dir: &Path, on: &mut dyn FnMut(Progress)) ->
             log.log(run.done(), &ev.fields)?;
             on(Progress::Eval {
                 step: run.done(),
-                metric: ev.metric,
-                best: ev.best,
-                val_mse: ev.val_mse,
+                score: ev.score,
             });
             // The learner's stopping rule (Meta-BC's patience) ended training with this
             // evaluation: no further unit of work.

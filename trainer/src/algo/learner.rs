@@ -13,7 +13,7 @@ use serde::Serialize;
 use serde::de::DeserializeOwned;
 use sim::Family;
 
-pub use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+pub use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Score};
 
 use crate::algo::expert::ExpertSet;
 use crate::algo::setting::Setting;

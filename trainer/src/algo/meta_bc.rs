@@ -30,7 +30,7 @@ use rand_chacha::ChaCha8Rng;
 use sim::{Environment, TaskDemos};
 
 use crate::algo::expert::ExpertSet;
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Score};
 use crate::algo::learner::{Learner, MetaInputs, Unit};
 use crate::data::{MetaData, better, distinct_tasks, quick_eval, sample_context, sensed_episode};
 use crate::error::{Error, Result};
@@ -523,9 +523,12 @@ impl Learner for MetaBc {
                 ("eval/val_best_mse", self.best_mse as f64),
                 ("eval/val_best_metric", self.best_metric as f64),
             ],
-            metric: val_metric,
-            best: self.best_metric,
-            val_mse: Some(val_mse),
+            score: Score {
+                what: "held-out train-task metric",
+                metric: val_metric,
+                best: self.best_metric,
+                val_mse: Some(val_mse),
+            },
         }))
     }
 

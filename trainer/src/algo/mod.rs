@@ -22,6 +22,6 @@ pub mod smile;
 
 pub use fit::fit;
 pub use learner::{
-    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Unit,
+    Algo, Cadence, Evaluation, Fields, Learner, MetaInputs, MetaSettings, Progress, Score, Unit,
 };
 pub use setting::Setting;

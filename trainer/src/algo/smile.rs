@@ -67,7 +67,7 @@ mod tests;
 pub use batch::DiscBatch;
 pub use config::SmileConfig;
 
-use crate::algo::fit::{Cadence, Evaluation, Fields, Progress};
+use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Score};
 use crate::algo::learner::{Learner, MetaInputs, Unit};
 use crate::algo::sac::{ActorStep, Sac, SacStats};
 use crate::data::{MetaData, TaskReplay, better, quick_eval, sample_context, sensed_episode};
@@ -507,9 +507,12 @@ impl Learner for Smile {
                 ("eval/val_metric", m as f64),
                 ("eval/val_best", self.best as f64),
             ],
-            metric: m,
-            best: self.best,
-            val_mse: None,
+            score: Score {
+                what: "held-out train-task metric",
+                metric: m,
+                best: self.best,
+                val_mse: None,
+            },
         }))
     }
 

@@ -529,10 +529,7 @@ pub fn render_episode(
             break;
         }
     }
-    sim::render::write_animated_svg(&frames, env.control_dt(), path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
+    sim::render::write_animated_svg(&frames, env.control_dt(), path).map_err(Error::io(path))?;
     Ok(metric.value())
 }
 

@@ -137,10 +137,7 @@ pub fn evaluate_to_dir(req: &EvalRequest, on: &mut dyn FnMut(EvalEvent)) -> Resu
         Some(base) => Some(References::load(family, base, &req.experts)?),
         None => None,
     };
-    std::fs::create_dir_all(&req.out).map_err(|e| Error::Io {
-        path: req.out.clone(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(&req.out).map_err(Error::io(&req.out))?;
     let reference = match &references {
         Some(refs) => Some(reference_returns(
             refs,

@@ -181,10 +181,7 @@ pub fn save_file(
 /// Write `bytes` to `path` atomically ([`sim::write_atomic`]: temporary sibling, fsync,
 /// rename, the temporary removed on failure); an error names the file.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
-    sim::write_atomic(path, bytes).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })
+    sim::write_atomic(path, bytes).map_err(Error::io(path))
 }
 
 /// SHA-256 of `bytes`, lower-case hex ([`sim::sha256_hex`]).
@@ -192,10 +189,7 @@ pub use sim::sha256_hex;
 
 /// SHA-256 of the file at `path` ([`sha256_hex`]), an error naming the file.
 pub fn sha256_file(path: &Path) -> Result<String> {
-    let bytes = std::fs::read(path).map_err(|e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    })?;
+    let bytes = std::fs::read(path).map_err(Error::io(path))?;
     Ok(sha256_hex(&bytes))
 }
 

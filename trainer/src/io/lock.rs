@@ -26,10 +26,7 @@ impl DirLock {
             path: dir.join(LOCK_FILE),
             source: e,
         };
-        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-            path: dir.to_path_buf(),
-            source: e,
-        })?;
+        std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
         let mut file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)

@@ -37,10 +37,7 @@ impl MetricsLog {
     /// dropped first (as are torn, unparseable lines), so that no step appears twice.
     pub fn open_at(dir: &Path, step: u64) -> Result<Self> {
         let path = dir.join(METRICS_FILE);
-        let io = |e| Error::Io {
-            path: path.clone(),
-            source: e,
-        };
+        let io = Error::io(&path);
         std::fs::create_dir_all(dir).map_err(io)?;
         if let Ok(old) = std::fs::read_to_string(&path) {
             let kept: String = old
@@ -92,10 +89,7 @@ impl MetricsLog {
         let line = serde_json::Value::Object(obj).to_string();
         writeln!(self.file, "{line}")
             .and_then(|_| self.file.flush())
-            .map_err(|e| Error::Io {
-                path: self.path.clone(),
-                source: e,
-            })?;
+            .map_err(Error::io(&self.path))?;
         self.tb.scalars(step, values)
     }
 }
@@ -237,10 +231,7 @@ impl TbWriter {
                 n => format!("events.out.tfevents.{secs}.{pid}.{n}.smile"),
             }
         };
-        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-            path: dir.to_path_buf(),
-            source: e,
-        })?;
+        std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
         let mut n = 0;
         let (path, f) = loop {
             let path = dir.join(name(n));
@@ -281,10 +272,7 @@ impl TbWriter {
         self.file
             .write_all(&rec)
             .and_then(|_| self.file.flush())
-            .map_err(|e| Error::Io {
-                path: self.path.clone(),
-                source: e,
-            })
+            .map_err(Error::io(&self.path))
     }
 
     /// A `SessionLog { status: START }` event at `step`: TensorBoard then discards events with

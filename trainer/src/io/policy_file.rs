@@ -51,10 +51,7 @@ impl MetaPolicy {
         replaces_kept: bool,
     ) -> Result<()> {
         let last = dir.join("last");
-        std::fs::create_dir_all(&last).map_err(|e| Error::Io {
-            path: last.clone(),
-            source: e,
-        })?;
+        std::fs::create_dir_all(&last).map_err(Error::io(&last))?;
         self.save_marked(&last, Some(mark))?;
         if replaces_kept || !dir.join(META_POLICY_FILE).exists() {
             self.save_marked(dir, Some(mark))

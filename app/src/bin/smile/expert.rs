@@ -217,6 +217,11 @@ pub fn run(a: ExpertArgs) -> Result<()> {
         },
         None => {
             let cfg = effective_config(&a)?;
+            if let (Some(v), [task]) = (cfg.task_value, cfg.tasks()?.as_slice()) {
+                // sim's tolerant lookup: 0.4909 names test goal 0.490874 exactly.
+                let (label, value) = (task.label(), task.value());
+                eprintln!("task value {v}: a per-task expert on {label} (value {value})");
+            }
             let nominal = if a.nominal { "-nominal" } else { "" };
             let out = a.out.clone().unwrap_or_else(|| {
                 let plant = match cfg.physics {

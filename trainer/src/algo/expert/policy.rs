@@ -20,10 +20,7 @@ pub(super) fn write_policy(
     tensors: &[(String, Tensor)],
     meta: &serde_json::Value,
 ) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-        path: dir.to_path_buf(),
-        source: e,
-    })?;
+    std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
     // One atomic file write: nothing half-written, no temporary folder left on failure.
     checkpoint::save_file(&dir.join(file), tensors, meta).map(|_| ())
 }

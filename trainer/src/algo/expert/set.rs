@@ -181,10 +181,7 @@ fn expand_expert_folder(path: &Path) -> Result<Vec<std::path::PathBuf>> {
     if !path.is_dir() || path.join(POLICY_FILE).exists() || path.join(ckpt).exists() {
         return Ok(vec![path.to_path_buf()]);
     }
-    let io = |e: std::io::Error| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    };
+    let io = Error::io(path);
     let mut found = Vec::new();
     for entry in std::fs::read_dir(path).map_err(io)? {
         let p = entry.map_err(io)?.path();

@@ -170,21 +170,14 @@ pub struct OnnxExport {
     pub meta: OnnxMeta,
 }
 
-fn io_err(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
-    move |e| Error::Io {
-        path: path.to_path_buf(),
-        source: e,
-    }
-}
-
 /// True if `dir` is empty or holds an earlier ONNX export (its description file and nothing
 /// but the files an export writes): only such a directory is replaced.
 fn replaceable(dir: &Path) -> Result<bool> {
     let ours = [ENCODER_FILE, POLICY_FILE, META_FILE, REFERENCE_FILE];
     let mut has_meta = false;
     let mut empty = true;
-    for entry in std::fs::read_dir(dir).map_err(io_err(dir))? {
-        let name = entry.map_err(io_err(dir))?.file_name();
+    for entry in std::fs::read_dir(dir).map_err(Error::io(dir))? {
+        let name = entry.map_err(Error::io(dir))?.file_name();
         empty = false;
         match name.to_str() {
             Some(n) if n == META_FILE => has_meta = true,
@@ -222,8 +215,8 @@ fn recover_dead_exports(parent: &Path, name: &str, out: &Path) -> Result<()> {
         }
         let path = entry.path();
         match kind {
-            "old" if !out.exists() => std::fs::rename(&path, out).map_err(io_err(out))?,
-            "tmp" | "old" => std::fs::remove_dir_all(&path).map_err(io_err(&path))?,
+            "old" if !out.exists() => std::fs::rename(&path, out).map_err(Error::io(out))?,
+            "tmp" | "old" => std::fs::remove_dir_all(&path).map_err(Error::io(&path))?,
             _ => {}
         }
     }
@@ -283,13 +276,13 @@ pub fn write_dir(
         let old = parent.join(format!(".{name}.onnx-old-{}", std::process::id()));
         let had_old = out.is_dir();
         if had_old {
-            std::fs::rename(out, &old).map_err(io_err(out))?;
+            std::fs::rename(out, &old).map_err(Error::io(out))?;
         }
         if let Err(e) = std::fs::rename(&tmp, out) {
             if had_old {
                 let _ = std::fs::rename(&old, out);
             }
-            return Err(io_err(out)(e));
+            return Err(Error::io(out)(e));
         }
         if had_old {
             let _ = std::fs::remove_dir_all(&old);
