@@ -453,21 +453,21 @@ fn the_checks_see_what_they_look_for() {
 }
 
 /// The trainer's plumbing, as issue 71 counted it at df45b69 (2,002 lines): the learner's
-/// trait, the typed settings, the fit loop, the registry and the run drivers. The algorithms'
-/// own hooks in that loop (`impl Learner`, `impl MetaSettings`) live with each algorithm.
-const PLUMBING: [&str; 5] = [
+/// trait, the typed settings, the fit loop, and the run drivers with their registry (`run.rs`
+/// and every file under `run/`). The algorithms' own hooks in that loop (`impl Learner`,
+/// `impl MetaSettings`) live with each algorithm.
+const PLUMBING: [&str; 4] = [
     "trainer/src/algo/learner.rs",
     "trainer/src/algo/setting.rs",
     "trainer/src/algo/fit.rs",
     "trainer/src/run.rs",
-    "trainer/src/run/registry.rs",
 ];
 /// Its lines now (issue 71 asks for at most 1,001, half of df45b69's): a ratchet, lowered as
 /// the plumbing shrinks, so that it does not grow back unseen.
-const PLUMBING_LINES: usize = 998;
+const PLUMBING_LINES: usize = 1000;
 /// The run directory's records (`run.json`, `config.toml`, the lock, the restart checks), which
 /// were in `run.rs` at df45b69: counted with the plumbing, its ratchet.
-const PLUMBING_WITH_RECORDS: usize = 1205;
+const PLUMBING_WITH_RECORDS: usize = 1207;
 
 #[test]
 fn the_trainers_plumbing_does_not_grow() {
@@ -475,15 +475,23 @@ fn the_trainers_plumbing_does_not_grow() {
         let text = std::fs::read_to_string(root().join(f)).unwrap_or_else(|e| panic!("{f}: {e}"));
         text.lines().count()
     };
-    let plumbing: usize = PLUMBING.iter().map(|f| lines(f)).sum();
+    let mut drivers = Vec::new();
+    sources(&root().join("trainer/src/run"), &mut drivers);
+    let drivers: Vec<String> = drivers.iter().map(|p| p.display().to_string()).collect();
+    let plumbing: usize = PLUMBING.iter().map(|f| lines(f)).sum::<usize>()
+        + drivers.iter().map(|f| lines(f)).sum::<usize>();
     let with_records = plumbing + lines("trainer/src/io/run_dir.rs");
     assert!(
         plumbing <= PLUMBING_LINES && with_records <= PLUMBING_WITH_RECORDS,
-        "the trainer's plumbing ({}) is {plumbing} lines, {with_records} with the run's records \
-         (io/run_dir.rs); its ratchets are {PLUMBING_LINES} and {PLUMBING_WITH_RECORDS}: move \
-         what is an algorithm's into its file, or cut",
-        PLUMBING.join(", ")
+        "the trainer's plumbing ({}, {}) is {plumbing} lines, {with_records} with the run's \
+         records (io/run_dir.rs); its ratchets are {PLUMBING_LINES} and \
+         {PLUMBING_WITH_RECORDS}: move what is an algorithm's into its file, or cut",
+        PLUMBING.join(", "),
+        drivers.join(", ")
     );
     // A count that reads nothing would pass forever.
-    assert!(plumbing > 500, "{plumbing}");
+    assert!(
+        plumbing > 500 && !drivers.is_empty(),
+        "{plumbing} {drivers:?}"
+    );
 }

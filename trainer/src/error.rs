@@ -302,15 +302,16 @@ impl Error {
     }
 
     /// An expert given to `algo`, a learner of the demos alone: refused, not ignored (by the
-    /// run driver before it loads one, and by the learner's own start).
-    pub(crate) fn takes_no_expert(algo: &str) -> Self {
-        Error::input(
-            Input::Expert,
-            format!(
-                "{algo} learns from the demos alone and takes no expert (drop the expert, or \
-                 train meta-dagger, which relabels its rollouts with one)"
-            ),
-        )
+    /// run driver before it loads one, naming its path, and by the learner's own start).
+    pub(crate) fn takes_no_expert(algo: &str, expert: Option<&std::path::Path>) -> Self {
+        let given = expert.map_or("an expert".into(), |p| {
+            format!("the expert {}", p.display())
+        });
+        let problem = format!(
+            "{algo} learns from the demos alone: {given} would relabel Meta-DAgger's rollouts \
+             (drop it, or train meta-dagger)"
+        );
+        Error::input(Input::Expert, problem)
     }
 
     /// The one plant check: an input made on the `found` plant serves a run on `expected` only

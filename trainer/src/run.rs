@@ -7,9 +7,10 @@
 //! ([`RUN_FILE`], `config.toml`), holds the directory's lock, and trains the [`Learner`]
 //! through the one fit loop, reporting [`RunEvent`]s. A resumed run keeps the configuration it
 //! started with: only its budget ([`MetaSettings::budget`]) may change, and other demos than
-//! the run's are refused. [`train_expert`] is the same driver for a SAC expert (no demos,
-//! no run record: its configuration is given or recorded): both end in one tail (`drive`: the recorded configuration, the start event, the loop, a failure named
-//! with its step and last checkpoint).
+//! the run's are refused. [`train_expert`] is the same driver for a SAC expert (no demos, no
+//! run record: its configuration is given or recorded). Both end in one tail (`drive`: the
+//! recorded configuration, the start event, the loop, a failure named with its step and last
+//! checkpoint).
 
 use std::path::{Path, PathBuf};
 
@@ -141,8 +142,7 @@ pub fn train(req: &TrainRequest, on: &mut dyn FnMut(RunEvent)) -> Result<()> {
 /// A request with its inputs read.
 struct Run<'a> {
     req: &'a TrainRequest,
-    /// A `--resume` of a run that has no checkpoint: started over with its recorded
-    /// configuration, this file.
+    /// A `--resume` of a run with no checkpoint: started over from this recorded configuration.
     restart: Option<PathBuf>,
     algo: Algo,
     ds: &'a DemoDataset,
@@ -183,7 +183,7 @@ impl Run<'_> {
             cfg.set(Setting::Physics(self.ds.physics));
         }
         cfg.apply(self.algo, &req.settings)?;
-        cfg.configure(self.algo, self.ds.family);
+        cfg.configure(self.algo, family);
         Ok(cfg)
     }
 
@@ -195,7 +195,7 @@ impl Run<'_> {
                 on(RunEvent::Note(format!("{}: {note}", self.algo)));
                 Ok(Some(set))
             }
-            (false, Some(_)) => Err(Error::takes_no_expert(self.algo.name())),
+            (false, Some(p)) => Err(Error::takes_no_expert(self.algo.name(), Some(p))),
             (false, None) => Ok(None),
         }
     }

@@ -16,6 +16,8 @@ struct Plan {
     /// Units per `advance`: 150 passes the multiples of 100 and 300 unevenly.
     stride: u64,
     eval_every: u64,
+    /// Also evaluate when training ends (SMILe and Meta-BC do; an expert does not).
+    eval_at_end: bool,
     checkpoint_every: u64,
     /// The metric of each evaluation in turn (higher is better).
     metrics: Vec<f32>,
@@ -71,7 +73,7 @@ impl Learner for Counter {
         Cadence {
             total: p.total,
             eval_every: p.eval_every,
-            eval_at_end: true,
+            eval_at_end: p.eval_at_end,
             checkpoint_every: p.checkpoint_every,
             cpu_budget_s: 0.0,
         }
@@ -149,6 +151,7 @@ fn plan(metrics: &[f32]) -> Plan {
         total: 1000,
         stride: 150,
         eval_every: 300,
+        eval_at_end: true,
         checkpoint_every: 500,
         metrics: metrics.to_vec(),
         stop_after: None,
@@ -194,13 +197,15 @@ fn evaluations_and_checkpoints_fall_once_per_multiple_and_at_the_end() {
 
 #[test]
 fn the_learners_stopping_rule_ends_the_run_after_the_evaluation_that_decided_it() {
+    // Checkpoints every 2000: the one at 600 is the end's, due whatever the cadence.
     let stops = Plan {
         stop_after: Some(2),
+        checkpoint_every: 2000,
         ..plan(&[0.4, 0.1, 0.9])
     };
     let mut run = Counter::start(stops, 0).unwrap();
     let (seen, _) = fit(&mut run);
-    // No unit of work, evaluation or second stop after it; the checkpoint is the end's.
+    // No unit of work, evaluation or second stop after it.
     let eval = |step, metric, best| Progress::Eval {
         step,
         score: Score {
@@ -221,7 +226,7 @@ fn the_learners_stopping_rule_ends_the_run_after_the_evaluation_that_decided_it(
 }
 
 #[test]
-fn a_resumed_run_continues_its_schedules_and_every_zero_is_never() {
+fn a_resumed_run_continues_its_schedules_and_the_end_is_evaluated_only_when_asked() {
     // Resumed at a multiple: the next one is due, not the one it stands on.
     let mut run = Counter::resume(Path::new("."), 300, &plan(&[0.1, 0.2, 0.3])).unwrap();
     let (seen, _) = fit(&mut run);
@@ -233,6 +238,14 @@ fn a_resumed_run_continues_its_schedules_and_every_zero_is_never() {
     let mut run = Counter::start(never, 0).unwrap();
     let (seen, _) = fit(&mut run);
     assert!(evals(&seen).is_empty(), "{seen:?}");
+    // An expert's cadence: no evaluation at the end unless it falls on a multiple.
+    let no_end = Plan {
+        eval_at_end: false,
+        ..plan(&[0.1, 0.2, 0.3, 0.4])
+    };
+    let mut run = Counter::start(no_end, 0).unwrap();
+    let (seen, _) = fit(&mut run);
+    assert_eq!(evals(&seen), [(300, 0.1), (600, 0.2), (900, 0.3)]);
     // A finished run does no work, and still writes its files.
     let mut done = Counter::start(plan(&[]), 1000).unwrap();
     let (seen, log) = fit(&mut done);

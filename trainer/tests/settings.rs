@@ -117,6 +117,10 @@ fn configs_are_checked_against_their_algorithm() {
         let e = Algo::Smile.check_config(bad, pg).unwrap_err().to_string();
         assert!(e.contains(bad.split(' ').next().unwrap()), "{e}");
     }
+    // A plan's table is generated: its errors say what is wrong, not at which line of it.
+    let e = Algo::Smile.check_config("total_updates = \"x\"", pg);
+    let e = e.unwrap_err().to_string();
+    assert!(e.contains("invalid type") && !e.contains("line"), "{e}");
     assert!(Algo::MetaBc.check_config("total_steps = 0", pg).is_err());
     assert!(
         Algo::MetaBc

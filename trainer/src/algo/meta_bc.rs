@@ -98,7 +98,7 @@ impl MetaBc {
                     e.family()
                 )));
             }
-            (Some(_), false) => return Err(Error::takes_no_expert("meta-bc")),
+            (Some(_), false) => return Err(Error::takes_no_expert("meta-bc", None)),
             _ => {}
         }
         // Only Meta-DAgger holds one here: the match above refused it to Meta-BC.
@@ -524,7 +524,7 @@ impl Learner for MetaBc {
                 ("eval/val_best_metric", self.best_metric as f64),
             ],
             score: Score {
-                what: "held-out train-task metric",
+                what: "held-out metric",
                 metric: val_metric,
                 best: self.best_metric,
                 val_mse: Some(val_mse),

@@ -40,14 +40,14 @@
 //! w(u) = bc_weight (1 - u / bc_decay_updates)+   (or bc_weight when bc_decay_updates = 0)
 //! ```
 //!
-//! This file is the algorithm, read top to bottom: the run, its rollouts and iteration, its
-//! hooks in the one fit loop ([`Learner`]), then the update pair's two halves with each loss above its optimiser step (the
-//! discriminator's here; SAC's critic, actor and temperature steps called in order, their
-//! arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term here). No thread is named in
-//! the math: around it, `batch` draws both halves' batches, `overlap` runs a pair's halves, the
-//! discriminator loss's parts and the rollouts at once on N learner threads, `persist`
-//! checkpoints a run and `config` holds its settings (and how the typed settings land in them,
-//! [`MetaSettings`](crate::MetaSettings)).
+//! This file is the algorithm, read top to bottom: the run, its rollouts, iteration and update
+//! pair, its hooks in the one fit loop ([`Learner`]), then the pair's two halves with each loss
+//! above its optimiser step (the discriminator's here; SAC's critic, actor and temperature
+//! steps called in order, their arithmetic in [`crate::algo::sac`], SMILe + BC's cloning term
+//! here). No thread is named in the math: around it, `batch` draws both halves' batches,
+//! `overlap` runs a pair's halves, the discriminator loss's parts and the rollouts at once on N
+//! learner threads, `persist` checkpoints a run and `config` holds its settings (and how the
+//! typed settings land in them, [`MetaSettings`](crate::MetaSettings)).
 
 use std::path::Path;
 
@@ -416,14 +416,14 @@ impl Learner for Smile {
 
     fn start(cfg: SmileConfig, inputs: MetaInputs) -> Result<Self> {
         if inputs.expert.is_some() {
-            return Err(Error::takes_no_expert(cfg.algo_name()));
+            return Err(Error::takes_no_expert(cfg.algo_name(), None));
         }
         Smile::new(cfg, inputs.data)
     }
 
     fn resume(dir: &Path, inputs: MetaInputs, wanted: &SmileConfig) -> Result<Self> {
         if inputs.expert.is_some() {
-            return Err(Error::takes_no_expert(wanted.algo_name()));
+            return Err(Error::takes_no_expert(wanted.algo_name(), None));
         }
         let mut run = Smile::resume(dir, inputs.data, Some(wanted.total_updates))?;
         run.set_cpu_budget(wanted.cpu_budget_s)?;

@@ -80,8 +80,10 @@ pub(super) fn parse<C: MetaSettings>(
     let env = table.get("env");
     if let Some(env) = env.filter(|e| e.as_str() != Some(family.name())) {
         let name = name.unwrap_or("the configuration");
-        let e = format!("{name} sets env = {env} but the run is on {on}; remove the key");
-        return Err(Error::Config(e));
+        return Err(Error::Config(format!(
+            "{name} sets env = {env} but the run is on {on}; remove the key, or train on {env} \
+             demos"
+        )));
     }
     crate::io::from_toml_over_defaults(text).map_err(|e| {
         Error::Config(match name {
