@@ -23,7 +23,7 @@ use crate::algo::learner::{Learner, Unit};
 use crate::algo::sac::{Sac, SacConfig, SacCounters, SacStats};
 use crate::data::{ReplayBuffer, better};
 mod demos;
-mod set;
+pub(crate) mod set;
 use crate::error::{Error, Result};
 use crate::io::checkpoint::{POLICY_FILE, rng_state};
 use crate::io::{MetricsLog, checkpoint};

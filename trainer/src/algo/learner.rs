@@ -15,7 +15,7 @@ use sim::Family;
 
 pub use crate::algo::fit::{Cadence, Evaluation, Fields, Progress, Score};
 
-use crate::algo::expert::ExpertSet;
+use crate::algo::expert::set::ExpertSet;
 use crate::algo::setting::Setting;
 use crate::data::MetaData;
 use crate::error::{Error, Result};

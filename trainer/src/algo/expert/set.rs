@@ -6,7 +6,7 @@ use std::path::Path;
 use serde::Serialize;
 use sim::{EnvConfig, EpisodeMetric, Family, Task};
 
-use super::Expert;
+use super::policy::Expert;
 use crate::error::{Error, Result};
 use crate::io::checkpoint;
 use crate::io::checkpoint::POLICY_FILE;
