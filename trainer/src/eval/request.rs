@@ -417,10 +417,6 @@ pub(crate) const REPORT_FILES: [&str; 3] = ["eval.md", "eval.svg", "eval.json"];
 /// `eval.json` (no numbers to report), never the old numbers beside the new pictures.
 pub fn write_report(report: &EvalReport, out: &Path) -> Result<()> {
     let staged = |name: &str| out.join(format!(".{name}.staged"));
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |e| Error::Io { path, source: e }
-    };
     let stage = || -> Result<()> {
         let write = crate::io::checkpoint::write_atomic;
         write(&staged("eval.md"), report.markdown().as_bytes())?;
@@ -439,12 +435,12 @@ pub fn write_report(report: &EvalReport, out: &Path) -> Result<()> {
     }
     let json = out.join("eval.json");
     match std::fs::remove_file(&json) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(io(&json)(e)),
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => return Err(Error::io(&json)(e)),
         _ => {}
     }
     for name in REPORT_FILES {
         let to = out.join(name);
-        std::fs::rename(staged(name), &to).map_err(io(&to))?;
+        std::fs::rename(staged(name), &to).map_err(Error::io(&to))?;
     }
     Ok(())
 }

@@ -22,17 +22,15 @@ impl DirLock {
     /// Locks `dir` (created if missing) for this process, or fails with [`Error::Locked`]
     /// naming the holder's pid.
     pub fn acquire(dir: &Path) -> Result<Self> {
-        let io = |e: std::io::Error| Error::Io {
-            path: dir.join(LOCK_FILE),
-            source: e,
-        };
+        let lock = dir.join(LOCK_FILE);
+        let io = Error::io(&lock);
         std::fs::create_dir_all(dir).map_err(Error::io(dir))?;
         let mut file = std::fs::OpenOptions::new()
             .read(true)
             .write(true)
             .create(true)
             .truncate(false)
-            .open(dir.join(LOCK_FILE))
+            .open(&lock)
             .map_err(io)?;
         match file.try_lock() {
             Ok(()) => {}
@@ -41,7 +39,7 @@ impl DirLock {
                 let _ = file.read_to_string(&mut pid);
                 let pid = pid.trim();
                 return Err(Error::Locked {
-                    lock: dir.join(LOCK_FILE),
+                    lock: lock.clone(),
                     path: dir.to_path_buf(),
                     pid: if pid.is_empty() {
                         "?".into()
